@@ -1,0 +1,166 @@
+"""Actions, fallbacks, and the decorators that expose component methods to them.
+
+``Action(method, args, kwargs)`` wraps a callable to run when an event fires or a component
+fails. Arguments may be field references such as ``topic.msg.data``: they are replaced by the
+matching part of the message that fired the event. An action whose method belongs to a
+component runs on that component's serial worker, never concurrently with its steps.
+
+``@component_action`` marks a method that outside callers may run through the component's
+``execute_method`` service (an allow-list: nothing else is callable); its description follows
+the OpenAI tool format so a language model can be given the same list. ``@component_fallback``
+marks a method meant for ``on_*_fail`` handlers.
+"""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Callable, Mapping, Sequence
+from typing import Any, TypeVar, overload
+
+from .conditions import FieldRef
+from .errors import ConfigError
+
+__all__ = ["Action", "Fallback", "component_action", "component_fallback"]
+
+F = TypeVar("F", bound=Callable[..., Any])
+
+ACTION_MARK = "_agents_component_action"
+FALLBACK_MARK = "_agents_component_fallback"
+
+
+class Action:
+    """A deferred call: ``method(*args, **kwargs)``, with message fields resolved at run time."""
+
+    def __init__(self, method: Callable[..., Any], args: Sequence[Any] | Any = (),
+                 kwargs: Mapping[str, Any] | None = None) -> None:
+        if not callable(method):
+            raise ConfigError(f"Action method must be callable, got {type(method).__name__}")
+        self.method = method
+        self.args = tuple(args) if isinstance(args, list | tuple) else (args,)
+        self.kwargs = dict(kwargs or {})
+
+    @property
+    def owner(self) -> Any:
+        """The object the method is bound to (a component, for component methods), else None."""
+        return getattr(self.method, "__self__", None)
+
+    @property
+    def name(self) -> str:
+        return getattr(self.method, "__name__", type(self.method).__name__)
+
+    @property
+    def topics(self) -> dict[str, Any]:
+        """Topics whose messages the arguments refer to."""
+        refs = [a for a in (*self.args, *self.kwargs.values()) if isinstance(a, FieldRef)]
+        return {r.topic.name: r.topic for r in refs}
+
+    def resolve(self, values: Mapping[str, Any] | None = None) -> tuple[tuple[Any, ...], dict[str, Any]]:
+        """The concrete arguments, with field references read from ``values`` (topic name -> message)."""
+        values = values or {}
+
+        def one(arg: Any) -> Any:
+            if isinstance(arg, FieldRef):
+                if arg.topic.name not in values:
+                    raise ConfigError(f"action {self.name!r} needs a message from topic {arg.topic.name!r}, "
+                                      "which the firing event did not carry")
+                return arg.resolve(values[arg.topic.name])
+            return arg
+
+        return tuple(one(a) for a in self.args), {k: one(v) for k, v in self.kwargs.items()}
+
+    def __call__(self, values: Mapping[str, Any] | None = None) -> Any:
+        args, kwargs = self.resolve(values)
+        return self.method(*args, **kwargs)
+
+    def __repr__(self) -> str:
+        return f"Action({self.name}, args={self.args!r}, kwargs={self.kwargs!r})"
+
+
+class Fallback:
+    """What a component does when it fails: try each action up to ``max_retries`` times, in order.
+
+    ``max_retries=None`` retries the last action forever; once every action is used up the
+    component gives up (and runs its ``on_giveup`` actions once).
+    """
+
+    def __init__(self, actions: Action | Sequence[Action], max_retries: int | None = None) -> None:
+        self.actions = [actions] if isinstance(actions, Action) else list(actions)
+        if not self.actions or not all(isinstance(a, Action) for a in self.actions):
+            raise ConfigError("a fallback needs one or more Action objects")
+        if max_retries is not None and (isinstance(max_retries, bool) or not isinstance(max_retries, int)
+                                        or max_retries < 1):
+            raise ConfigError(f"max_retries must be a positive int or None, got {max_retries!r}")
+        self.max_retries = max_retries
+        self._index = 0
+        self._tries = 0
+
+    def next_action(self) -> Action | None:
+        """The action to run for this failure, or None when the fallback is exhausted."""
+        if self._index >= len(self.actions):
+            return None
+        action = self.actions[self._index]
+        self._tries += 1
+        last = self._index == len(self.actions) - 1
+        limit = self.max_retries if self.max_retries is not None else (None if last else 1)
+        if limit is not None and self._tries >= limit:
+            self._index += 1
+            self._tries = 0
+        return action
+
+    def reset(self) -> None:
+        """Start again from the first action (called when the component is healthy again)."""
+        self._index = 0
+        self._tries = 0
+
+
+def _description_for(func: Callable[..., Any], description: Mapping[str, Any] | None) -> dict[str, Any]:
+    if description is not None:
+        if "name" not in description and "function" not in description:
+            return {"type": "function", "function": {"name": func.__name__, **description}}
+        return dict(description)
+    doc = (func.__doc__ or "").strip().split("\n\n")[0].replace("\n", " ")
+    return {"type": "function",
+            "function": {"name": func.__name__, "description": doc,
+                         "parameters": {"type": "object", "properties": {}, "required": []}}}
+
+
+@overload
+def component_action(func: F, /) -> F: ...
+@overload
+def component_action(*, description: Mapping[str, Any] | None = None) -> Callable[[F], F]: ...
+
+
+def component_action(func: Any = None, /, *, description: Mapping[str, Any] | None = None) -> Any:
+    """Mark a component method as callable by actions and the ``execute_method`` service.
+
+    ``description`` is an OpenAI-style tool description (``{"description": ..., "parameters":
+    {...}}``, or the full ``{"type": "function", "function": {...}}``); by default it is built
+    from the method's name and the first paragraph of its docstring.
+    """
+
+    def mark(f: F) -> F:
+        @functools.wraps(f)
+        def wrapper(*args: Any, **kwargs: Any) -> Any:
+            return f(*args, **kwargs)
+
+        setattr(wrapper, ACTION_MARK, _description_for(f, description))
+        return wrapper  # type: ignore[return-value]
+
+    return mark(func) if func is not None else mark
+
+
+@overload
+def component_fallback(func: F, /) -> F: ...
+@overload
+def component_fallback(*, description: Mapping[str, Any] | None = None) -> Callable[[F], F]: ...
+
+
+def component_fallback(func: Any = None, /, *, description: Mapping[str, Any] | None = None) -> Any:
+    """Mark a component method as a fallback (it is also callable as a component action)."""
+
+    def mark(f: F) -> F:
+        marked = component_action(description=description)(f)
+        setattr(marked, FALLBACK_MARK, True)
+        return marked
+
+    return mark(func) if func is not None else mark

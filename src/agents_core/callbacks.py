@@ -1,0 +1,113 @@
+"""Input callbacks: what a component reads its inputs from.
+
+A component has one callback per input topic (``self.callbacks`` / ``self.trig_callbacks``,
+keyed by topic name). The transport thread only stores the received value (and enqueues a step
+for a trigger topic); ``_execution_step`` reads it with :meth:`GenericCallback.get_output`.
+
+During a step fired by a trigger topic, that topic's ``get_output()`` returns the very message
+that fired the step, even if newer ones arrived meanwhile, so every triggering message is
+processed once, in order. Other inputs give their latest value.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Callable
+from typing import Any
+
+from .topics import FixedInput, Topic
+
+__all__ = ["FixedCallback", "GenericCallback", "callback_for"]
+
+_UNSET: Any = object()
+
+
+class GenericCallback:
+    """Buffers the latest value of one input topic."""
+
+    def __init__(self, topic: Topic) -> None:
+        self.input_topic = topic
+        self._lock = threading.Lock()
+        self._latest: Any = None
+        self._step_value: Any = _UNSET
+        self._received = 0
+        self._post_callbacks: list[Callable[[Any], None]] = []
+        self._postprocessors: list[Callable[[Any], Any]] = []
+
+    @property
+    def got_msg(self) -> bool:
+        """True once any value has been received."""
+        return self._received > 0
+
+    @property
+    def received(self) -> int:
+        """How many values arrived so far."""
+        return self._received
+
+    @property
+    def msg(self) -> Any:
+        """The latest received value in its message form (e.g. an ImageMsg with its header)."""
+        if self._step_value is not _UNSET:
+            return self._step_value
+        return self._latest
+
+    def on_callback_execute(self, func: Callable[[Any], None]) -> None:
+        """Also call ``func(value)`` on every arrival (on the transport's thread: keep it short)."""
+        self._post_callbacks.append(func)
+
+    def add_post_processor(self, func: Callable[[Any], Any]) -> None:
+        """Transform the output of :meth:`get_output` with ``func`` (applied in the order added)."""
+        self._postprocessors.append(func)
+
+    def _receive(self, value: Any) -> None:
+        with self._lock:
+            self._latest = value
+            self._received += 1
+        for func in self._post_callbacks:
+            func(value)
+
+    def _clear(self) -> None:
+        with self._lock:
+            self._latest = None
+
+    def _begin_step(self, value: Any) -> None:
+        """Pin the value that fired the current step (read by ``get_output`` until ``_end_step``)."""
+        self._step_value = value
+
+    def _end_step(self) -> None:
+        self._step_value = _UNSET
+
+    def get_output(self, clear_last: bool = False) -> Any:
+        """The value for the current step, converted for use (e.g. an Image as an RGB array).
+
+        None until a value has arrived. ``clear_last`` forgets the latest value after reading
+        it, so the next step sees None unless a new one arrives.
+        """
+        value = self.msg
+        if clear_last and self._step_value is _UNSET:
+            self._clear()
+        if value is None:
+            return None
+        out = self.input_topic.msg_type.to_output(value)
+        for func in self._postprocessors:
+            out = func(out)
+        return out
+
+
+class FixedCallback(GenericCallback):
+    """The callback of a :class:`~agents_core.topics.FixedInput`: always has its fixed value."""
+
+    def __init__(self, topic: FixedInput) -> None:
+        super().__init__(topic)
+        self._latest = topic.fixed
+        self._received = 1
+
+    def _clear(self) -> None:
+        """A fixed input never forgets its value."""
+
+
+def callback_for(topic: Topic) -> GenericCallback:
+    """The callback class that fits ``topic``."""
+    if isinstance(topic, FixedInput):
+        return FixedCallback(topic)
+    return GenericCallback(topic)

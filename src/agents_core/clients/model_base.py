@@ -1,0 +1,132 @@
+"""``ModelClient``: the base of every client that reaches a model serving platform.
+
+Implement ``_check_connection``, ``_initialize``, ``_inference`` and ``_deinitialize``. The
+public methods of the same names without the underscore are what components call: they turn
+any failure into a typed :class:`~agents_core.errors.ModelClientError` and check the result,
+so a failed inference is never a silent ``None``.
+"""
+
+from __future__ import annotations
+
+import time
+from abc import abstractmethod
+from collections.abc import MutableMapping
+from typing import Any
+
+from ..errors import ConfigError, InferenceError, ProtocolError
+from ..models import Model
+from .client_base import BaseClient
+
+__all__ = ["ModelClient"]
+
+_MODEL_SPEC_KEYS = {"model_name", "model_type", "init_timeout", "model_init_params"}
+
+
+class ModelClient(BaseClient):
+    """Connection to a model serving platform for one model.
+
+    :param model: the :class:`~agents_core.models.Model`, or its serialized dict.
+    :param host: server host name or address.
+    :param port: server port.
+    :param inference_timeout: seconds an inference may take before it fails.
+    :param init_on_activation: call ``_initialize()`` during configure.
+    :param logging_level: ``"debug"``, ``"info"``, ...
+    """
+
+    def __init__(
+        self,
+        model: Model | dict[str, Any],
+        host: str | None = None,
+        port: int | None = None,
+        inference_timeout: int | float = 30,
+        init_on_activation: bool = True,
+        logging_level: str = "info",
+        **kwargs: Any,
+    ) -> None:
+        if kwargs:
+            raise ConfigError(f"{type(self).__name__}: unexpected argument(s) {sorted(kwargs)}")
+        super().__init__(host=host, port=port, init_on_activation=init_on_activation, logging_level=logging_level)
+        if isinstance(model, Model):
+            self.model_name = model.name
+            self.model_type = type(model).__name__
+            self.init_timeout = model.init_timeout
+            self.model_init_params: dict[str, Any] = model._get_init_params()
+        elif isinstance(model, dict):
+            missing = _MODEL_SPEC_KEYS - set(model)
+            if missing:
+                raise ConfigError(f"{type(self).__name__}: model spec lacks {sorted(missing)}")
+            self.model_name = str(model["model_name"])
+            self.model_type = str(model["model_type"])
+            self.init_timeout = model["init_timeout"]
+            self.model_init_params = dict(model["model_init_params"])
+        else:
+            raise ConfigError(f"{type(self).__name__}: model must be a Model or its dict, got {type(model).__name__}")
+        if isinstance(inference_timeout, bool) or not isinstance(inference_timeout, int | float) \
+                or inference_timeout <= 0:
+            raise ConfigError(f"{type(self).__name__}: inference_timeout must be > 0 s, got {inference_timeout!r}")
+        self.inference_timeout = inference_timeout
+        self.initialized = False
+        self.last_inference_seconds: float | None = None
+
+    # -- what subclasses implement ------------------------------------------------------------
+
+    @abstractmethod
+    def _check_connection(self) -> None:
+        """Raise if the platform cannot be reached."""
+
+    @abstractmethod
+    def _initialize(self) -> None:
+        """Load the model on the platform (uses ``self.model_init_params``)."""
+
+    @abstractmethod
+    def _inference(self, inference_input: dict[str, Any]) -> MutableMapping[str, Any] | None:
+        """Run one inference; return a dict with at least ``"output"`` (a generator when streaming)."""
+
+    @abstractmethod
+    def _deinitialize(self) -> None:
+        """Release the model on the platform."""
+
+    @property
+    def supports_tool_calls(self) -> bool:
+        """Whether the platform handles tool descriptions (components then send them)."""
+        return False
+
+    # -- what components call -----------------------------------------------------------------
+
+    def check_connection(self) -> None:
+        """Verify the platform is reachable (typed error otherwise)."""
+        self._guard("connection check", self._check_connection)
+
+    def initialize(self) -> None:
+        """Load the model on the platform."""
+        self._guard("initialize", self._initialize)
+        self.initialized = True
+
+    def inference(self, inference_input: dict[str, Any]) -> MutableMapping[str, Any]:
+        """Run one inference; raises a typed error on failure or on a result without ``output``."""
+        start = time.monotonic()
+        result = self._guard("inference", lambda: self._inference(inference_input))
+        self.last_inference_seconds = time.monotonic() - start
+        if result is None:
+            raise InferenceError(f"{self._label()}: inference with model {self.model_name!r} returned nothing")
+        if "output" not in result:
+            raise ProtocolError(f"{self._label()}: inference result has no 'output' key: {sorted(result)}")
+        return result
+
+    def deinitialize(self) -> None:
+        """Release the model (errors are typed and raised)."""
+        try:
+            self._guard("deinitialize", self._deinitialize)
+        finally:
+            self.initialized = False
+
+    def serialize(self) -> dict[str, Any]:
+        spec = super().serialize()
+        spec["model"] = {
+            "model_name": self.model_name,
+            "model_type": self.model_type,
+            "init_timeout": self.init_timeout,
+            "model_init_params": self.model_init_params,
+        }
+        spec["inference_timeout"] = self.inference_timeout
+        return spec

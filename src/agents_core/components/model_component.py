@@ -1,0 +1,216 @@
+"""``ModelComponent``: a component that calls a model through a client or a built-in local model.
+
+Subclasses implement ``_execution_step``, ``_create_input``, ``_warmup`` and
+``_handle_websocket_streaming``, and declare ``self.handled_outputs`` (the output types they can
+produce) before ``super().__init__``.
+
+Configure connects the client (``check_connection``, then ``initialize`` when
+``init_on_activation``) or deploys the local model, then warms up if ``config.warmup``.
+``_call_inference`` raises a typed error when inference fails; the runtime turns it into a
+health status and runs the configured fallback (for instance ``change_model_client`` or
+``fallback_to_local``).
+"""
+
+from __future__ import annotations
+
+import queue
+import threading
+from collections.abc import Callable, Mapping, MutableMapping, Sequence
+from typing import Any
+
+from ..actions import component_fallback
+from ..clients.model_base import ModelClient
+from ..config import ModelComponentConfig
+from ..errors import ComponentError, ConfigError, InferenceError, WiringError
+from ..supported_types import SupportedType
+from ..topics import Topic
+from .component_base import Component, TriggerType
+
+__all__ = ["ModelComponent"]
+
+
+class ModelComponent(Component):
+    """A component whose steps call a model.
+
+    :param model_client: the client to call (None with ``config.enable_local_model``).
+    :param additional_model_clients: other clients by name, for :meth:`change_model_client`.
+    Other parameters as :class:`~agents_core.components.component_base.Component`.
+    """
+
+    config_class = ModelComponentConfig
+
+    def __init__(
+        self,
+        inputs: Sequence[Topic] | None = None,
+        outputs: Sequence[Topic] | None = None,
+        model_client: ModelClient | None = None,
+        config: ModelComponentConfig | None = None,
+        trigger: TriggerType = 1.0,
+        component_name: str = "model_component",
+        additional_model_clients: Mapping[str, ModelClient] | None = None,
+        **kwargs: Any,
+    ) -> None:
+        if not hasattr(self, "handled_outputs"):
+            self.handled_outputs: list[type[SupportedType]] = []
+        if config is not None and not isinstance(config, ModelComponentConfig):
+            raise ConfigError(f"component {component_name!r}: config must be a ModelComponentConfig, "
+                              f"got {type(config).__name__}")
+        super().__init__(inputs=inputs, outputs=outputs, config=config, trigger=trigger,
+                         component_name=component_name, **kwargs)
+        self.config: ModelComponentConfig
+        if model_client is not None and not isinstance(model_client, ModelClient):
+            raise WiringError(f"component {self.component_name!r}: model_client must be a ModelClient, "
+                              f"got {type(model_client).__name__}")
+        if model_client is None and not self.config.enable_local_model:
+            raise WiringError(f"component {self.component_name!r} needs a model_client, or "
+                              "config.enable_local_model=True to use the built-in local model")
+        self.model_client = model_client
+        self.additional_model_clients: dict[str, ModelClient] = dict(additional_model_clients or {})
+        for key, client in self.additional_model_clients.items():
+            if not isinstance(client, ModelClient):
+                raise WiringError(f"component {self.component_name!r}: additional model client {key!r} "
+                                  f"is a {type(client).__name__}, not a ModelClient")
+        self._validate_handled_outputs()
+        self.local_model: Callable[..., Any] | None = None
+        self.req_queue: queue.Queue[dict[str, Any]] = queue.Queue()
+        self.resp_queue: queue.Queue[Any] = queue.Queue()
+        self._streaming_stop = threading.Event()
+        self._streaming_thread: threading.Thread | None = None
+
+    def _validate_handled_outputs(self) -> None:
+        if not self.handled_outputs:
+            return
+        for t in self.outputs:
+            if not any(issubclass(t.msg_type, h) for h in self.handled_outputs):
+                raise WiringError(
+                    f"component {self.component_name!r} cannot produce {t.type_name} for output {t.name!r}; "
+                    f"it produces {[h.type_name() for h in self.handled_outputs]}"
+                )
+
+    @property
+    def inference_params(self) -> dict[str, Any]:
+        """The config's per-inference parameters (``config._get_inference_params()``)."""
+        return self.config._get_inference_params()
+
+    # -- lifecycle ----------------------------------------------------------------------------
+
+    def custom_on_configure(self) -> None:
+        if self.model_client is not None:
+            self._start_client(self.model_client)
+        elif self.config.enable_local_model:
+            self._deploy_local_model()
+        if self.config.warmup:
+            self._logger.info("warming up")
+            self._warmup()
+
+    def _start_client(self, client: ModelClient) -> None:
+        client.check_connection()
+        if client.init_on_activation:
+            client.initialize()
+
+    def custom_on_activate(self) -> None:
+        if getattr(self.config, "stream", False) and getattr(self.model_client, "is_websocket", False):
+            self._streaming_stop.clear()
+            self._streaming_thread = threading.Thread(target=self._streaming_loop,
+                                                      name=f"stream:{self.component_name}", daemon=True)
+            self._streaming_thread.start()
+
+    def custom_on_deactivate(self) -> None:
+        self._streaming_stop.set()
+        if self._streaming_thread is not None:
+            self._streaming_thread.join(timeout=5.0)
+            self._streaming_thread = None
+
+    def custom_on_shutdown(self) -> None:
+        if self.model_client is not None and self.model_client.initialized:
+            try:
+                self.model_client.deinitialize()
+            except Exception as exc:
+                self._logger.warning("model client did not deinitialize cleanly: %s", exc)
+
+    def _streaming_loop(self) -> None:
+        # A short poll keeps token latency low without a busy loop (1 ms, as upstream).
+        while not self._streaming_stop.wait(0.001):
+            try:
+                self._handle_websocket_streaming()
+            except Exception:
+                self._logger.exception("streaming handler raised")
+
+    # -- inference ----------------------------------------------------------------------------
+
+    def _call_inference(self, inference_input: dict[str, Any], unpack: bool = False) -> MutableMapping[str, Any]:
+        """Run inference on the client, or on the local model when there is no client.
+
+        Raises a :class:`~agents_core.errors.ModelClientError` subclass on failure.
+        """
+        if self.model_client is not None:
+            return self.model_client.inference(inference_input)
+        if self.local_model is not None:
+            result = self.local_model(**inference_input) if unpack else self.local_model(inference_input)
+            if result is None or "output" not in result:
+                raise InferenceError(f"component {self.component_name!r}: the local model returned no output")
+            return dict(result)
+        raise ComponentError(f"component {self.component_name!r} has neither a model client nor a local model")
+
+    def _publish(self, result: Mapping[str, Any], **kwargs: Any) -> None:
+        """Publish ``result["output"]`` on every output topic."""
+        output = result["output"]
+        for pub in self.publishers_dict.values():
+            pub.publish(output)
+
+    # -- switching models ---------------------------------------------------------------------
+
+    @component_fallback(description={
+        "description": "Switch to another of the component's model clients, by name.",
+        "parameters": {"type": "object",
+                       "properties": {"model_client_name": {"type": "string",
+                                                            "description": "key in additional_model_clients"}},
+                       "required": ["model_client_name"]},
+    })
+    def change_model_client(self, model_client_name: str) -> bool:
+        """Switch to ``additional_model_clients[model_client_name]`` (connected and initialized first)."""
+        client = self.additional_model_clients.get(model_client_name)
+        if client is None:
+            raise ComponentError(f"component {self.component_name!r} has no additional model client "
+                                 f"{model_client_name!r} (has {sorted(self.additional_model_clients)})")
+        self._start_client(client)
+        old = self.model_client
+        self.model_client = client
+        if old is not None and old is not client and old.initialized:
+            try:
+                old.deinitialize()
+            except Exception as exc:  # the old server is often the one that failed
+                self._logger.warning("previous model client did not deinitialize: %s", exc)
+        self._logger.info("now using model client %r", model_client_name)
+        return True
+
+    @component_fallback(description={
+        "description": "Stop using the remote model client and answer with the built-in local model.",
+        "parameters": {"type": "object", "properties": {}, "required": []},
+    })
+    def fallback_to_local(self) -> bool:
+        """Switch from the model client to the component's built-in local model."""
+        if self.local_model is None:
+            self.config.enable_local_model = True
+            self._deploy_local_model()
+        self.model_client = None
+        self._logger.info("now using the local model")
+        return True
+
+    def _deploy_local_model(self) -> None:
+        """Create ``self.local_model`` (components with a built-in local model override this)."""
+        raise ComponentError(f"component {self.component_name!r} ({type(self).__name__}) has no built-in local model")
+
+    # -- what subclasses implement --------------------------------------------------------------
+
+    def _create_input(self, *args: Any, **kwargs: Any) -> dict[str, Any] | None:
+        """Assemble the inference input from the callbacks (None: nothing to do this step)."""
+        raise NotImplementedError(f"{type(self).__name__} must implement _create_input()")
+
+    def _warmup(self, *args: Any, **kwargs: Any) -> None:
+        """Run a dummy inference so the first real one is fast (called at configure if enabled)."""
+        raise NotImplementedError(f"{type(self).__name__} must implement _warmup()")
+
+    def _handle_websocket_streaming(self) -> Any:
+        """Publish partial results from ``self.resp_queue`` (streaming WebSocket clients only)."""
+        return None

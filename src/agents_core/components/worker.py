@@ -1,0 +1,179 @@
+"""A component's serial worker and its periodic timer.
+
+Each component runs everything it does (steps, actions, fallbacks) on one thread of its own, so
+two steps of a component never overlap and a slow model never blocks a transport thread.
+
+The worker has two lanes: *steps* (bounded by ``execution_queue_depth``; when full, the policy
+``drop_oldest`` or ``drop_newest`` decides which step is discarded, and the drop is counted) and
+*control* items (actions, fallbacks, service calls), which are never dropped and run before
+pending steps.
+"""
+
+from __future__ import annotations
+
+import collections
+import logging
+import threading
+from collections.abc import Callable
+from concurrent.futures import Future
+from typing import Any, Literal
+
+from attrs import define
+
+from ..errors import ComponentError
+
+__all__ = ["PeriodicTimer", "StepWorker", "WorkerStatistics"]
+
+logger = logging.getLogger(__name__)
+
+#: Control items beyond this many pending mean something is flooding a component with actions.
+MAX_PENDING_CONTROL = 10_000
+
+
+@define
+class WorkerStatistics:
+    """Counters of a component's worker."""
+
+    submitted: int = 0
+    executed: int = 0
+    dropped: int = 0
+    discarded: int = 0
+    pending: int = 0
+
+
+class StepWorker:
+    """Runs submitted callables one at a time on a dedicated thread."""
+
+    def __init__(self, name: str, depth: int, policy: Literal["drop_oldest", "drop_newest"]) -> None:
+        self.name = name
+        self.depth = depth
+        self.policy = policy
+        self._steps: collections.deque[Callable[[], None]] = collections.deque()
+        self._control: collections.deque[Callable[[], None]] = collections.deque()
+        self._cond = threading.Condition()
+        self._stats = WorkerStatistics()
+        self._stopping = False
+        self._thread = threading.Thread(target=self._run, name=f"worker:{name}", daemon=True)
+        self._thread.start()
+
+    @property
+    def on_worker_thread(self) -> bool:
+        """True when called from this worker's own thread."""
+        return threading.current_thread() is self._thread
+
+    def submit_step(self, step: Callable[[], None]) -> bool:
+        """Queue a step; returns False if the queue policy dropped this one."""
+        with self._cond:
+            if self._stopping:
+                return False
+            self._stats.submitted += 1
+            if len(self._steps) >= self.depth:
+                self._stats.dropped += 1
+                if self.policy == "drop_newest":
+                    return False
+                self._steps.popleft()
+            self._steps.append(step)
+            self._cond.notify()
+            return True
+
+    def submit_control(self, func: Callable[[], Any]) -> Future[Any]:
+        """Queue a control item ahead of pending steps; its result arrives in the returned future."""
+        future: Future[Any] = Future()
+
+        def run() -> None:
+            if not future.set_running_or_notify_cancel():
+                return
+            try:
+                future.set_result(func())
+            except BaseException as exc:
+                future.set_exception(exc)
+
+        with self._cond:
+            if self._stopping:
+                raise ComponentError(f"component {self.name!r} is shut down")
+            if len(self._control) >= MAX_PENDING_CONTROL:
+                raise ComponentError(f"component {self.name!r} has {MAX_PENDING_CONTROL} pending actions")
+            self._control.append(run)
+            self._cond.notify()
+        return future
+
+    def discard_steps(self) -> int:
+        """Forget the pending steps (on deactivate); returns how many were discarded."""
+        with self._cond:
+            n = len(self._steps)
+            self._steps.clear()
+            self._stats.discarded += n
+            return n
+
+    def statistics(self) -> WorkerStatistics:
+        """A snapshot of the counters."""
+        with self._cond:
+            s = self._stats
+            return WorkerStatistics(s.submitted, s.executed, s.dropped, s.discarded,
+                                    len(self._steps) + len(self._control))
+
+    def _run(self) -> None:
+        while True:
+            with self._cond:
+                while not self._steps and not self._control and not self._stopping:
+                    self._cond.wait()
+                if self._control:
+                    item = self._control.popleft()
+                    is_step = False
+                elif self._steps:
+                    item = self._steps.popleft()
+                    is_step = True
+                else:
+                    return
+            try:
+                item()
+            except Exception:
+                logger.exception("unhandled error on the worker of %r", self.name)
+            if is_step:
+                with self._cond:
+                    self._stats.executed += 1
+
+    def stop(self, timeout: float = 10.0) -> None:
+        """Finish the item in progress and the pending control items, then end the thread."""
+        with self._cond:
+            self._stopping = True
+            self._stats.discarded += len(self._steps)
+            self._steps.clear()
+            self._cond.notify_all()
+        if not self.on_worker_thread:
+            self._thread.join(timeout)
+            if self._thread.is_alive():
+                logger.warning("worker of %r did not stop within %.1f s", self.name, timeout)
+
+
+class PeriodicTimer:
+    """Calls ``func`` at ``rate`` Hz on its own thread until stopped (drift-free schedule)."""
+
+    def __init__(self, rate: float, func: Callable[[], None], name: str) -> None:
+        if rate <= 0:
+            raise ComponentError(f"timer {name!r}: rate must be > 0 Hz, got {rate}")
+        self.period = 1.0 / rate
+        self._func = func
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name=f"timer:{name}", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        import time
+
+        next_time = time.monotonic() + self.period
+        while not self._stop.wait(max(0.0, next_time - time.monotonic())):
+            try:
+                self._func()
+            except Exception:
+                logger.exception("timer %r callback raised", self._thread.name)
+            next_time += self.period
+            now = time.monotonic()
+            if next_time < now:  # fell behind (slow callback): skip missed ticks, keep the phase
+                next_time += ((now - next_time) // self.period + 1) * self.period
+
+    def stop(self) -> None:
+        """Stop ticking; returns once the thread has ended (unless called from the callback)."""
+        self._stop.set()
+        if threading.current_thread() is not self._thread:
+            self._thread.join(timeout=5.0)

@@ -1,0 +1,145 @@
+"""Configuration classes: attrs data with validators, loadable from YAML, TOML or JSON files.
+
+Every config is an attrs class declared with ``@define(kw_only=True)``; assigning a field later
+runs its validator again, so a parameter update can never leave a config invalid.
+
+A config file holds either the fields directly or one section per component name::
+
+    # agents.yaml
+    llm:
+      warmup: true
+      execution_queue_depth: 4
+"""
+
+from __future__ import annotations
+
+import copy
+import json
+import sys
+from pathlib import Path
+from typing import Any, Literal, TypeVar
+
+import attrs
+import yaml
+from attrs import define, field
+
+from . import base_validators
+from .errors import ConfigError
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - exercised on Python 3.10 only
+    import tomli as tomllib
+
+__all__ = ["BaseAttrs", "BaseComponentConfig", "ModelComponentConfig", "load_config_file"]
+
+T = TypeVar("T", bound="BaseAttrs")
+
+
+def load_config_file(path: str | Path) -> dict[str, Any]:
+    """Read a YAML (.yaml/.yml), TOML (.toml) or JSON (.json) file into a dict."""
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise ConfigError(f"cannot read config file {p}: {exc}") from exc
+    suffix = p.suffix.lower()
+    try:
+        if suffix in (".yaml", ".yml"):
+            data = yaml.safe_load(text)
+        elif suffix == ".toml":
+            data = tomllib.loads(text)
+        elif suffix == ".json":
+            data = json.loads(text)
+        else:
+            raise ConfigError(f"config file {p}: unknown format {suffix!r} (use .yaml, .yml, .toml or .json)")
+    except (yaml.YAMLError, tomllib.TOMLDecodeError, json.JSONDecodeError) as exc:
+        raise ConfigError(f"config file {p} is not valid {suffix[1:].upper()}: {exc}") from exc
+    if data is None:
+        return {}
+    if not isinstance(data, dict):
+        raise ConfigError(f"config file {p} must hold a mapping at the top, got {type(data).__name__}")
+    return data
+
+
+@define(kw_only=True)
+class BaseAttrs:
+    """Base of configs and model descriptions: dict and file round trips with clear errors."""
+
+    def asdict(self) -> dict[str, Any]:
+        """The fields as a plain dict (nested attrs values become dicts too)."""
+        return attrs.asdict(self, recurse=True)
+
+    @classmethod
+    def from_dict(cls: type[T], data: dict[str, Any], *, source: str = "") -> T:
+        """Build from a dict, rejecting keys that are not fields (a typo must not pass silently)."""
+        names = {a.alias for a in attrs.fields(cls) if a.init}
+        unknown = sorted(set(data) - names)
+        where = f" in {source}" if source else ""
+        if unknown:
+            raise ConfigError(f"{cls.__name__}: unknown field(s) {unknown}{where}; known fields: {sorted(names)}")
+        try:
+            return cls(**data)
+        except TypeError as exc:
+            raise ConfigError(f"{cls.__name__}{where}: {exc}") from exc
+
+    @classmethod
+    def from_file(cls: type[T], path: str | Path, section: str | None = None) -> T:
+        """Load from a YAML / TOML / JSON file, from ``section`` when the file has one by that name."""
+        data = load_config_file(path)
+        if section is not None and isinstance(data.get(section), dict):
+            data = data[section]
+        return cls.from_dict(data, source=str(path))
+
+    def update(self, **values: Any) -> None:
+        """Set several fields, validating each; on an invalid value nothing is changed."""
+        trial = copy.deepcopy(self)
+        for name, value in values.items():
+            if not hasattr(trial, name) or name.startswith("_"):
+                raise ConfigError(f"{type(self).__name__} has no parameter {name!r}")
+            setattr(trial, name, value)
+        for name in values:
+            setattr(self, name, getattr(trial, name))
+
+
+@define(kw_only=True)
+class BaseComponentConfig(BaseAttrs):
+    """Settings every component has.
+
+    :param execution_queue_depth: how many pending steps the component's worker keeps.
+    :param queue_full_policy: when that queue is full, ``"drop_oldest"`` discards the oldest
+        pending step (the newest input wins, the default for robots) and ``"drop_newest"``
+        discards the incoming one; either way the drop is counted.
+    :param status_rate: how often (Hz) the health status is re-published when nothing changes.
+    :param log_level: ``"debug"``, ``"info"``, ``"warning"`` or ``"error"``.
+    """
+
+    execution_queue_depth: int = field(default=10, validator=base_validators.in_range(1, 100_000))
+    queue_full_policy: Literal["drop_oldest", "drop_newest"] = field(
+        default="drop_oldest", validator=base_validators.in_(["drop_oldest", "drop_newest"])
+    )
+    status_rate: float = field(default=1.0, validator=base_validators.in_range(0.01, 10.0))
+    log_level: str = field(default="info", validator=base_validators.in_(["debug", "info", "warning", "error"]))
+
+
+@define(kw_only=True)
+class ModelComponentConfig(BaseComponentConfig):
+    """Settings of components that call a model.
+
+    :param warmup: run one inference during configure so the first real one is fast.
+    :param enable_local_model: use the built-in local model instead of a model client.
+    :param device_local_model: ``"cpu"`` or ``"cuda"`` for the local model (default cpu: robots
+        without a GPU are the common case, and llama.cpp on cuda needs a CUDA build anyway).
+    :param ncpu_local_model: CPU threads for the local model.
+    :param local_model_path: a local file path or a hub repository id for the local model.
+    """
+
+    warmup: bool = field(default=False)
+    enable_local_model: bool = field(default=False)
+    device_local_model: Literal["cpu", "cuda"] = field(default="cpu", validator=base_validators.in_(["cpu", "cuda"]))
+    ncpu_local_model: int = field(default=1, validator=base_validators.gt(0))
+    local_model_path: str | None = field(default=None)
+
+    def _get_inference_params(self) -> dict[str, Any]:
+        """The subset of fields sent with each inference call (none by default)."""
+        return {}

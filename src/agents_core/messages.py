@@ -1,0 +1,549 @@
+"""Value classes: the plain Python form of every message that flows between components.
+
+Simple types travel as builtins (``str``, ``bool``, ``int``, ``float``) or numpy arrays. Structured
+types are small attrs classes defined here, each with a :class:`Header` (stamp and frame_id)
+that transport conversions preserve end to end. Constructing a value validates it and raises
+:class:`~agents_core.errors.TypeValidationError` naming the field that is wrong.
+
+Values are delivered zero-copy on the memory transport: every subscriber receives the same
+object, so treat received values (and their numpy arrays) as read-only.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import attrs
+import numpy as np
+import numpy.typing as npt
+from attrs import define, field
+
+from .errors import TypeValidationError
+
+__all__ = [
+    "IMAGE_ENCODINGS",
+    "AudioMsg",
+    "ComponentStatusMsg",
+    "CompressedImageMsg",
+    "DetectionsMsg",
+    "Header",
+    "ImageMsg",
+    "JointJogMsg",
+    "JointStateMsg",
+    "JointTrajectoryMsg",
+    "JointTrajectoryPointMsg",
+    "LaserScanMsg",
+    "OccupancyGridMsg",
+    "OdometryMsg",
+    "PointMsg",
+    "PointsOfInterestMsg",
+    "PoseMsg",
+    "StreamingStringMsg",
+    "TrackingsMsg",
+    "TwistMsg",
+    "VideoMsg",
+    "values_equal",
+]
+
+#: Image encodings the core understands: name -> (numpy dtype, channel count).
+IMAGE_ENCODINGS: dict[str, tuple[type[np.generic], int]] = {
+    "rgb8": (np.uint8, 3),
+    "bgr8": (np.uint8, 3),
+    "rgba8": (np.uint8, 4),
+    "bgra8": (np.uint8, 4),
+    "mono8": (np.uint8, 1),
+    "mono16": (np.uint16, 1),
+    "16UC1": (np.uint16, 1),
+}
+
+
+def values_equal(a: Any, b: Any) -> bool:
+    """Deep equality for message values (numpy arrays compared by dtype, shape and content)."""
+    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+        return (
+            isinstance(a, np.ndarray)
+            and isinstance(b, np.ndarray)
+            and a.dtype == b.dtype
+            and a.shape == b.shape
+            and bool(np.array_equal(a, b, equal_nan=a.dtype.kind == "f"))
+        )
+    if attrs.has(type(a)):
+        return type(a) is type(b) and all(
+            values_equal(getattr(a, f.name), getattr(b, f.name)) for f in attrs.fields(type(a))
+        )
+    if isinstance(a, list | tuple) and isinstance(b, list | tuple):
+        return len(a) == len(b) and all(values_equal(x, y) for x, y in zip(a, b, strict=True))
+    return bool(a == b)
+
+
+class _Message:
+    """Mixin giving attrs message classes a numpy-aware ``==``."""
+
+    def __eq__(self, other: object) -> bool:
+        return values_equal(self, other)
+
+    __hash__ = None  # type: ignore[assignment]  # mutable values: unhashable like lists
+
+
+# -- field converters -------------------------------------------------------------------------
+
+
+def _array(
+    dtype: type[np.generic], shape: tuple[int | None, ...], name: str
+) -> Callable[[Any], npt.NDArray[Any]]:
+    """Converter to a numpy array of ``dtype`` whose shape matches ``shape`` (None = any size)."""
+
+    def convert(value: Any) -> npt.NDArray[Any]:
+        try:
+            arr = np.asarray(value)
+            if arr.size == 0:
+                arr = arr.reshape(tuple(0 if d is None else d for d in shape))
+            if arr.dtype != dtype:
+                if arr.dtype.kind not in "biuf":
+                    raise TypeError(f"dtype {arr.dtype} is not numeric")
+                arr = arr.astype(dtype)
+        except (TypeError, ValueError) as exc:
+            raise TypeValidationError(f"field {name!r}: cannot make a {dtype.__name__} array: {exc}") from exc
+        if arr.ndim != len(shape) or any(d is not None and d != s for d, s in zip(shape, arr.shape, strict=True)):
+            want = "x".join("N" if d is None else str(d) for d in shape)
+            raise TypeValidationError(f"field {name!r}: expected shape {want}, got {arr.shape}")
+        return arr
+
+    return convert
+
+
+def _str_list(name: str) -> Callable[[Any], list[str]]:
+    def convert(value: Any) -> list[str]:
+        if isinstance(value, str) or not isinstance(value, Sequence | np.ndarray):
+            raise TypeValidationError(f"field {name!r}: expected a list of str, got {type(value).__name__}")
+        out = list(value)
+        for item in out:
+            if not isinstance(item, str):
+                raise TypeValidationError(f"field {name!r}: expected str items, got {type(item).__name__}")
+        return out
+
+    return convert
+
+
+def _number(name: str) -> Callable[[Any], float]:
+    def convert(value: Any) -> float:
+        if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating):
+            raise TypeValidationError(f"field {name!r}: expected a number, got {type(value).__name__}")
+        return float(value)
+
+    return convert
+
+
+def _instance(cls: type[Any], name: str, optional: bool = False) -> Callable[[Any], Any]:
+    def check(value: Any) -> Any:
+        if value is None and optional:
+            return None
+        if not isinstance(value, cls):
+            raise TypeValidationError(f"field {name!r}: expected {cls.__name__}, got {type(value).__name__}")
+        return value
+
+    return check
+
+
+def _str(name: str) -> Callable[[Any], str]:
+    def check(value: Any) -> str:
+        if not isinstance(value, str):
+            raise TypeValidationError(f"field {name!r}: expected str, got {type(value).__name__}")
+        return value
+
+    return check
+
+
+def _bool(name: str) -> Callable[[Any], bool]:
+    def check(value: Any) -> bool:
+        if not isinstance(value, bool | np.bool_):
+            raise TypeValidationError(f"field {name!r}: expected bool, got {type(value).__name__}")
+        return bool(value)
+
+    return check
+
+
+def _now_ns() -> int:
+    return time.time_ns()
+
+
+def _header_field() -> Any:
+    return field(factory=lambda: Header(), converter=_instance(Header, "header"))
+
+
+# -- header -----------------------------------------------------------------------------------
+
+
+@define(eq=False)
+class Header(_Message):
+    """When and in which coordinate frame a value was produced.
+
+    ``stamp_ns`` is integer nanoseconds since the Unix epoch (integer so that conversions to
+    ROS ``sec``/``nanosec`` are exact); :attr:`stamp` gives it as float seconds.
+    """
+
+    stamp_ns: int = field(factory=_now_ns)
+    frame_id: str = field(default="", converter=_str("frame_id"))
+
+    @stamp_ns.validator
+    def _check_stamp(self, _: attrs.Attribute[int], value: int) -> None:
+        if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 0:
+            raise TypeValidationError(f"field 'stamp_ns': expected a non-negative int, got {value!r}")
+
+    @property
+    def stamp(self) -> float:
+        """The stamp in float seconds since the epoch."""
+        return self.stamp_ns / 1e9
+
+
+# -- text -------------------------------------------------------------------------------------
+
+
+@define(eq=False)
+class StreamingStringMsg(_Message):
+    """A chunk of streamed text: ``stream`` is True while chunks flow, ``done`` on the last one."""
+
+    data: str = field(converter=_str("data"))
+    stream: bool = field(default=False, converter=_bool("stream"))
+    done: bool = field(default=True, converter=_bool("done"))
+    header: Header = _header_field()
+
+
+# -- images, audio, video ---------------------------------------------------------------------
+
+
+def _image_data(value: Any) -> npt.NDArray[Any]:
+    if not isinstance(value, np.ndarray):
+        raise TypeValidationError(f"field 'data': expected a numpy array, got {type(value).__name__}")
+    if value.ndim == 2:
+        value = value[:, :, np.newaxis]
+    if value.ndim != 3:
+        raise TypeValidationError(f"field 'data': expected an HxWxC array, got shape {value.shape}")
+    return value
+
+
+@define(eq=False)
+class ImageMsg(_Message):
+    """An image: an H×W×C numpy array with an encoding from :data:`IMAGE_ENCODINGS`."""
+
+    data: npt.NDArray[Any] = field(converter=_image_data)
+    encoding: str = field(default="rgb8")
+    header: Header = _header_field()
+
+    def __attrs_post_init__(self) -> None:
+        spec = IMAGE_ENCODINGS.get(self.encoding)
+        if spec is None:
+            raise TypeValidationError(
+                f"field 'encoding': {self.encoding!r} is not supported; use one of {sorted(IMAGE_ENCODINGS)}"
+            )
+        dtype, channels = spec
+        if self.data.dtype != dtype or self.data.shape[2] != channels:
+            raise TypeValidationError(
+                f"field 'data': encoding {self.encoding!r} needs {dtype.__name__} with {channels} "
+                f"channel(s), got {self.data.dtype} with shape {self.data.shape}"
+            )
+
+    @property
+    def height(self) -> int:
+        return int(self.data.shape[0])
+
+    @property
+    def width(self) -> int:
+        return int(self.data.shape[1])
+
+    def to_rgb(self) -> npt.NDArray[Any]:
+        """The pixels as H×W×3 RGB (a view where possible); mono and depth stay single-channel."""
+        if self.encoding in ("bgr8", "bgra8"):
+            return self.data[:, :, 2::-1]
+        if self.encoding == "rgba8":
+            return self.data[:, :, :3]
+        return self.data
+
+    @classmethod
+    def from_array(cls, array: npt.NDArray[Any], header: Header | None = None) -> ImageMsg:
+        """Wrap an array, guessing the encoding from dtype and channels (rgb8, rgba8, mono8, 16UC1)."""
+        if not isinstance(array, np.ndarray):
+            raise TypeValidationError(f"expected a numpy array for an image, got {type(array).__name__}")
+        channels = 1 if array.ndim == 2 else (array.shape[2] if array.ndim == 3 else -1)
+        guesses = {(np.dtype(np.uint8), 3): "rgb8", (np.dtype(np.uint8), 4): "rgba8",
+                   (np.dtype(np.uint8), 1): "mono8", (np.dtype(np.uint16), 1): "16UC1"}
+        encoding = guesses.get((array.dtype, channels))
+        if encoding is None:
+            raise TypeValidationError(
+                f"cannot guess an image encoding for dtype {array.dtype} and shape {array.shape}; "
+                "pass an ImageMsg with an explicit encoding"
+            )
+        return cls(data=array, encoding=encoding, header=header or Header())
+
+
+@define(eq=False)
+class CompressedImageMsg(_Message):
+    """An encoded image (``format`` such as ``"jpeg"`` or ``"png"``) kept as bytes."""
+
+    data: bytes = field(converter=_instance(bytes, "data"))
+    format: str = field(default="jpeg", converter=_str("format"))
+    header: Header = _header_field()
+
+
+def _pcm(value: Any) -> npt.NDArray[Any]:
+    if isinstance(value, bytes | bytearray):
+        value = np.frombuffer(bytes(value), dtype=np.int16)
+    if not isinstance(value, np.ndarray) or value.dtype not in (np.int16, np.float32):
+        raise TypeValidationError("field 'data': expected PCM as a numpy int16 or float32 array (or int16 bytes)")
+    if value.ndim != 1:
+        raise TypeValidationError(f"field 'data': expected interleaved 1-D samples, got shape {value.shape}")
+    return value
+
+
+@define(eq=False)
+class AudioMsg(_Message):
+    """PCM audio: interleaved int16 or float32 samples at ``sample_rate`` Hz."""
+
+    data: npt.NDArray[Any] = field(converter=_pcm)
+    sample_rate: int = field(default=16000)
+    channels: int = field(default=1)
+    header: Header = _header_field()
+
+    def __attrs_post_init__(self) -> None:
+        for name in ("sample_rate", "channels"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value <= 0:
+                raise TypeValidationError(f"field {name!r}: expected a positive int, got {value!r}")
+        if self.data.size % self.channels:
+            raise TypeValidationError(
+                f"field 'data': {self.data.size} samples do not divide into {self.channels} channels"
+            )
+
+    @property
+    def duration(self) -> float:
+        """Length in seconds."""
+        return self.data.size / self.channels / self.sample_rate
+
+
+def _frames(value: Any) -> list[ImageMsg | CompressedImageMsg]:
+    frames = list(value)
+    for i, frame in enumerate(frames):
+        if not isinstance(frame, ImageMsg | CompressedImageMsg):
+            raise TypeValidationError(f"field 'frames[{i}]': expected ImageMsg or CompressedImageMsg")
+    return frames
+
+
+@define(eq=False)
+class VideoMsg(_Message):
+    """A sequence of frames bundled as one message."""
+
+    frames: list[ImageMsg | CompressedImageMsg] = field(factory=list, converter=_frames)
+    header: Header = _header_field()
+
+
+# -- perception results -----------------------------------------------------------------------
+
+
+@define(eq=False)
+class DetectionsMsg(_Message):
+    """Object detections: ``boxes`` N×4 (x1, y1, x2, y2 pixels), ``labels`` and ``scores`` of N."""
+
+    boxes: npt.NDArray[np.float32] = field(factory=lambda: np.zeros((0, 4), np.float32),
+                                           converter=_array(np.float32, (None, 4), "boxes"))
+    labels: list[str] = field(factory=list, converter=_str_list("labels"))
+    scores: npt.NDArray[np.float32] = field(factory=lambda: np.zeros(0, np.float32),
+                                            converter=_array(np.float32, (None,), "scores"))
+    image: ImageMsg | None = field(default=None, converter=_instance(ImageMsg, "image", optional=True))
+    header: Header = _header_field()
+
+    def __attrs_post_init__(self) -> None:
+        n = self.boxes.shape[0]
+        if len(self.labels) != n or self.scores.shape[0] != n:
+            raise TypeValidationError(
+                f"detections: {n} boxes, {len(self.labels)} labels and {self.scores.shape[0]} scores must match"
+            )
+
+
+@define(eq=False)
+class TrackingsMsg(_Message):
+    """Tracked objects: 64-bit ``ids`` plus boxes, centroids and estimated velocities per object."""
+
+    ids: npt.NDArray[np.int64] = field(factory=lambda: np.zeros(0, np.int64),
+                                       converter=_array(np.int64, (None,), "ids"))
+    labels: list[str] = field(factory=list, converter=_str_list("labels"))
+    boxes: npt.NDArray[np.float32] = field(factory=lambda: np.zeros((0, 4), np.float32),
+                                           converter=_array(np.float32, (None, 4), "boxes"))
+    centroids: npt.NDArray[np.float32] = field(factory=lambda: np.zeros((0, 2), np.float32),
+                                               converter=_array(np.float32, (None, 2), "centroids"))
+    estimated_velocities: npt.NDArray[np.float32] = field(
+        factory=lambda: np.zeros((0, 2), np.float32),
+        converter=_array(np.float32, (None, 2), "estimated_velocities"),
+    )
+    image: ImageMsg | None = field(default=None, converter=_instance(ImageMsg, "image", optional=True))
+    header: Header = _header_field()
+
+    def __attrs_post_init__(self) -> None:
+        n = self.ids.shape[0]
+        sizes = {len(self.labels), self.boxes.shape[0], self.centroids.shape[0],
+                 self.estimated_velocities.shape[0]}
+        if sizes != {n}:
+            raise TypeValidationError(f"trackings: ids, labels, boxes, centroids and velocities must all have {n} rows")
+
+
+@define(eq=False)
+class PointsOfInterestMsg(_Message):
+    """Points on an image (N×2 pixel coordinates), with the image they refer to."""
+
+    points: npt.NDArray[np.float32] = field(factory=lambda: np.zeros((0, 2), np.float32),
+                                            converter=_array(np.float32, (None, 2), "points"))
+    image: ImageMsg | None = field(default=None, converter=_instance(ImageMsg, "image", optional=True))
+    header: Header = _header_field()
+
+
+# -- geometry and robot state -----------------------------------------------------------------
+
+
+@define(eq=False)
+class PointMsg(_Message):
+    """A 3-D point."""
+
+    x: float = field(default=0.0, converter=_number("x"))
+    y: float = field(default=0.0, converter=_number("y"))
+    z: float = field(default=0.0, converter=_number("z"))
+    header: Header = _header_field()
+
+
+@define(eq=False)
+class PoseMsg(_Message):
+    """A pose: ``position`` (x, y, z) and ``orientation`` as a quaternion (x, y, z, w)."""
+
+    position: npt.NDArray[np.float64] = field(factory=lambda: np.zeros(3),
+                                              converter=_array(np.float64, (3,), "position"))
+    orientation: npt.NDArray[np.float64] = field(factory=lambda: np.array([0.0, 0.0, 0.0, 1.0]),
+                                                 converter=_array(np.float64, (4,), "orientation"))
+    header: Header = _header_field()
+
+
+@define(eq=False)
+class TwistMsg(_Message):
+    """A velocity: ``linear`` and ``angular`` 3-vectors."""
+
+    linear: npt.NDArray[np.float64] = field(factory=lambda: np.zeros(3),
+                                            converter=_array(np.float64, (3,), "linear"))
+    angular: npt.NDArray[np.float64] = field(factory=lambda: np.zeros(3),
+                                             converter=_array(np.float64, (3,), "angular"))
+    header: Header = _header_field()
+
+
+@define(eq=False)
+class OdometryMsg(_Message):
+    """Pose and twist of ``child_frame_id`` in ``header.frame_id``."""
+
+    pose: PoseMsg = field(factory=PoseMsg, converter=_instance(PoseMsg, "pose"))
+    twist: TwistMsg = field(factory=TwistMsg, converter=_instance(TwistMsg, "twist"))
+    child_frame_id: str = field(default="", converter=_str("child_frame_id"))
+    header: Header = _header_field()
+
+
+def _f64(name: str) -> Any:
+    return field(factory=lambda: np.zeros(0), converter=_array(np.float64, (None,), name))
+
+
+@define(eq=False)
+class JointStateMsg(_Message):
+    """Joint names with positions, velocities and efforts (each empty or one per name)."""
+
+    name: list[str] = field(factory=list, converter=_str_list("name"))
+    position: npt.NDArray[np.float64] = _f64("position")
+    velocity: npt.NDArray[np.float64] = _f64("velocity")
+    effort: npt.NDArray[np.float64] = _f64("effort")
+    header: Header = _header_field()
+
+    def __attrs_post_init__(self) -> None:
+        for fname in ("position", "velocity", "effort"):
+            size = getattr(self, fname).shape[0]
+            if size not in (0, len(self.name)):
+                raise TypeValidationError(f"field {fname!r}: {size} values for {len(self.name)} joints")
+
+
+@define(eq=False)
+class JointTrajectoryPointMsg(_Message):
+    """One waypoint of a joint trajectory; ``time_from_start`` in seconds."""
+
+    positions: npt.NDArray[np.float64] = _f64("positions")
+    velocities: npt.NDArray[np.float64] = _f64("velocities")
+    accelerations: npt.NDArray[np.float64] = _f64("accelerations")
+    effort: npt.NDArray[np.float64] = _f64("effort")
+    time_from_start: float = field(default=0.0, converter=_number("time_from_start"))
+
+
+def _points(value: Any) -> list[JointTrajectoryPointMsg]:
+    points = list(value)
+    for i, p in enumerate(points):
+        if not isinstance(p, JointTrajectoryPointMsg):
+            raise TypeValidationError(f"field 'points[{i}]': expected JointTrajectoryPointMsg")
+    return points
+
+
+@define(eq=False)
+class JointTrajectoryMsg(_Message):
+    """A trajectory: joint names and a list of waypoints."""
+
+    joint_names: list[str] = field(factory=list, converter=_str_list("joint_names"))
+    points: list[JointTrajectoryPointMsg] = field(factory=list, converter=_points)
+    header: Header = _header_field()
+
+
+@define(eq=False)
+class JointJogMsg(_Message):
+    """Jog command: per-joint displacements and/or velocities over ``duration`` seconds."""
+
+    joint_names: list[str] = field(factory=list, converter=_str_list("joint_names"))
+    displacements: npt.NDArray[np.float64] = _f64("displacements")
+    velocities: npt.NDArray[np.float64] = _f64("velocities")
+    duration: float = field(default=0.0, converter=_number("duration"))
+    header: Header = _header_field()
+
+
+@define(eq=False)
+class OccupancyGridMsg(_Message):
+    """A 2-D grid map: int8 cells (-1 unknown, 0..100 occupancy), ``resolution`` m/cell."""
+
+    data: npt.NDArray[np.int8] = field(factory=lambda: np.zeros((0, 0), np.int8),
+                                       converter=_array(np.int8, (None, None), "data"))
+    resolution: float = field(default=0.05, converter=_number("resolution"))
+    origin: PoseMsg = field(factory=PoseMsg, converter=_instance(PoseMsg, "origin"))
+    header: Header = _header_field()
+
+
+@define(eq=False)
+class LaserScanMsg(_Message):
+    """A planar laser scan (angles in radians, ranges in metres)."""
+
+    angle_min: float = field(default=0.0, converter=_number("angle_min"))
+    angle_max: float = field(default=0.0, converter=_number("angle_max"))
+    angle_increment: float = field(default=0.0, converter=_number("angle_increment"))
+    time_increment: float = field(default=0.0, converter=_number("time_increment"))
+    scan_time: float = field(default=0.0, converter=_number("scan_time"))
+    range_min: float = field(default=0.0, converter=_number("range_min"))
+    range_max: float = field(default=0.0, converter=_number("range_max"))
+    ranges: npt.NDArray[np.float32] = field(factory=lambda: np.zeros(0, np.float32),
+                                            converter=_array(np.float32, (None,), "ranges"))
+    intensities: npt.NDArray[np.float32] = field(factory=lambda: np.zeros(0, np.float32),
+                                                 converter=_array(np.float32, (None,), "intensities"))
+    header: Header = _header_field()
+
+
+# -- framework status -------------------------------------------------------------------------
+
+
+@define(eq=False)
+class ComponentStatusMsg(_Message):
+    """A component's lifecycle state and health, as published on its status topic.
+
+    ``health`` is one of the :class:`~agents_core.status.HealthStatus` names
+    (``"HEALTHY"``, ``"ALGORITHM_FAILURE"``, ``"COMPONENT_FAILURE"``, ``"SYSTEM_FAILURE"``).
+    """
+
+    component: str = field(converter=_str("component"))
+    lifecycle_state: str = field(default="unconfigured", converter=_str("lifecycle_state"))
+    health: str = field(default="HEALTHY", converter=_str("health"))
+    message: str = field(default="", converter=_str("message"))
+    header: Header = _header_field()

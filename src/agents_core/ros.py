@@ -1,0 +1,101 @@
+"""The upstream ``agents.ros`` names, for recipes migrating from EmbodiedAgents.
+
+``from agents_core.ros import Topic, Launcher, Image`` works as ``from agents.ros import ...``
+did upstream. Nothing here depends on ROS: each name lives in a descriptive module of its own
+and works on every transport.
+"""
+
+from __future__ import annotations
+
+from . import base_validators
+from .actions import Action, Fallback, component_action, component_fallback
+from .config import BaseAttrs, BaseComponentConfig
+from .events import Event
+from .launcher import Launcher
+from .status import HealthStatus, LifecycleState
+from .supported_types import (
+    Audio,
+    Bool,
+    ComponentStatus,
+    CompressedImage,
+    Detections,
+    DetectionsMultiSource,
+    Float32,
+    Float32MultiArray,
+    Float64,
+    Float64MultiArray,
+    Image,
+    Int32,
+    Int64,
+    JointJog,
+    JointState,
+    JointTrajectory,
+    JointTrajectoryPoint,
+    LaserScan,
+    OccupancyGrid,
+    Odometry,
+    Point,
+    PointsOfInterest,
+    PointStamped,
+    Pose,
+    PoseStamped,
+    StreamingString,
+    String,
+    SupportedType,
+    Trackings,
+    TrackingsMultiSource,
+    Twist,
+    Video,
+    add_additional_datatypes,
+)
+from .topics import FixedInput, QoSConfig, Topic
+
+__all__ = [
+    "Action",
+    "Audio",
+    "BaseAttrs",
+    "BaseComponentConfig",
+    "Bool",
+    "ComponentStatus",
+    "CompressedImage",
+    "Detections",
+    "DetectionsMultiSource",
+    "Event",
+    "Fallback",
+    "FixedInput",
+    "Float32",
+    "Float32MultiArray",
+    "Float64",
+    "Float64MultiArray",
+    "HealthStatus",
+    "Image",
+    "Int32",
+    "Int64",
+    "JointJog",
+    "JointState",
+    "JointTrajectory",
+    "JointTrajectoryPoint",
+    "LaserScan",
+    "Launcher",
+    "LifecycleState",
+    "OccupancyGrid",
+    "Odometry",
+    "Point",
+    "PointStamped",
+    "PointsOfInterest",
+    "Pose",
+    "PoseStamped",
+    "QoSConfig",
+    "StreamingString",
+    "String",
+    "SupportedType",
+    "Topic",
+    "Trackings",
+    "TrackingsMultiSource",
+    "Twist",
+    "Video",
+    "add_additional_datatypes",
+    "base_validators",
+    "component_action",
+    "component_fallback",
+]

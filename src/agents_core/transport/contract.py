@@ -1,0 +1,176 @@
+"""The transport contract: what a middleware adapter must provide, and nothing more.
+
+Triggers, scheduling, events, fallbacks, validation and retries live once in the core; an
+adapter only moves values. It implements :class:`Transport`:
+
+1. publishers for a :class:`~agents_core.topics.Topic` (values validated with the topic's type,
+   then encoded with the adapter's conversion for that type);
+2. subscriptions that decode into the core value and hand it to a
+   :class:`~agents_core.transport.delivery.BoundedDelivery`, which applies the shared queue
+   policy (depth from the topic's QoS, drop oldest, counted) and calls back on its own thread,
+   so a slow or raising callback never stalls the middleware;
+3. request/reply by service name, with JSON-like payloads (dicts of str, int, float, bool,
+   None, lists and dicts) and a timeout that always fires;
+4. component presence: a component declared here is visible to the middleware's users with its
+   lifecycle state and health, and may be driven through ``on_transition``;
+5. ``close()``, after which every call raises :class:`~agents_core.errors.TransportClosedError`.
+
+What a transport can do beyond that is data (:class:`TransportCapabilities`), not subclassing.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any, Protocol, runtime_checkable
+
+from attrs import define
+
+from ..messages import ComponentStatusMsg
+from ..status import HealthStatus, LifecycleState
+from ..topics import Topic
+from .delivery import SubscriptionStatistics
+
+__all__ = [
+    "ComponentPresence",
+    "Publisher",
+    "ServiceHandler",
+    "ServiceServer",
+    "Subscription",
+    "SubscriptionCallback",
+    "TransitionHandler",
+    "Transport",
+    "TransportCapabilities",
+]
+
+#: Called with each received value (already decoded and validated).
+SubscriptionCallback = Callable[[Any], None]
+#: Serves one request: JSON-like dict in, JSON-like dict out. Raising sends the error back.
+ServiceHandler = Callable[[dict[str, Any]], dict[str, Any]]
+#: Asked to run a lifecycle transition ("configure", "activate", ...); returns success.
+TransitionHandler = Callable[[str], bool]
+
+
+@define(frozen=True, kw_only=True)
+class TransportCapabilities:
+    """What a transport offers, as data the core and tests can branch on."""
+
+    #: Components and clients may live in different processes.
+    cross_process: bool
+    #: Request/reply is supported (component actions, parameter updates).
+    services: bool = True
+    #: Long-running goals with feedback (ROS 2 actions).
+    actions: bool = False
+    #: Large payloads go through shared memory between processes on one host.
+    shared_memory: bool = False
+    #: Subscribers receive the publisher's very object (no copy, no encoding).
+    zero_copy: bool = False
+    #: Outside tools can read and drive component lifecycles (lifecycle services, queryables).
+    lifecycle_services: bool = True
+
+
+@runtime_checkable
+class Publisher(Protocol):
+    """Sends values on one topic."""
+
+    topic: Topic
+
+    def publish(self, value: Any) -> None:
+        """Validate ``value`` against the topic's type and send it.
+
+        Raises :class:`~agents_core.errors.TypeValidationError` for a value that does not fit,
+        :class:`~agents_core.errors.TransportClosedError` after close.
+        """
+        ...
+
+    def close(self) -> None:
+        """Stop publishing; idempotent."""
+        ...
+
+
+@runtime_checkable
+class Subscription(Protocol):
+    """Receives values of one topic and hands them to a callback."""
+
+    topic: Topic
+
+    def statistics(self) -> SubscriptionStatistics:
+        """Delivered / dropped / callback-error counts (adapters get them from BoundedDelivery)."""
+        ...
+
+    def close(self) -> None:
+        """Stop receiving; no callback starts after this returns. Idempotent."""
+        ...
+
+
+@runtime_checkable
+class ServiceServer(Protocol):
+    """Serves requests on one service name."""
+
+    name: str
+
+    def close(self) -> None:
+        """Stop serving; idempotent."""
+        ...
+
+
+@runtime_checkable
+class ComponentPresence(Protocol):
+    """A component as the middleware's users see it (lifecycle node, liveliness token, ...)."""
+
+    name: str
+
+    def update(self, state: LifecycleState, health: HealthStatus, message: str = "") -> None:
+        """Publish the component's current lifecycle state and health."""
+        ...
+
+    def close(self) -> None:
+        """Withdraw the component (it disappears for observers); idempotent."""
+        ...
+
+
+@runtime_checkable
+class Transport(Protocol):
+    """A middleware adapter. See the module docstring for the promises an implementer makes."""
+
+    #: The name it is resolved by ("memory", "zenoh", "ros2", or a third party's).
+    name: str
+    capabilities: TransportCapabilities
+
+    def create_publisher(self, topic: Topic, *, owner: str | None = None) -> Publisher:
+        """A publisher for ``topic``. ``owner`` names a declared component it belongs to, if any."""
+        ...
+
+    def create_subscription(
+        self, topic: Topic, callback: SubscriptionCallback, *, owner: str | None = None
+    ) -> Subscription:
+        """Call ``callback(value)`` for each value received on ``topic``, off the publisher's thread."""
+        ...
+
+    def create_service(self, name: str, handler: ServiceHandler, *, owner: str | None = None) -> ServiceServer:
+        """Serve requests on ``name`` (a topic-like name) with ``handler``."""
+        ...
+
+    def request(self, name: str, payload: dict[str, Any], *, timeout: float = 5.0) -> dict[str, Any]:
+        """Send ``payload`` to the service ``name`` and wait for its reply.
+
+        Raises :class:`~agents_core.errors.RequestTimeoutError` after ``timeout`` seconds,
+        :class:`~agents_core.errors.ServiceUnavailableError` when nobody serves ``name``, and
+        :class:`~agents_core.errors.RemoteError` with the handler's message when it raised.
+        """
+        ...
+
+    def declare_component(self, name: str, *, on_transition: TransitionHandler) -> ComponentPresence:
+        """Make the component ``name`` visible; ``on_transition`` runs transitions asked from outside."""
+        ...
+
+    def get_component_state(self, name: str, *, timeout: float = 2.0) -> ComponentStatusMsg | None:
+        """Read a component's lifecycle state and health as an observer would; None if not present."""
+        ...
+
+    def request_transition(self, name: str, transition: str, *, timeout: float = 5.0) -> bool:
+        """Ask the component ``name`` to run a lifecycle transition, as an outside tool would."""
+        ...
+
+    def close(self) -> None:
+        """Release every publisher, subscription, service and presence; idempotent."""
+        ...

@@ -1,0 +1,108 @@
+"""Bounded, drop-oldest delivery of received values to a callback on a thread of its own.
+
+Every transport hands received values to a :class:`BoundedDelivery`, so that all transports share
+one queue policy: a subscription keeps at most ``topic.qos_profile.depth`` values waiting; when
+full, the oldest waiting value is dropped and counted; the callback runs on the delivery's own
+thread, so neither a slow callback nor a raising one can stall the middleware's threads.
+"""
+
+from __future__ import annotations
+
+import collections
+import logging
+import threading
+from collections.abc import Callable
+from typing import Any
+
+from attrs import define
+
+from ..topics import Topic
+
+__all__ = ["BoundedDelivery", "SubscriptionStatistics"]
+
+logger = logging.getLogger(__name__)
+
+
+@define
+class SubscriptionStatistics:
+    """Counters for one subscription."""
+
+    delivered: int = 0
+    dropped: int = 0
+    callback_errors: int = 0
+    queued: int = 0
+
+
+class BoundedDelivery:
+    """A queue of ``topic.qos_profile.depth`` values drained by one thread into ``callback``.
+
+    ``on_count(delivered=, dropped=, callback_errors=)`` is told about every event, for
+    transport-wide statistics.
+    """
+
+    def __init__(self, topic: Topic, callback: Callable[[Any], None],
+                 on_count: Callable[..., None] | None = None) -> None:
+        self.topic = topic
+        self._callback = callback
+        self._on_count = on_count
+        self._queue: collections.deque[Any] = collections.deque()
+        self._depth = topic.qos_profile.depth
+        self._cond = threading.Condition()
+        self._closed = False
+        self._stats = SubscriptionStatistics()
+        self._thread = threading.Thread(target=self._run, name=f"deliver:{topic.name}", daemon=True)
+        self._thread.start()
+
+    def offer(self, value: Any) -> None:
+        """Queue ``value`` (never blocks; drops the oldest waiting value when full)."""
+        dropped = False
+        with self._cond:
+            if self._closed:
+                return
+            if len(self._queue) >= self._depth:
+                self._queue.popleft()
+                self._stats.dropped += 1
+                dropped = True
+            self._queue.append(value)
+            self._cond.notify()
+        if dropped and self._on_count is not None:
+            self._on_count(dropped=1)
+
+    def _run(self) -> None:
+        while True:
+            with self._cond:
+                while not self._queue and not self._closed:
+                    self._cond.wait()
+                if self._closed:
+                    return
+                value = self._queue.popleft()
+            try:
+                self._callback(value)
+            except Exception:
+                logger.exception("callback on topic %r raised; the subscription keeps running", self.topic.name)
+                with self._cond:
+                    self._stats.callback_errors += 1
+                if self._on_count is not None:
+                    self._on_count(callback_errors=1)
+            else:
+                with self._cond:
+                    self._stats.delivered += 1
+                if self._on_count is not None:
+                    self._on_count(delivered=1)
+
+    def statistics(self) -> SubscriptionStatistics:
+        """A snapshot of the counters."""
+        with self._cond:
+            s = self._stats
+            return SubscriptionStatistics(s.delivered, s.dropped, s.callback_errors, len(self._queue))
+
+    def close(self) -> None:
+        """Stop delivering; waiting values are discarded. Idempotent."""
+        with self._cond:
+            if self._closed:
+                return
+            self._closed = True
+            self._queue.clear()
+            self._cond.notify_all()
+        if threading.current_thread() is not self._thread:
+            self._thread.join(timeout=5.0)
