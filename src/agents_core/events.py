@@ -46,7 +46,7 @@ class Event:
 
     def __init__(
         self,
-        name: str | None = None,
+        name: str | Topic | Condition | None = None,
         event_condition: Topic | Condition | None = None,
         *,
         on_change: bool = False,

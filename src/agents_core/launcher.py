@@ -19,6 +19,7 @@ the method (or on the launcher's own action worker for other callables).
 
 from __future__ import annotations
 
+import functools
 import logging
 import signal
 import threading
@@ -38,6 +39,10 @@ from .transport.registry import resolve_transport
 __all__ = ["Launcher"]
 
 logger = logging.getLogger(__name__)
+
+
+def _feed_event(event: Event, topic_name: str, value: Any) -> None:
+    event.process(topic_name, value)
 
 
 class Launcher:
@@ -145,7 +150,7 @@ class Launcher:
         for event in events:
             for topic in event.topics.values():
                 self._event_subscriptions.append(self.transport.create_subscription(
-                    topic, lambda value, e=event, name=topic.name: e.process(name, value)))
+                    topic, functools.partial(_feed_event, event, topic.name)))
 
     def _make_event_runner(self, actions: list[Action]) -> EventListener:
         def run(event: Event, values: Mapping[str, Any]) -> None:
@@ -154,7 +159,7 @@ class Launcher:
                 worker = owner._worker if isinstance(owner, Component) else self._action_worker
                 if worker is None:
                     continue
-                worker.submit_control(lambda a=action: self._run_action(event, a, values))
+                worker.submit_control(functools.partial(self._run_action, event, action, values))
 
         return run
 
@@ -194,7 +199,7 @@ class Launcher:
     def bringup(self) -> None:
         """Start, run until SIGINT / SIGTERM (or :meth:`request_stop`), then stop cleanly."""
         self.start()
-        previous: dict[int, Any] = {}
+        previous: dict[signal.Signals, Any] = {}
 
         def handler(signum: int, frame: FrameType | None) -> None:
             logger.info("received signal %d, shutting down", signum)

@@ -12,7 +12,7 @@ object, so treat received values (and their numpy arrays) as read-only.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from typing import Any
 
 import attrs
@@ -90,77 +90,133 @@ class _Message:
 # -- field converters -------------------------------------------------------------------------
 
 
-def _array(
-    dtype: type[np.generic], shape: tuple[int | None, ...], name: str
-) -> Callable[[Any], npt.NDArray[Any]]:
-    """Converter to a numpy array of ``dtype`` whose shape matches ``shape`` (None = any size)."""
-
-    def convert(value: Any) -> npt.NDArray[Any]:
-        try:
-            arr = np.asarray(value)
-            if arr.size == 0:
-                arr = arr.reshape(tuple(0 if d is None else d for d in shape))
-            if arr.dtype != dtype:
-                if arr.dtype.kind not in "biuf":
-                    raise TypeError(f"dtype {arr.dtype} is not numeric")
-                arr = arr.astype(dtype)
-        except (TypeError, ValueError) as exc:
-            raise TypeValidationError(f"field {name!r}: cannot make a {dtype.__name__} array: {exc}") from exc
-        if arr.ndim != len(shape) or any(d is not None and d != s for d, s in zip(shape, arr.shape, strict=True)):
-            want = "x".join("N" if d is None else str(d) for d in shape)
-            raise TypeValidationError(f"field {name!r}: expected shape {want}, got {arr.shape}")
-        return arr
-
-    return convert
+def _to_array(value: Any, dtype: type[np.generic], shape: tuple[int | None, ...], name: str) -> npt.NDArray[Any]:
+    """``value`` as a numpy array of ``dtype`` whose shape matches ``shape`` (None = any size)."""
+    try:
+        arr = np.asarray(value)
+        if arr.size == 0:
+            arr = arr.reshape(tuple(0 if d is None else d for d in shape))
+        if arr.dtype != dtype:
+            if arr.dtype.kind not in "biuf":
+                raise TypeError(f"dtype {arr.dtype} is not numeric")
+            arr = arr.astype(dtype)
+    except (TypeError, ValueError) as exc:
+        raise TypeValidationError(f"field {name!r}: cannot make a {dtype.__name__} array: {exc}") from exc
+    if arr.ndim != len(shape) or any(d is not None and d != s for d, s in zip(shape, arr.shape, strict=True)):
+        want = "x".join("N" if d is None else str(d) for d in shape)
+        raise TypeValidationError(f"field {name!r}: expected shape {want}, got {arr.shape}")
+    return arr
 
 
-def _str_list(name: str) -> Callable[[Any], list[str]]:
-    def convert(value: Any) -> list[str]:
-        if isinstance(value, str) or not isinstance(value, Sequence | np.ndarray):
-            raise TypeValidationError(f"field {name!r}: expected a list of str, got {type(value).__name__}")
-        out = list(value)
-        for item in out:
-            if not isinstance(item, str):
-                raise TypeValidationError(f"field {name!r}: expected str items, got {type(item).__name__}")
-        return out
-
-    return convert
+# Named converters, one per array field: mypy's attrs plugin types __init__ only from named functions.
+def _boxes(value: Any) -> npt.NDArray[np.float32]:
+    return _to_array(value, np.float32, (None, 4), "boxes")
 
 
-def _number(name: str) -> Callable[[Any], float]:
-    def convert(value: Any) -> float:
-        if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating):
-            raise TypeValidationError(f"field {name!r}: expected a number, got {type(value).__name__}")
-        return float(value)
-
-    return convert
+def _scores(value: Any) -> npt.NDArray[np.float32]:
+    return _to_array(value, np.float32, (None,), "scores")
 
 
-def _instance(cls: type[Any], name: str, optional: bool = False) -> Callable[[Any], Any]:
-    def check(value: Any) -> Any:
-        if value is None and optional:
-            return None
-        if not isinstance(value, cls):
-            raise TypeValidationError(f"field {name!r}: expected {cls.__name__}, got {type(value).__name__}")
-        return value
-
-    return check
+def _ids(value: Any) -> npt.NDArray[np.int64]:
+    return _to_array(value, np.int64, (None,), "ids")
 
 
-def _str(name: str) -> Callable[[Any], str]:
-    def check(value: Any) -> str:
-        if not isinstance(value, str):
-            raise TypeValidationError(f"field {name!r}: expected str, got {type(value).__name__}")
-        return value
-
-    return check
+def _centroids(value: Any) -> npt.NDArray[np.float32]:
+    return _to_array(value, np.float32, (None, 2), "centroids")
 
 
-def _bool(name: str) -> Callable[[Any], bool]:
-    def check(value: Any) -> bool:
-        if not isinstance(value, bool | np.bool_):
-            raise TypeValidationError(f"field {name!r}: expected bool, got {type(value).__name__}")
-        return bool(value)
+def _estimated_velocities(value: Any) -> npt.NDArray[np.float32]:
+    return _to_array(value, np.float32, (None, 2), "estimated_velocities")
+
+
+def _points(value: Any) -> npt.NDArray[np.float32]:
+    return _to_array(value, np.float32, (None, 2), "points")
+
+
+def _position(value: Any) -> npt.NDArray[np.float64]:
+    return _to_array(value, np.float64, (3,), "position")
+
+
+def _orientation(value: Any) -> npt.NDArray[np.float64]:
+    return _to_array(value, np.float64, (4,), "orientation")
+
+
+def _linear(value: Any) -> npt.NDArray[np.float64]:
+    return _to_array(value, np.float64, (3,), "linear")
+
+
+def _angular(value: Any) -> npt.NDArray[np.float64]:
+    return _to_array(value, np.float64, (3,), "angular")
+
+
+def _position_vector(value: Any) -> npt.NDArray[np.float64]:
+    return _to_array(value, np.float64, (None,), "position")
+
+
+def _velocity(value: Any) -> npt.NDArray[np.float64]:
+    return _to_array(value, np.float64, (None,), "velocity")
+
+
+def _effort(value: Any) -> npt.NDArray[np.float64]:
+    return _to_array(value, np.float64, (None,), "effort")
+
+
+def _positions(value: Any) -> npt.NDArray[np.float64]:
+    return _to_array(value, np.float64, (None,), "positions")
+
+
+def _velocities(value: Any) -> npt.NDArray[np.float64]:
+    return _to_array(value, np.float64, (None,), "velocities")
+
+
+def _accelerations(value: Any) -> npt.NDArray[np.float64]:
+    return _to_array(value, np.float64, (None,), "accelerations")
+
+
+def _displacements(value: Any) -> npt.NDArray[np.float64]:
+    return _to_array(value, np.float64, (None,), "displacements")
+
+
+def _data(value: Any) -> npt.NDArray[np.int8]:
+    return _to_array(value, np.int8, (None, None), "data")
+
+
+def _ranges(value: Any) -> npt.NDArray[np.float32]:
+    return _to_array(value, np.float32, (None,), "ranges")
+
+
+def _intensities(value: Any) -> npt.NDArray[np.float32]:
+    return _to_array(value, np.float32, (None,), "intensities")
+
+
+def _field_error(attribute: attrs.Attribute[Any], expected: str, value: Any) -> TypeValidationError:
+    return TypeValidationError(f"field {attribute.name!r}: expected {expected}, got {type(value).__name__}")
+
+
+def _is_str(_: Any, attribute: attrs.Attribute[Any], value: Any) -> None:
+    if not isinstance(value, str):
+        raise _field_error(attribute, "str", value)
+
+
+def _is_bool(_: Any, attribute: attrs.Attribute[Any], value: Any) -> None:
+    if not isinstance(value, bool | np.bool_):
+        raise _field_error(attribute, "bool", value)
+
+
+def _is_number(_: Any, attribute: attrs.Attribute[Any], value: Any) -> None:
+    if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating):
+        raise _field_error(attribute, "a number", value)
+
+
+def _is_str_list(_: Any, attribute: attrs.Attribute[Any], value: Any) -> None:
+    if not isinstance(value, list | tuple) or not all(isinstance(item, str) for item in value):
+        raise _field_error(attribute, "a list of str", value)
+
+
+def _instance_of(cls: type[Any], optional: bool = False) -> Callable[[Any, attrs.Attribute[Any], Any], None]:
+    def check(_: Any, attribute: attrs.Attribute[Any], value: Any) -> None:
+        if not (isinstance(value, cls) or (optional and value is None)):
+            raise _field_error(attribute, cls.__name__, value)
 
     return check
 
@@ -170,7 +226,7 @@ def _now_ns() -> int:
 
 
 def _header_field() -> Any:
-    return field(factory=lambda: Header(), converter=_instance(Header, "header"))
+    return field(factory=Header, validator=_instance_of(Header))
 
 
 # -- header -----------------------------------------------------------------------------------
@@ -185,7 +241,7 @@ class Header(_Message):
     """
 
     stamp_ns: int = field(factory=_now_ns)
-    frame_id: str = field(default="", converter=_str("frame_id"))
+    frame_id: str = field(default="", validator=_is_str)
 
     @stamp_ns.validator
     def _check_stamp(self, _: attrs.Attribute[int], value: int) -> None:
@@ -205,9 +261,9 @@ class Header(_Message):
 class StreamingStringMsg(_Message):
     """A chunk of streamed text: ``stream`` is True while chunks flow, ``done`` on the last one."""
 
-    data: str = field(converter=_str("data"))
-    stream: bool = field(default=False, converter=_bool("stream"))
-    done: bool = field(default=True, converter=_bool("done"))
+    data: str = field(validator=_is_str)
+    stream: bool = field(default=False, validator=_is_bool)
+    done: bool = field(default=True, validator=_is_bool)
     header: Header = _header_field()
 
 
@@ -217,16 +273,15 @@ class StreamingStringMsg(_Message):
 def _image_data(value: Any) -> npt.NDArray[Any]:
     if not isinstance(value, np.ndarray):
         raise TypeValidationError(f"field 'data': expected a numpy array, got {type(value).__name__}")
-    if value.ndim == 2:
-        value = value[:, :, np.newaxis]
-    if value.ndim != 3:
-        raise TypeValidationError(f"field 'data': expected an HxWxC array, got shape {value.shape}")
-    return value
+    array: npt.NDArray[Any] = value[:, :, np.newaxis] if value.ndim == 2 else value
+    if array.ndim != 3:
+        raise TypeValidationError(f"field 'data': expected an HxWxC array, got shape {array.shape}")
+    return array
 
 
 @define(eq=False)
 class ImageMsg(_Message):
-    """An image: an H×W×C numpy array with an encoding from :data:`IMAGE_ENCODINGS`."""
+    """An image: an HxWxC numpy array with an encoding from :data:`IMAGE_ENCODINGS`."""
 
     data: npt.NDArray[Any] = field(converter=_image_data)
     encoding: str = field(default="rgb8")
@@ -254,7 +309,7 @@ class ImageMsg(_Message):
         return int(self.data.shape[1])
 
     def to_rgb(self) -> npt.NDArray[Any]:
-        """The pixels as H×W×3 RGB (a view where possible); mono and depth stay single-channel."""
+        """The pixels as HxWx3 RGB (a view where possible); mono and depth stay single-channel."""
         if self.encoding in ("bgr8", "bgra8"):
             return self.data[:, :, 2::-1]
         if self.encoding == "rgba8":
@@ -282,8 +337,8 @@ class ImageMsg(_Message):
 class CompressedImageMsg(_Message):
     """An encoded image (``format`` such as ``"jpeg"`` or ``"png"``) kept as bytes."""
 
-    data: bytes = field(converter=_instance(bytes, "data"))
-    format: str = field(default="jpeg", converter=_str("format"))
+    data: bytes = field(validator=_instance_of(bytes))
+    format: str = field(default="jpeg", validator=_is_str)
     header: Header = _header_field()
 
 
@@ -343,14 +398,14 @@ class VideoMsg(_Message):
 
 @define(eq=False)
 class DetectionsMsg(_Message):
-    """Object detections: ``boxes`` N×4 (x1, y1, x2, y2 pixels), ``labels`` and ``scores`` of N."""
+    """Object detections: ``boxes`` Nx4 (x1, y1, x2, y2 pixels), ``labels`` and ``scores`` of N."""
 
     boxes: npt.NDArray[np.float32] = field(factory=lambda: np.zeros((0, 4), np.float32),
-                                           converter=_array(np.float32, (None, 4), "boxes"))
-    labels: list[str] = field(factory=list, converter=_str_list("labels"))
+                                           converter=_boxes)
+    labels: list[str] = field(factory=list, validator=_is_str_list)
     scores: npt.NDArray[np.float32] = field(factory=lambda: np.zeros(0, np.float32),
-                                            converter=_array(np.float32, (None,), "scores"))
-    image: ImageMsg | None = field(default=None, converter=_instance(ImageMsg, "image", optional=True))
+                                            converter=_scores)
+    image: ImageMsg | None = field(default=None, validator=_instance_of(ImageMsg, optional=True))
     header: Header = _header_field()
 
     def __attrs_post_init__(self) -> None:
@@ -366,17 +421,17 @@ class TrackingsMsg(_Message):
     """Tracked objects: 64-bit ``ids`` plus boxes, centroids and estimated velocities per object."""
 
     ids: npt.NDArray[np.int64] = field(factory=lambda: np.zeros(0, np.int64),
-                                       converter=_array(np.int64, (None,), "ids"))
-    labels: list[str] = field(factory=list, converter=_str_list("labels"))
+                                       converter=_ids)
+    labels: list[str] = field(factory=list, validator=_is_str_list)
     boxes: npt.NDArray[np.float32] = field(factory=lambda: np.zeros((0, 4), np.float32),
-                                           converter=_array(np.float32, (None, 4), "boxes"))
+                                           converter=_boxes)
     centroids: npt.NDArray[np.float32] = field(factory=lambda: np.zeros((0, 2), np.float32),
-                                               converter=_array(np.float32, (None, 2), "centroids"))
+                                               converter=_centroids)
     estimated_velocities: npt.NDArray[np.float32] = field(
         factory=lambda: np.zeros((0, 2), np.float32),
-        converter=_array(np.float32, (None, 2), "estimated_velocities"),
+        converter=_estimated_velocities,
     )
-    image: ImageMsg | None = field(default=None, converter=_instance(ImageMsg, "image", optional=True))
+    image: ImageMsg | None = field(default=None, validator=_instance_of(ImageMsg, optional=True))
     header: Header = _header_field()
 
     def __attrs_post_init__(self) -> None:
@@ -389,11 +444,11 @@ class TrackingsMsg(_Message):
 
 @define(eq=False)
 class PointsOfInterestMsg(_Message):
-    """Points on an image (N×2 pixel coordinates), with the image they refer to."""
+    """Points on an image (Nx2 pixel coordinates), with the image they refer to."""
 
     points: npt.NDArray[np.float32] = field(factory=lambda: np.zeros((0, 2), np.float32),
-                                            converter=_array(np.float32, (None, 2), "points"))
-    image: ImageMsg | None = field(default=None, converter=_instance(ImageMsg, "image", optional=True))
+                                            converter=_points)
+    image: ImageMsg | None = field(default=None, validator=_instance_of(ImageMsg, optional=True))
     header: Header = _header_field()
 
 
@@ -404,9 +459,9 @@ class PointsOfInterestMsg(_Message):
 class PointMsg(_Message):
     """A 3-D point."""
 
-    x: float = field(default=0.0, converter=_number("x"))
-    y: float = field(default=0.0, converter=_number("y"))
-    z: float = field(default=0.0, converter=_number("z"))
+    x: float = field(default=0.0, validator=_is_number)
+    y: float = field(default=0.0, validator=_is_number)
+    z: float = field(default=0.0, validator=_is_number)
     header: Header = _header_field()
 
 
@@ -415,9 +470,9 @@ class PoseMsg(_Message):
     """A pose: ``position`` (x, y, z) and ``orientation`` as a quaternion (x, y, z, w)."""
 
     position: npt.NDArray[np.float64] = field(factory=lambda: np.zeros(3),
-                                              converter=_array(np.float64, (3,), "position"))
+                                              converter=_position)
     orientation: npt.NDArray[np.float64] = field(factory=lambda: np.array([0.0, 0.0, 0.0, 1.0]),
-                                                 converter=_array(np.float64, (4,), "orientation"))
+                                                 converter=_orientation)
     header: Header = _header_field()
 
 
@@ -426,9 +481,9 @@ class TwistMsg(_Message):
     """A velocity: ``linear`` and ``angular`` 3-vectors."""
 
     linear: npt.NDArray[np.float64] = field(factory=lambda: np.zeros(3),
-                                            converter=_array(np.float64, (3,), "linear"))
+                                            converter=_linear)
     angular: npt.NDArray[np.float64] = field(factory=lambda: np.zeros(3),
-                                             converter=_array(np.float64, (3,), "angular"))
+                                             converter=_angular)
     header: Header = _header_field()
 
 
@@ -436,24 +491,24 @@ class TwistMsg(_Message):
 class OdometryMsg(_Message):
     """Pose and twist of ``child_frame_id`` in ``header.frame_id``."""
 
-    pose: PoseMsg = field(factory=PoseMsg, converter=_instance(PoseMsg, "pose"))
-    twist: TwistMsg = field(factory=TwistMsg, converter=_instance(TwistMsg, "twist"))
-    child_frame_id: str = field(default="", converter=_str("child_frame_id"))
+    pose: PoseMsg = field(factory=PoseMsg, validator=_instance_of(PoseMsg))
+    twist: TwistMsg = field(factory=TwistMsg, validator=_instance_of(TwistMsg))
+    child_frame_id: str = field(default="", validator=_is_str)
     header: Header = _header_field()
 
 
-def _f64(name: str) -> Any:
-    return field(factory=lambda: np.zeros(0), converter=_array(np.float64, (None,), name))
+def _empty_f64() -> npt.NDArray[np.float64]:
+    return np.zeros(0)
 
 
 @define(eq=False)
 class JointStateMsg(_Message):
     """Joint names with positions, velocities and efforts (each empty or one per name)."""
 
-    name: list[str] = field(factory=list, converter=_str_list("name"))
-    position: npt.NDArray[np.float64] = _f64("position")
-    velocity: npt.NDArray[np.float64] = _f64("velocity")
-    effort: npt.NDArray[np.float64] = _f64("effort")
+    name: list[str] = field(factory=list, validator=_is_str_list)
+    position: npt.NDArray[np.float64] = field(factory=_empty_f64, converter=_position_vector)
+    velocity: npt.NDArray[np.float64] = field(factory=_empty_f64, converter=_velocity)
+    effort: npt.NDArray[np.float64] = field(factory=_empty_f64, converter=_effort)
     header: Header = _header_field()
 
     def __attrs_post_init__(self) -> None:
@@ -467,14 +522,14 @@ class JointStateMsg(_Message):
 class JointTrajectoryPointMsg(_Message):
     """One waypoint of a joint trajectory; ``time_from_start`` in seconds."""
 
-    positions: npt.NDArray[np.float64] = _f64("positions")
-    velocities: npt.NDArray[np.float64] = _f64("velocities")
-    accelerations: npt.NDArray[np.float64] = _f64("accelerations")
-    effort: npt.NDArray[np.float64] = _f64("effort")
-    time_from_start: float = field(default=0.0, converter=_number("time_from_start"))
+    positions: npt.NDArray[np.float64] = field(factory=_empty_f64, converter=_positions)
+    velocities: npt.NDArray[np.float64] = field(factory=_empty_f64, converter=_velocities)
+    accelerations: npt.NDArray[np.float64] = field(factory=_empty_f64, converter=_accelerations)
+    effort: npt.NDArray[np.float64] = field(factory=_empty_f64, converter=_effort)
+    time_from_start: float = field(default=0.0, validator=_is_number)
 
 
-def _points(value: Any) -> list[JointTrajectoryPointMsg]:
+def _trajectory_points(value: Any) -> list[JointTrajectoryPointMsg]:
     points = list(value)
     for i, p in enumerate(points):
         if not isinstance(p, JointTrajectoryPointMsg):
@@ -486,8 +541,8 @@ def _points(value: Any) -> list[JointTrajectoryPointMsg]:
 class JointTrajectoryMsg(_Message):
     """A trajectory: joint names and a list of waypoints."""
 
-    joint_names: list[str] = field(factory=list, converter=_str_list("joint_names"))
-    points: list[JointTrajectoryPointMsg] = field(factory=list, converter=_points)
+    joint_names: list[str] = field(factory=list, validator=_is_str_list)
+    points: list[JointTrajectoryPointMsg] = field(factory=list, converter=_trajectory_points)
     header: Header = _header_field()
 
 
@@ -495,10 +550,10 @@ class JointTrajectoryMsg(_Message):
 class JointJogMsg(_Message):
     """Jog command: per-joint displacements and/or velocities over ``duration`` seconds."""
 
-    joint_names: list[str] = field(factory=list, converter=_str_list("joint_names"))
-    displacements: npt.NDArray[np.float64] = _f64("displacements")
-    velocities: npt.NDArray[np.float64] = _f64("velocities")
-    duration: float = field(default=0.0, converter=_number("duration"))
+    joint_names: list[str] = field(factory=list, validator=_is_str_list)
+    displacements: npt.NDArray[np.float64] = field(factory=_empty_f64, converter=_displacements)
+    velocities: npt.NDArray[np.float64] = field(factory=_empty_f64, converter=_velocities)
+    duration: float = field(default=0.0, validator=_is_number)
     header: Header = _header_field()
 
 
@@ -507,9 +562,9 @@ class OccupancyGridMsg(_Message):
     """A 2-D grid map: int8 cells (-1 unknown, 0..100 occupancy), ``resolution`` m/cell."""
 
     data: npt.NDArray[np.int8] = field(factory=lambda: np.zeros((0, 0), np.int8),
-                                       converter=_array(np.int8, (None, None), "data"))
-    resolution: float = field(default=0.05, converter=_number("resolution"))
-    origin: PoseMsg = field(factory=PoseMsg, converter=_instance(PoseMsg, "origin"))
+                                       converter=_data)
+    resolution: float = field(default=0.05, validator=_is_number)
+    origin: PoseMsg = field(factory=PoseMsg, validator=_instance_of(PoseMsg))
     header: Header = _header_field()
 
 
@@ -517,17 +572,17 @@ class OccupancyGridMsg(_Message):
 class LaserScanMsg(_Message):
     """A planar laser scan (angles in radians, ranges in metres)."""
 
-    angle_min: float = field(default=0.0, converter=_number("angle_min"))
-    angle_max: float = field(default=0.0, converter=_number("angle_max"))
-    angle_increment: float = field(default=0.0, converter=_number("angle_increment"))
-    time_increment: float = field(default=0.0, converter=_number("time_increment"))
-    scan_time: float = field(default=0.0, converter=_number("scan_time"))
-    range_min: float = field(default=0.0, converter=_number("range_min"))
-    range_max: float = field(default=0.0, converter=_number("range_max"))
+    angle_min: float = field(default=0.0, validator=_is_number)
+    angle_max: float = field(default=0.0, validator=_is_number)
+    angle_increment: float = field(default=0.0, validator=_is_number)
+    time_increment: float = field(default=0.0, validator=_is_number)
+    scan_time: float = field(default=0.0, validator=_is_number)
+    range_min: float = field(default=0.0, validator=_is_number)
+    range_max: float = field(default=0.0, validator=_is_number)
     ranges: npt.NDArray[np.float32] = field(factory=lambda: np.zeros(0, np.float32),
-                                            converter=_array(np.float32, (None,), "ranges"))
+                                            converter=_ranges)
     intensities: npt.NDArray[np.float32] = field(factory=lambda: np.zeros(0, np.float32),
-                                                 converter=_array(np.float32, (None,), "intensities"))
+                                                 converter=_intensities)
     header: Header = _header_field()
 
 
@@ -542,8 +597,8 @@ class ComponentStatusMsg(_Message):
     (``"HEALTHY"``, ``"ALGORITHM_FAILURE"``, ``"COMPONENT_FAILURE"``, ``"SYSTEM_FAILURE"``).
     """
 
-    component: str = field(converter=_str("component"))
-    lifecycle_state: str = field(default="unconfigured", converter=_str("lifecycle_state"))
-    health: str = field(default="HEALTHY", converter=_str("health"))
-    message: str = field(default="", converter=_str("message"))
+    component: str = field(validator=_is_str)
+    lifecycle_state: str = field(default="unconfigured", validator=_is_str)
+    health: str = field(default="HEALTHY", validator=_is_str)
+    message: str = field(default="", validator=_is_str)
     header: Header = _header_field()

@@ -105,7 +105,7 @@ class SupportedType:
 class String(SupportedType):
     """Text, as ``str``."""
 
-    value_class = str
+    value_class: ClassVar[type[Any]] = str
 
     @classmethod
     def example(cls) -> Any:

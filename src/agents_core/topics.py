@@ -101,7 +101,7 @@ class Topic:
     @property
     def msg(self) -> FieldRef:
         """A reference to this topic's message for event conditions, e.g. ``topic.msg.data > 5``."""
-        from .conditions import FieldRef
+        from .conditions import FieldRef  # noqa: PLC0415  # conditions imports topics: break the cycle
 
         return FieldRef(self, ())
 

@@ -260,7 +260,7 @@ def test_component_presence_is_visible_and_drivable(transport_pair: tuple[Transp
 
 
 def test_closed_transport_refuses_work(transport_pair: tuple[Transport, Transport]) -> None:
-    a, b = transport_pair
+    a, _ = transport_pair
     topic = Topic(unique("after_close"), "String")
     pub = a.create_publisher(topic)
     pub.close()

@@ -10,7 +10,6 @@ in memory or over a pipe, never on a command line, and ``repr()`` and logs never
 from __future__ import annotations
 
 import logging
-from abc import ABC
 from collections.abc import Callable
 from typing import Any, ClassVar, TypeVar
 
@@ -52,7 +51,7 @@ def client_from_spec(spec: dict[str, Any]) -> BaseClient:
     return cls(**kwargs)
 
 
-class BaseClient(ABC):
+class BaseClient:
     """Connection settings and the error discipline shared by model and database clients."""
 
     #: Attribute names holding secrets: included in serialize(), hidden from repr() and logs.
@@ -113,9 +112,9 @@ class BaseClient(ABC):
         }
 
     def __eq__(self, other: object) -> bool:
-        return type(self) is type(other) and self.serialize() == other.serialize()  # type: ignore[attr-defined]
+        return isinstance(other, BaseClient) and type(self) is type(other) and self.serialize() == other.serialize()
 
-    __hash__ = None  # type: ignore[assignment]
+    __hash__ = None  # type: ignore[assignment]  # equality is by value and clients are mutable
 
     def __repr__(self) -> str:
         spec = self.serialize()

@@ -237,7 +237,7 @@ class Component:
             derived = ComponentRunType.EVENT
         elif trigger is None:
             derived = ComponentRunType.SERVER
-        elif isinstance(trigger, Sequence) and not isinstance(trigger, str):
+        elif isinstance(trigger, list | tuple):
             if not trigger:
                 raise WiringError(f"component {name!r}: an empty list of trigger topics never fires")
             for t in trigger:
@@ -267,7 +267,7 @@ class Component:
     def _trigger_topics(self) -> list[Topic]:
         if isinstance(self.trigger, Topic):
             return [self.trigger]
-        if isinstance(self.trigger, Sequence) and not isinstance(self.trigger, str):
+        if isinstance(self.trigger, list | tuple):
             return list(self.trigger)
         return []
 

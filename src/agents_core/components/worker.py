@@ -14,6 +14,7 @@ from __future__ import annotations
 import collections
 import logging
 import threading
+import time
 from collections.abc import Callable
 from concurrent.futures import Future
 from typing import Any, Literal
@@ -38,6 +39,7 @@ class WorkerStatistics:
     executed: int = 0
     dropped: int = 0
     discarded: int = 0
+    #: queued items plus the one running now
     pending: int = 0
 
 
@@ -53,6 +55,7 @@ class StepWorker:
         self._cond = threading.Condition()
         self._stats = WorkerStatistics()
         self._stopping = False
+        self._busy = False
         self._thread = threading.Thread(target=self._run, name=f"worker:{name}", daemon=True)
         self._thread.start()
 
@@ -110,7 +113,7 @@ class StepWorker:
         with self._cond:
             s = self._stats
             return WorkerStatistics(s.submitted, s.executed, s.dropped, s.discarded,
-                                    len(self._steps) + len(self._control))
+                                    len(self._steps) + len(self._control) + int(self._busy))
 
     def _run(self) -> None:
         while True:
@@ -125,12 +128,14 @@ class StepWorker:
                     is_step = True
                 else:
                     return
+                self._busy = True
             try:
                 item()
             except Exception:
                 logger.exception("unhandled error on the worker of %r", self.name)
-            if is_step:
-                with self._cond:
+            with self._cond:
+                self._busy = False
+                if is_step:
                     self._stats.executed += 1
 
     def stop(self, timeout: float = 10.0) -> None:
@@ -159,8 +164,6 @@ class PeriodicTimer:
         self._thread.start()
 
     def _run(self) -> None:
-        import time
-
         next_time = time.monotonic() + self.period
         while not self._stop.wait(max(0.0, next_time - time.monotonic())):
             try:

@@ -33,7 +33,6 @@ from ..errors import (
 from ..messages import ComponentStatusMsg
 from ..status import HealthStatus, LifecycleState
 from ..topics import Topic, validate_topic_name
-from .delivery import BoundedDelivery, SubscriptionStatistics
 from .contract import (
     ServiceHandler,
     SubscriptionCallback,
@@ -41,6 +40,7 @@ from .contract import (
     Transport,
     TransportCapabilities,
 )
+from .delivery import BoundedDelivery, SubscriptionStatistics
 
 __all__ = ["MemoryTransport", "SubscriptionStatistics", "TopicStatistics"]
 
@@ -235,7 +235,8 @@ class MemoryTransport:
             if handler is None:
                 raise ServiceUnavailableError(f"no service {name!r} on this memory transport")
             future: Future[dict[str, Any]] = self._executor.submit(handler, payload)
-        return _await_reply(name, future, timeout)
+        reply: dict[str, Any] = _await_reply(name, future, timeout)
+        return reply
 
     # -- presence -------------------------------------------------------------------------
 

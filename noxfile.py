@@ -1,0 +1,42 @@
+"""Developer entry points: ``nox -s tests``, ``nox -s lint``, ``nox -s types``, ``nox -s demo``.
+
+Sessions install what they need into their own virtual environments, so a machine with only
+Python (and ``pip install nox``) can run every one of them.
+"""
+
+from __future__ import annotations
+
+import nox
+
+nox.options.sessions = ["tests", "lint", "types"]
+nox.options.reuse_existing_virtualenvs = True
+
+PYTHON = ["3.11"]
+
+
+@nox.session(python=PYTHON)
+def tests(session: nox.Session) -> None:
+    """Unit tests and the conformance suite on what this machine has (memory, plus zenoh)."""
+    session.install("-e", ".[dev,zenoh]")
+    session.run("pytest", *(session.posargs or ["tests"]))
+
+
+@nox.session(python=PYTHON)
+def lint(session: nox.Session) -> None:
+    """Ruff: style, imports, likely bugs."""
+    session.install("ruff>=0.5")
+    session.run("ruff", "check", "src", "tests", "noxfile.py")
+
+
+@nox.session(python=PYTHON)
+def types(session: nox.Session) -> None:
+    """mypy --strict on src/."""
+    session.install("-e", ".[dev,zenoh]")
+    session.run("mypy", "src")
+
+
+@nox.session(python=PYTHON)
+def demo(session: nox.Session) -> None:
+    """Run the demo recipe (the README's first command)."""
+    session.install("-e", ".")
+    session.run("python", "-m", "agents_core.demo", *session.posargs)
