@@ -11,31 +11,31 @@ import nox
 nox.options.sessions = ["tests", "lint", "types"]
 nox.options.reuse_existing_virtualenvs = True
 
-PYTHON = ["3.11"]
+# Sessions use the interpreter that runs nox, so a fresh machine needs no particular version.
 
 
-@nox.session(python=PYTHON)
+@nox.session
 def tests(session: nox.Session) -> None:
     """Unit tests and the conformance suite on what this machine has (memory, plus zenoh)."""
     session.install("-e", ".[dev,zenoh]")
     session.run("pytest", *(session.posargs or ["tests"]))
 
 
-@nox.session(python=PYTHON)
+@nox.session
 def lint(session: nox.Session) -> None:
     """Ruff: style, imports, likely bugs."""
     session.install("ruff>=0.5")
     session.run("ruff", "check", "src", "tests", "noxfile.py")
 
 
-@nox.session(python=PYTHON)
+@nox.session
 def types(session: nox.Session) -> None:
     """mypy --strict on src/."""
     session.install("-e", ".[dev,zenoh]")
     session.run("mypy", "src")
 
 
-@nox.session(python=PYTHON)
+@nox.session
 def demo(session: nox.Session) -> None:
     """Run the demo recipe (the README's first command)."""
     session.install("-e", ".")
