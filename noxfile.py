@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import nox
 
-nox.options.sessions = ["tests", "lint", "types"]
+nox.options.sessions = ["tests", "install_check", "lint", "types"]
 nox.options.reuse_existing_virtualenvs = True
 
 # Sessions use the interpreter that runs nox, so a fresh machine needs no particular version.
@@ -19,6 +19,15 @@ def tests(session: nox.Session) -> None:
     """Unit tests and the conformance suite on what this machine has (memory, plus zenoh)."""
     session.install("-e", ".[dev,zenoh]")
     session.run("pytest", *(session.posargs or ["tests"]))
+
+
+@nox.session
+def install_check(session: nox.Session) -> None:
+    """``pip install .`` with no extras, then import it: no middleware may be needed or imported."""
+    session.install(".")
+    session.run("python", "-c", "import sys, agents_core, agents_core.ros, agents_core.components; "
+                "bad = [m for m in ('rclpy', 'zenoh') if m in sys.modules]; "
+                "print('imported without middleware' if not bad else f'imported {bad}'); sys.exit(bool(bad))")
 
 
 @nox.session

@@ -252,3 +252,17 @@ def test_config_is_copied_per_component() -> None:
     two = Relay(inputs=[a], component_name="two", config=one.config)
     one.config.status_rate = 5.0
     assert two.config.status_rate == 1.0
+
+
+def test_publisher_preprocessors_and_callback_postprocessors() -> None:
+    words, out = Topic("words", "String"), Topic("out", "String")
+    relay = Relay(inputs=[words], outputs=[out], trigger=words, component_name="relay", transform=lambda s: s)
+    relay.add_callback_postprocessor(words, lambda s: s.strip())
+    relay.add_publisher_preprocessor(out, lambda s: f"<{s}>")
+    with pytest.raises(WiringError, match="has no output 'nope'"):
+        relay.add_publisher_preprocessor("nope", str)
+    with launch(relay) as launcher:
+        got: list[str] = []
+        launcher.transport.create_subscription(out, got.append)
+        launcher.transport.create_publisher(words).publish("  padded  ")
+        assert wait_for(lambda: got == ["<padded>"])
