@@ -24,7 +24,14 @@ from agents_core.actions import Action
 from agents_core.clients import ModelClient, client_from_spec
 from agents_core.components.model_component import ModelComponent
 from agents_core.config import ModelComponentConfig
-from agents_core.errors import AlgorithmFailure, ClientConnectionError, ConfigError, InferenceError, WiringError
+from agents_core.errors import (
+    AlgorithmFailure,
+    ClientConnectionError,
+    ComponentError,
+    ConfigError,
+    InferenceError,
+    WiringError,
+)
 from agents_core.models import Model
 from agents_core.ros import Event, Image, String, SupportedType, base_validators
 from agents_core.status import HealthStatus
@@ -421,3 +428,38 @@ def test_unreachable_server_fails_configure_with_a_typed_error() -> None:
     client = CustomHTTPClient(Model(name="m", checkpoint="c"), host="127.0.0.1", port=1)
     with pytest.raises(ClientConnectionError, match="cannot reach the server"):
         client.check_connection()
+
+
+class DepthWithLocal(DepthEstimator):
+    """A DepthEstimator with a built-in local model (a plain function here; llama.cpp etc. later)."""
+
+    def _deploy_local_model(self) -> None:
+        def local_depth(inference_input: dict[str, Any]) -> dict[str, Any]:
+            return {"output": np.full(inference_input["images"][0].shape[:2], 7, np.uint8)}
+
+        self.local_model = local_depth
+
+
+def test_fallback_to_local_answers_after_client_failure() -> None:
+    broken = DepthClient(DepthModel(name="depth", checkpoint="remote"), fail=True)
+    camera, depth_map = Topic("camera", "Image"), Topic("depth", "Image")
+    depth = DepthWithLocal(inputs=[camera], outputs=[depth_map], model_client=broken, trigger=camera)
+    depth.on_component_fail(Action(depth.fallback_to_local))
+    launcher = Launcher("memory")
+    launcher.add_pkg(components=[depth])
+    with launcher:
+        got: list[Any] = []
+        launcher.transport.create_subscription(depth_map, got.append)
+        pub = launcher.transport.create_publisher(camera)
+        pub.publish(np.zeros((4, 4, 3), np.uint8))
+        assert wait_for(lambda: depth.model_client is None and depth.local_model is not None)
+        pub.publish(np.zeros((4, 4, 3), np.uint8))
+        assert wait_for(lambda: bool(got))
+        assert int(got[0].data[0, 0, 0]) == 7
+
+
+def test_fallback_to_local_without_a_local_model_is_a_clear_error() -> None:
+    client = DepthClient(DepthModel(name="d", checkpoint="c"))
+    depth, _, _ = _depth_recipe(client)
+    with pytest.raises(ComponentError, match="has no built-in local model"):
+        depth.fallback_to_local()
