@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import nox
 
-nox.options.sessions = ["tests", "install_check", "lint", "types"]
+nox.options.sessions = ["tests", "tests_ros2", "install_check", "lint", "types"]
 nox.options.reuse_existing_virtualenvs = True
 
 # Sessions use the interpreter that runs nox, so a fresh machine needs no particular version.
@@ -19,6 +19,15 @@ def tests(session: nox.Session) -> None:
     """Unit tests and the conformance suite on what this machine has (memory, plus zenoh)."""
     session.install("-e", ".[dev,zenoh]")
     session.run("pytest", *(session.posargs or ["tests"]))
+
+
+@nox.session
+def tests_ros2(session: nox.Session) -> None:
+    """The ROS 2 adapter: builds interfaces/ into the session's venv, then conformance + interop tests."""
+    session.install("-e", ".[ros2,dev]")
+    # The interface package must build against the ROS packages of this very environment.
+    session.install("--no-build-isolation", "./interfaces")
+    session.run("pytest", "tests/conformance", "tests/ros2", "-k", "ros2", *session.posargs)
 
 
 @nox.session

@@ -99,6 +99,14 @@ class SupportedType:
         raise NotImplementedError(f"{cls.type_name()} has no example value")
 
 
+def _unstamped() -> m.Header:
+    """The header of a value whose standard wire form has none (e.g. geometry_msgs/Pose): stamp 0.
+
+    Transports that cannot carry such a header deliver this one, so examples use it to round-trip.
+    """
+    return m.Header(stamp_ns=0)
+
+
 # -- scalars and text -------------------------------------------------------------------------
 
 
@@ -381,11 +389,15 @@ class Point(SupportedType):
 
     @classmethod
     def example(cls) -> Any:
-        return m.PointMsg(x=1.0, y=-2.0, z=0.5)
+        return m.PointMsg(x=1.0, y=-2.0, z=0.5, header=_unstamped())
 
 
 class PointStamped(Point):
     """A 3-D point whose header matters (stamp and frame)."""
+
+    @classmethod
+    def example(cls) -> Any:
+        return m.PointMsg(x=1.0, y=-2.0, z=0.5, header=m.Header(stamp_ns=1_700_000_000_000_000_007, frame_id="map"))
 
 
 class Pose(SupportedType):
@@ -395,11 +407,16 @@ class Pose(SupportedType):
 
     @classmethod
     def example(cls) -> Any:
-        return m.PoseMsg(position=[1, 2, 3], orientation=[0, 0, 0.7071068, 0.7071068])
+        return m.PoseMsg(position=[1, 2, 3], orientation=[0, 0, 0.7071068, 0.7071068], header=_unstamped())
 
 
 class PoseStamped(Pose):
     """A pose whose header matters (stamp and frame)."""
+
+    @classmethod
+    def example(cls) -> Any:
+        return m.PoseMsg(position=[1, 2, 3], orientation=[0, 0, 0, 1],
+                         header=m.Header(stamp_ns=1_700_000_000_000_000_009, frame_id="odom"))
 
 
 class Twist(SupportedType):
@@ -409,7 +426,7 @@ class Twist(SupportedType):
 
     @classmethod
     def example(cls) -> Any:
-        return m.TwistMsg(linear=[0.2, 0, 0], angular=[0, 0, 0.5])
+        return m.TwistMsg(linear=[0.2, 0, 0], angular=[0, 0, 0.5], header=_unstamped())
 
 
 class Odometry(SupportedType):
@@ -419,7 +436,12 @@ class Odometry(SupportedType):
 
     @classmethod
     def example(cls) -> Any:
-        return m.OdometryMsg(pose=Pose.example(), twist=Twist.example(), child_frame_id="base_link")
+        # Pose and twist share the message's header (nav_msgs/Odometry carries one header).
+        stamp, frame = 1_700_000_000_000_000_013, "odom"
+        pose = m.PoseMsg(position=[1, 2, 0], header=m.Header(stamp_ns=stamp, frame_id=frame))
+        twist = m.TwistMsg(linear=[0.2, 0, 0], header=m.Header(stamp_ns=stamp, frame_id=frame))
+        return m.OdometryMsg(pose=pose, twist=twist, child_frame_id="base_link",
+                             header=m.Header(stamp_ns=stamp, frame_id=frame))
 
 
 class JointState(SupportedType):
@@ -470,7 +492,11 @@ class OccupancyGrid(SupportedType):
 
     @classmethod
     def example(cls) -> Any:
-        return m.OccupancyGridMsg(data=np.array([[0, 100], [-1, 50]], np.int8), resolution=0.1)
+        # The origin's header is the grid's own (nav_msgs/OccupancyGrid carries one header).
+        header = m.Header(stamp_ns=1_700_000_000_000_000_011, frame_id="map")
+        origin = m.PoseMsg(position=[-1, -2, 0], header=m.Header(stamp_ns=header.stamp_ns, frame_id="map"))
+        return m.OccupancyGridMsg(data=np.array([[0, 100], [-1, 50]], np.int8), resolution=0.1, origin=origin,
+                                  header=header)
 
 
 class LaserScan(SupportedType):

@@ -1,7 +1,567 @@
-"""The ROS 2 transport (work in progress: see the project's issue on the ROS 2 adapter)."""
+"""The ROS 2 transport: agents_core components as rclpy lifecycle nodes on ROS 2 Jazzy.
+
+``Ros2Transport(**options)`` implements :class:`~agents_core.transport.contract.Transport`:
+
+* **nodes**: one plain node per transport (for publishers, subscriptions and services that belong
+  to no component, and for observer clients), plus one lifecycle node per declared component
+  (see :mod:`agents_ros2.lifecycle`); a publisher, subscription or service created with
+  ``owner=<component>`` lives on that component's node;
+* **one executor** per transport, spun on a background thread: rclpy's single-threaded executor,
+  except that service requests (JsonCall handlers, lifecycle ``change_state``) are answered on a
+  small thread pool, because they may take seconds (a component loading a model on configure)
+  and would otherwise stall every subscription of the transport meanwhile;
+* **topics**: names as given (relative names are made absolute: ``camera/image`` is
+  ``/camera/image``), values converted by :mod:`agents_ros2.conversions`, QoS mapped by
+  :mod:`agents_ros2.qos`. Received values go through the shared
+  :class:`~agents_core.transport.delivery.BoundedDelivery`. A message that cannot be converted is
+  counted (``SubscriptionStatistics.decode_errors``), logged once per subscription with the
+  reason, and skipped; the subscription keeps serving;
+* **request/reply**: services of type ``agents_interfaces/srv/JsonCall`` (JSON text in, JSON text
+  or the handler's error out);
+* **presence**: lifecycle services of the component's node plus ``/<component>/status``.
+
+Options (all keyword): ``domain_id`` (default: ``ROS_DOMAIN_ID``), ``shared_memory`` (the 16 MB
+Fast DDS shared-memory profile; default on, ``AGENTS_ROS2_SHM=0`` turns it off),
+``executor`` (``"single"`` or ``"events"``), ``executor_threads``,
+``reader_depth_floor``, ``first_publish_wait`` and ``node_name``.
+"""
 
 from __future__ import annotations
 
-import rclpy  # noqa: F401  # the dependency check: a missing extra fails here, with the extra named by the registry
+import itertools
+import json
+import logging
+import os
+import threading
+import time
+from typing import TYPE_CHECKING, Any, Literal
 
-__all__: list[str] = []
+import attrs
+import rclpy
+
+from agents_core.errors import TransportNotAvailableError
+
+try:
+    from agents_interfaces.srv import JsonCall
+except ImportError as _exc:  # rclpy is there (the extra), the interface package is not built yet
+    raise TransportNotAvailableError(
+        f"the 'ros2' transport needs the agents_interfaces package ({_exc}); with the ros2 extra installed, "
+        "build it into this environment with: pip install --no-build-isolation ./interfaces"
+    ) from _exc
+from lifecycle_msgs.srv import ChangeState, GetState
+from rclpy.context import Context
+from rclpy.exceptions import InvalidHandle
+from rclpy.executors import Executor, ExternalShutdownException, ShutdownException
+from rclpy.experimental import EventsExecutor
+from rclpy.node import Node
+from rclpy.signals import SignalHandlerOptions
+
+from agents_core.errors import (
+    ConfigError,
+    RemoteError,
+    RequestTimeoutError,
+    ServiceUnavailableError,
+    TransportClosedError,
+    WiringError,
+)
+from agents_core.messages import ComponentStatusMsg
+from agents_core.supported_types import ComponentStatus
+from agents_core.topics import Topic, validate_topic_name
+from agents_core.transport.contract import (
+    ServiceHandler,
+    SubscriptionCallback,
+    TransitionHandler,
+    Transport,
+    TransportCapabilities,
+)
+from agents_core.transport.delivery import BoundedDelivery, SubscriptionStatistics
+
+from .conversions import RosConversion, conversion_for
+from .executor import OffloadingExecutor
+from .lifecycle import STATUS_QOS, ComponentLifecycle, absolute_name
+from .qos import (
+    READER_DEPTH_FLOOR,
+    enable_shared_memory_profile,
+    publisher_qos,
+    shared_memory_wanted,
+    subscription_qos,
+)
+
+if TYPE_CHECKING:
+    from rclpy.client import Client
+    from rclpy.task import Future
+
+__all__ = ["Ros2Transport"]
+
+logger = logging.getLogger(__name__)
+
+ExecutorKind = Literal["single", "events"]
+
+_transport_ids = itertools.count()
+#: How often a waiting request checks whether its server has been discovered.
+_DISCOVERY_POLL_S = 0.02
+#: Health reported for a lifecycle node that has published no ComponentStatus (not ours, or not yet).
+UNKNOWN_HEALTH = "UNKNOWN"
+
+class _Ros2Publisher:
+    """Publishes one topic's values as ROS messages."""
+
+    def __init__(self, transport: Ros2Transport, topic: Topic, node: Node, conversion: RosConversion,
+                 publisher: Any, on_close: Any = None, first_publish_wait: float = 0.0) -> None:
+        self.topic = topic
+        self._first_publish_wait = first_publish_wait
+        self._transport = transport
+        self._node = node
+        self._conversion = conversion
+        self._publisher = publisher
+        self._on_close = on_close
+        self._closed = False
+
+    def publish(self, value: Any) -> None:
+        """Validate, convert and send ``value``."""
+        if self._closed or self._transport.closed:
+            raise TransportClosedError(f"publisher on {self.topic.name!r} is closed")
+        message = self._conversion.to_ros(self.topic.msg_type.validate(value))
+        if self._first_publish_wait > 0:
+            self._wait_for_match()
+        try:
+            self._publisher.publish(message)
+        except InvalidHandle as exc:
+            # Its node was destroyed (transport closed, or the owning component withdrawn).
+            raise TransportClosedError(f"publisher on {self.topic.name!r} is closed") from exc
+
+    def _wait_for_match(self) -> None:
+        # DDS matches a new writer with existing readers asynchronously, and a reliable writer
+        # drops what it publishes before that. Waiting (once, bounded) on the first publish makes
+        # "create a publisher, publish" reach subscriptions that already exist.
+        deadline = time.monotonic() + self._first_publish_wait
+        self._first_publish_wait = 0.0
+        while self._publisher.get_subscription_count() == 0 and time.monotonic() < deadline:
+            time.sleep(_DISCOVERY_POLL_S / 2)
+
+    def close(self) -> None:
+        """Stop publishing; idempotent."""
+        if self._closed:
+            return
+        self._closed = True
+        if self._on_close is not None:
+            self._on_close()
+            return
+        try:
+            self._node.destroy_publisher(self._publisher)
+        except Exception as exc:  # the node is already gone
+            logger.debug("destroying the publisher on %r: %s", self.topic.name, exc)
+
+
+class _Ros2Subscription:
+    """Converts received ROS messages and hands them to a BoundedDelivery."""
+
+    def __init__(self, transport: Ros2Transport, topic: Topic, callback: SubscriptionCallback, node: Node,
+                 depth_floor: int) -> None:
+        self.topic = topic
+        self._transport = transport
+        self._node = node
+        self._conversion = conversion_for(topic.msg_type)
+        self._delivery = BoundedDelivery(topic, callback)
+        self._decode_errors = 0
+        self._lock = threading.Lock()
+        self._closed = False
+        try:
+            self._subscription = node.create_subscription(
+                self._conversion.ros_type, absolute_name(topic.name), self._on_message,
+                subscription_qos(topic.qos_profile, depth_floor))
+        except BaseException:
+            self._delivery.close()
+            raise
+
+    def _on_message(self, message: Any) -> None:
+        try:
+            value = self.topic.msg_type.validate(self._conversion.from_ros(message))
+        except Exception as exc:
+            with self._lock:
+                self._decode_errors += 1
+                first = self._decode_errors == 1
+            # Once per subscription at warning level: a stream of bad messages must not flood the log.
+            log = logger.warning if first else logger.debug
+            log("dropped a message on %s that has no %s value: %s%s", absolute_name(self.topic.name),
+                self.topic.type_name, exc, " (further ones are counted in decode_errors)" if first else "")
+            return
+        self._delivery.offer(value)
+
+    def statistics(self) -> SubscriptionStatistics:
+        """Delivered / dropped / callback-error / decode-error counts."""
+        with self._lock:
+            decode_errors = self._decode_errors
+        return attrs.evolve(self._delivery.statistics(), decode_errors=decode_errors)
+
+    def close(self) -> None:
+        """Stop receiving; no callback starts after this returns. Idempotent."""
+        with self._lock:
+            if self._closed:
+                return
+            self._closed = True
+        self._transport._forget_subscription(self)
+        try:
+            self._node.destroy_subscription(self._subscription)
+        except Exception as exc:  # the node is already gone
+            logger.debug("destroying the subscription on %r: %s", self.topic.name, exc)
+        self._delivery.close()
+
+
+class _Ros2Service:
+    """Serves ``JsonCall`` requests on one name with a JSON-dict handler."""
+
+    def __init__(self, transport: Ros2Transport, name: str, handler: ServiceHandler, node: Node) -> None:
+        self.name = name
+        self._transport = transport
+        self._handler = handler
+        self._node = node
+        self._closed = False
+        self._service = node.create_service(JsonCall, absolute_name(name), self._serve)
+        transport._offload(self._service)
+
+    def _serve(self, request: Any, response: Any) -> Any:
+        try:
+            payload = json.loads(request.request_json or "{}")
+            if not isinstance(payload, dict):
+                raise ConfigError(f"a request must be a JSON object, got {type(payload).__name__}")
+            response.response_json = json.dumps(self._handler(payload))
+            response.success = True
+        except Exception as exc:
+            response.success = False
+            response.error = f"{type(exc).__name__}: {exc}"
+        return response
+
+    def close(self) -> None:
+        """Stop serving; idempotent."""
+        if self._closed:
+            return
+        self._closed = True
+        self._transport._forget_service(self.name)
+        try:
+            self._node.destroy_service(self._service)
+        except Exception as exc:  # the node is already gone
+            logger.debug("destroying the service %r: %s", self.name, exc)
+
+
+class Ros2Transport:
+    """A transport on ROS 2 (rclpy, Fast DDS). See the module docstring for what maps to what.
+
+    :param domain_id: ROS domain id; None reads ``ROS_DOMAIN_ID`` (default 0).
+    :param shared_memory: use the 16 MB Fast DDS shared-memory profile for large messages between
+        processes on one host; None reads ``AGENTS_ROS2_SHM`` (default on). Fast DDS reads its
+        profile once per process, so the first transport of a process decides.
+    :param executor: ``"single"`` (default: rclpy's single-threaded executor, service requests
+        answered on a pool) or ``"events"`` (rclpy's experimental EventsExecutor: lower latency,
+        but service handlers and lifecycle transitions run on its one thread, so a slow one
+        stalls message handling meanwhile).
+    :param executor_threads: size of the pool that answers service requests (how many slow
+        handlers or transitions may run at once).
+    :param reader_depth_floor: smallest DDS history of a subscription (see :mod:`agents_ros2.qos`).
+    :param first_publish_wait: on its first publish, a publisher that has matched no subscription
+        yet waits up to this many seconds for discovery (0 turns it off), so a value published
+        right after the publisher is created reaches subscriptions that already exist.
+    :param node_name: name of the transport's own node (default ``agents_<pid>_<n>``).
+    """
+
+    name = "ros2"
+
+    def __init__(self, *, domain_id: int | None = None, shared_memory: bool | None = None,
+                 executor: ExecutorKind = "single", executor_threads: int = 4,
+                 reader_depth_floor: int = READER_DEPTH_FLOOR, first_publish_wait: float = 0.5,
+                 node_name: str | None = None) -> None:
+        if executor not in ("single", "events"):
+            raise ConfigError(f"executor must be 'single' or 'events', got {executor!r}")
+        if executor_threads < 1:
+            raise ConfigError(f"executor_threads must be at least 1, got {executor_threads}")
+        uses_shm = shared_memory_wanted(shared_memory) and enable_shared_memory_profile()
+        self.capabilities = TransportCapabilities(cross_process=True, services=True, actions=False,
+                                                  shared_memory=uses_shm, zero_copy=False,
+                                                  lifecycle_services=True)
+        self._reader_depth_floor = reader_depth_floor
+        self._first_publish_wait = first_publish_wait
+        self._lock = threading.RLock()
+        self._closed = False
+        self._publishers: list[_Ros2Publisher] = []
+        self._subscriptions: list[_Ros2Subscription] = []
+        self._services: dict[str, _Ros2Service] = {}
+        self._components: dict[str, ComponentLifecycle] = {}
+        self._clients: dict[tuple[str, str], Client] = {}
+        self._status_watches: dict[str, Any] = {}
+        self._latest_status: dict[str, ComponentStatusMsg] = {}
+        self._context = Context()
+        # Signals belong to the application (the Launcher handles SIGINT / SIGTERM), not to rclpy.
+        rclpy.init(context=self._context, domain_id=domain_id, signal_handler_options=SignalHandlerOptions.NO)
+        try:
+            self._node = Node(node_name or f"agents_{os.getpid()}_{next(_transport_ids)}", context=self._context,
+                              enable_rosout=False, start_parameter_services=False)
+            self._executor = self._make_executor(executor, executor_threads)
+            self._executor.add_node(self._node)
+        except BaseException:
+            self._context.try_shutdown()
+            raise
+        self._stop = threading.Event()
+        self._spin_thread = threading.Thread(target=self._spin, name=f"ros2-executor:{self._node.get_name()}",
+                                             daemon=True)
+        self._spin_thread.start()
+
+    def _make_executor(self, kind: ExecutorKind, threads: int) -> Executor:
+        if kind == "single":
+            return OffloadingExecutor(self._context, threads)
+        return EventsExecutor(context=self._context)
+
+    def _offload(self, service: Any) -> None:
+        if isinstance(self._executor, OffloadingExecutor):
+            self._executor.offload(service)
+
+    def _spin(self) -> None:
+        while not self._stop.is_set():
+            try:
+                self._executor.spin_once(timeout_sec=0.25)
+            except (ExternalShutdownException, ShutdownException):
+                return
+            except Exception:
+                # A raising callback must not end message handling for the whole transport.
+                if self._stop.is_set():
+                    return
+                logger.exception("a ROS 2 callback raised; the executor keeps running")
+
+    # -- helpers ----------------------------------------------------------------------------
+
+    @property
+    def closed(self) -> bool:
+        """Whether :meth:`close` ran."""
+        return self._closed
+
+    def _check_open(self) -> None:
+        if self._closed:
+            raise TransportClosedError("the ros2 transport is closed")
+
+    def _node_for(self, owner: str | None) -> Node:
+        if owner is not None:
+            presence = self._components.get(owner)
+            if presence is not None:
+                return presence.node
+        return self._node
+
+    def _client(self, srv_type: Any, name: str) -> Client:
+        key = (srv_type.__name__, name)
+        with self._lock:
+            client = self._clients.get(key)
+            if client is None:
+                # Clients are kept: a new one has to be discovered by its server before it works.
+                client = self._node.create_client(srv_type, name)
+                self._clients[key] = client
+            return client
+
+    def _wait_for_server(self, client: Client, deadline: float) -> bool:
+        while not client.service_is_ready():
+            if time.monotonic() >= deadline or self._closed:
+                return bool(client.service_is_ready())
+            time.sleep(_DISCOVERY_POLL_S)
+        return True
+
+    def _call(self, client: Client, request: Any, deadline: float, what: str) -> Any:
+        future: Future = client.call_async(request)
+        done = threading.Event()
+        future.add_done_callback(lambda _f: done.set())
+        if not done.wait(max(0.0, deadline - time.monotonic())):
+            client.remove_pending_request(future)
+            raise RequestTimeoutError(f"{what} got no reply in time")
+        return future.result()
+
+    # -- pub/sub ----------------------------------------------------------------------------
+
+    def create_publisher(self, topic: Topic, *, owner: str | None = None) -> _Ros2Publisher:
+        """A publisher for ``topic`` on the owner's node (or the transport's)."""
+        with self._lock:
+            self._check_open()
+            conversion = conversion_for(topic.msg_type)
+            presence = self._components.get(owner) if owner is not None else None
+            if (presence is not None and absolute_name(topic.name) == presence.status_topic
+                    and issubclass(topic.msg_type, ComponentStatus)):
+                return self._adopt_status_publisher(topic, presence, conversion)
+            node = self._node_for(owner)
+            rclpy_publisher = node.create_publisher(conversion.ros_type, absolute_name(topic.name),
+                                                    publisher_qos(topic.qos_profile))
+            publisher = _Ros2Publisher(self, topic, node, conversion, rclpy_publisher,
+                                       first_publish_wait=self._first_publish_wait)
+            self._publishers.append(publisher)
+            return publisher
+
+    def _adopt_status_publisher(self, topic: Topic, presence: ComponentLifecycle,
+                                conversion: RosConversion) -> _Ros2Publisher:
+        # The component publishes its own status: share the presence's publisher so observers see
+        # one writer and one stream on <component>/status, not two copies of every status.
+        presence.status_adopted = True
+
+        def release() -> None:
+            presence.status_adopted = False
+
+        return _Ros2Publisher(self, topic, presence.node, conversion, presence.status_publisher, on_close=release)
+
+    def create_subscription(self, topic: Topic, callback: SubscriptionCallback, *,
+                            owner: str | None = None) -> _Ros2Subscription:
+        """Deliver ``topic``'s values to ``callback`` through a BoundedDelivery."""
+        with self._lock:
+            self._check_open()
+            subscription = _Ros2Subscription(self, topic, callback, self._node_for(owner),
+                                             self._reader_depth_floor)
+            self._subscriptions.append(subscription)
+            return subscription
+
+    def _forget_subscription(self, subscription: _Ros2Subscription) -> None:
+        with self._lock:
+            if subscription in self._subscriptions:
+                self._subscriptions.remove(subscription)
+
+    # -- request / reply --------------------------------------------------------------------
+
+    def create_service(self, name: str, handler: ServiceHandler, *, owner: str | None = None) -> _Ros2Service:
+        """Serve ``JsonCall`` requests on ``name`` with ``handler``."""
+        validate_topic_name(name, "service")
+        with self._lock:
+            self._check_open()
+            if name in self._services:
+                raise WiringError(f"service {name!r} is already served on this transport")
+            service = _Ros2Service(self, name, handler, self._node_for(owner))
+            self._services[name] = service
+            return service
+
+    def _forget_service(self, name: str) -> None:
+        with self._lock:
+            self._services.pop(name, None)
+
+    def request(self, name: str, payload: dict[str, Any], *, timeout: float = 5.0) -> dict[str, Any]:
+        """Send ``payload`` to the service ``name`` and return its reply (see the contract for errors)."""
+        self._check_open()
+        body = json.dumps(payload)
+        deadline = time.monotonic() + timeout
+        client = self._client(JsonCall, absolute_name(name))
+        if not self._wait_for_server(client, deadline):
+            self._check_open()
+            raise ServiceUnavailableError(f"no server for service {name!r} appeared within {timeout:g} s")
+        try:
+            response = self._call(client, JsonCall.Request(request_json=body), deadline, f"request to {name!r}")
+        except RequestTimeoutError:
+            raise RequestTimeoutError(f"request to {name!r} got no reply within {timeout:g} s") from None
+        if not response.success:
+            raise RemoteError(f"{name!r} failed: {response.error}")
+        reply = json.loads(response.response_json or "{}")
+        if not isinstance(reply, dict):
+            raise RemoteError(f"{name!r} replied with a {type(reply).__name__}, not a JSON object")
+        return reply
+
+    # -- presence ---------------------------------------------------------------------------
+
+    def declare_component(self, name: str, *, on_transition: TransitionHandler) -> ComponentLifecycle:
+        """Create the component's lifecycle node; outside change_state requests call ``on_transition``."""
+        validate_topic_name(name, "component")
+        with self._lock:
+            self._check_open()
+            if name in self._components:
+                raise WiringError(f"a component named {name!r} is already declared on this transport")
+            presence = ComponentLifecycle(name, self._context, on_transition, self._forget_component)
+            self._components[name] = presence
+            self._offload(presence.node._service_change_state)
+            self._executor.add_node(presence.node)
+            return presence
+
+    def _forget_component(self, presence: ComponentLifecycle) -> None:
+        with self._lock:
+            if self._components.get(presence.name) is presence:
+                del self._components[presence.name]
+        self._executor.remove_node(presence.node)
+
+    def _watch_status(self, name: str) -> None:
+        with self._lock:
+            if name in self._status_watches:
+                return
+            conversion = conversion_for(ComponentStatus)
+
+            def on_status(message: Any) -> None:
+                try:
+                    value = conversion.from_ros(message)
+                except Exception as exc:
+                    logger.debug("unreadable status of %r: %s", name, exc)
+                    return
+                with self._lock:
+                    self._latest_status[name] = value
+
+            self._status_watches[name] = self._node.create_subscription(
+                conversion.ros_type, absolute_name(f"{name}/status"), on_status, STATUS_QOS)
+
+    def get_component_state(self, name: str, *, timeout: float = 2.0) -> ComponentStatusMsg | None:
+        """The component's lifecycle state (``get_state``) and health (``<name>/status``); None if absent."""
+        self._check_open()
+        deadline = time.monotonic() + timeout
+        self._watch_status(name)
+        client = self._client(GetState, absolute_name(f"{name}/get_state"))
+        if not self._wait_for_server(client, deadline):
+            return None
+        try:
+            label = self._call(client, GetState.Request(), deadline, f"get_state of {name!r}").current_state.label
+        except RequestTimeoutError:
+            return None  # the node went away between discovery and the call
+        status = self._latest_status.get(name)
+        while status is None and time.monotonic() < deadline:
+            time.sleep(_DISCOVERY_POLL_S)
+            status = self._latest_status.get(name)
+        if status is None:
+            return ComponentStatusMsg(component=name, lifecycle_state=label, health=UNKNOWN_HEALTH)
+        # The component's own view wins where ROS has no resting state for it (errorprocessing).
+        state = status.lifecycle_state if status.lifecycle_state == "errorprocessing" else label
+        return ComponentStatusMsg(component=name, lifecycle_state=state, health=status.health,
+                                  message=status.message, header=status.header)
+
+    def request_transition(self, name: str, transition: str, *, timeout: float = 5.0) -> bool:
+        """Ask the component's lifecycle node for ``transition`` through ``change_state``."""
+        self._check_open()
+        deadline = time.monotonic() + timeout
+        client = self._client(ChangeState, absolute_name(f"{name}/change_state"))
+        if not self._wait_for_server(client, deadline):
+            self._check_open()
+            raise ServiceUnavailableError(f"no lifecycle node {name!r} appeared within {timeout:g} s")
+        request = ChangeState.Request()
+        request.transition.label = transition
+        try:
+            response = self._call(client, request, deadline, f"{transition} of {name!r}")
+        except RequestTimeoutError:
+            raise RequestTimeoutError(f"{transition} of {name!r} got no reply within {timeout:g} s") from None
+        return bool(response.success)
+
+    # -- teardown ---------------------------------------------------------------------------
+
+    def close(self) -> None:
+        """Release every publisher, subscription, service, component node and the ROS context."""
+        with self._lock:
+            if self._closed:
+                return
+            self._closed = True
+            subscriptions = list(self._subscriptions)
+            components = list(self._components.values())
+        for subscription in subscriptions:
+            subscription.close()
+        for presence in components:
+            presence.close()
+        self._stop.set()
+        self._executor.shutdown(timeout_sec=2.0)
+        self._spin_thread.join(timeout=5.0)
+        try:
+            self._node.destroy_node()
+        finally:
+            self._context.try_shutdown()
+
+    def __enter__(self) -> Ros2Transport:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def __repr__(self) -> str:
+        return f"<Ros2Transport node={self._node.get_name()!r} closed={self._closed}>"
+
+
+if TYPE_CHECKING:
+    # mypy checks here that Ros2Transport satisfies the Transport protocol.
+    _conforms: Transport = Ros2Transport()

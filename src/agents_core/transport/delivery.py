@@ -31,6 +31,8 @@ class SubscriptionStatistics:
     dropped: int = 0
     callback_errors: int = 0
     queued: int = 0
+    #: Received payloads that did not decode into the topic's type (networked transports).
+    decode_errors: int = 0
 
 
 class BoundedDelivery:

@@ -53,6 +53,8 @@ def _load_alias(name: str) -> Any:
     module_name, _, attr = target.partition(":")
     try:
         module = importlib.import_module(module_name)
+    except TransportNotAvailableError:
+        raise  # the adapter already said precisely what is missing
     except ImportError as exc:
         if extra is None:
             raise
