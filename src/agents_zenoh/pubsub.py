@@ -1,0 +1,167 @@
+"""Publishers and subscriptions of the Zenoh transport: QoS mapping, encoding, decode-error accounting."""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from typing import TYPE_CHECKING, Any
+
+import attrs
+import zenoh
+
+from agents_core.errors import TransportClosedError, TransportError
+from agents_core.topics import Topic
+from agents_core.transport.contract import SubscriptionCallback
+from agents_core.transport.delivery import BoundedDelivery, SubscriptionStatistics
+
+from .codecs import MSGPACK, CodecError, decode_value, encode_value, pack
+
+if TYPE_CHECKING:
+    from .transport import ZenohTransport
+
+__all__ = ["ZenohPublisher", "ZenohSubscription", "undeclare"]
+
+logger = logging.getLogger(__name__)
+
+
+class ZenohPublisher:
+    """Puts one topic's values on ``<namespace>/<topic>`` (see :mod:`agents_zenoh.transport`)."""
+
+    def __init__(self, transport: ZenohTransport, topic: Topic) -> None:
+        self.topic = topic
+        self._transport = transport
+        self._lock = threading.Lock()
+        self._seq = 0
+        self._closed = False
+        self._buffer = bytearray()
+        qos = topic.qos_profile
+        reliable = qos.reliability == "reliable"
+        options: dict[str, Any] = {
+            "encoding": zenoh.Encoding(MSGPACK).with_schema(topic.type_name),
+            "congestion_control": zenoh.CongestionControl.BLOCK if reliable else zenoh.CongestionControl.DROP,
+            "reliability": zenoh.Reliability.RELIABLE if reliable else zenoh.Reliability.BEST_EFFORT,
+            "priority": transport._priority(topic),
+        }
+        key = transport._key(topic.name)
+        self._pub: zenoh.Publisher | zenoh.ext.AdvancedPublisher
+        if qos.durability == "transient_local":
+            self._pub = zenoh.ext.declare_advanced_publisher(
+                transport._session, key, cache=zenoh.ext.CacheConfig(qos.depth), publisher_detection=True,
+                **options)
+            # Late joiners fetch the cache, so there is no discovery race to wait out.
+            self._match_deadline = 0.0
+        else:
+            self._pub = transport._session.declare_publisher(key, **options)
+            self._match_deadline = time.monotonic() + transport.config.match_timeout
+
+    def publish(self, value: Any) -> None:
+        """Validate, encode and put ``value`` (TypeValidationError / TransportClosedError as the contract says)."""
+        if self._closed:
+            raise TransportClosedError(f"publisher on {self.topic.name!r} is closed")
+        self._transport._check_open(f"publish on {self.topic.name!r}")
+        value = self.topic.msg_type.validate(value)
+        self._wait_for_match()
+        with self._lock:
+            # Under the lock: the reusable buffer is shared, and sequence numbers follow put order.
+            payload = encode_value(self.topic.msg_type, value, self._buffer)
+            attachment = pack({"seq": self._seq, "stamp_ns": time.time_ns()})
+            self._seq += 1
+            try:
+                self._pub.put(payload, attachment=attachment)
+            except zenoh.ZError as exc:
+                self._transport._check_open(f"publish on {self.topic.name!r}")
+                raise TransportError(f"publishing on {self.topic.name!r} failed: {exc}") from exc
+
+    def _wait_for_match(self) -> None:
+        # A Zenoh publisher learns about subscribers asynchronously; a value put before that
+        # is lost. Right after creation, wait (bounded) for the first match instead.
+        if not self._match_deadline:
+            return
+        while time.monotonic() < self._match_deadline:
+            # zenoh-python 1.x returns a MatchingStatus object here (its stub says bool).
+            status: Any = getattr(self._pub, "matching_status", True)
+            if getattr(status, "matching", status):
+                break
+            time.sleep(0.001)
+        self._match_deadline = 0.0
+
+    def close(self) -> None:
+        """Undeclare the publisher; idempotent."""
+        with self._lock:
+            if self._closed:
+                return
+            self._closed = True
+        self._transport._forget(self)
+        undeclare(self._pub)
+
+
+class ZenohSubscription:
+    """Decodes one topic's samples into a BoundedDelivery (see :mod:`agents_zenoh.transport`)."""
+
+    def __init__(self, transport: ZenohTransport, topic: Topic, callback: SubscriptionCallback) -> None:
+        self.topic = topic
+        self._transport = transport
+        self._closed = False
+        self._decode_errors = 0
+        self._count_lock = threading.Lock()
+        self._schema = topic.type_name
+        self._delivery = BoundedDelivery(topic, callback)
+        key = transport._key(topic.name)
+        self._sub: zenoh.Subscriber[None] | zenoh.ext.AdvancedSubscriber[None]
+        try:
+            if topic.qos_profile.durability == "transient_local":
+                history = zenoh.ext.HistoryConfig(detect_late_publishers=True, max_samples=topic.qos_profile.depth)
+                self._sub = zenoh.ext.declare_advanced_subscriber(transport._session, key, self._on_sample,
+                                                                  history=history)
+            else:
+                self._sub = transport._session.declare_subscriber(key, self._on_sample)
+        except BaseException:
+            self._delivery.close()
+            raise
+
+    def _on_sample(self, sample: zenoh.Sample) -> None:
+        # Runs on a Zenoh thread: it must never raise, and never block for long.
+        if self._closed or sample.kind != zenoh.SampleKind.PUT:
+            return
+        try:
+            self._check_encoding(str(sample.encoding))
+            value = decode_value(self.topic.msg_type, sample.payload.to_bytes())
+        except Exception as exc:
+            with self._count_lock:
+                self._decode_errors += 1
+            self._transport._report_decode_error(self.topic, exc)
+            return
+        self._delivery.offer(value)
+
+    def _check_encoding(self, encoding: str) -> None:
+        base, _, schema = encoding.partition(";")
+        if base != MSGPACK:
+            raise CodecError(f"cannot decode the sample as {self._schema}: its encoding is {encoding!r}, "
+                             f"not {MSGPACK!r}")
+        if schema and schema != self._schema:
+            raise CodecError(f"cannot decode the sample as {self._schema}: it carries type {schema!r}")
+
+    def statistics(self) -> SubscriptionStatistics:
+        """Delivered / dropped / callback-error / decode-error counts."""
+        with self._count_lock:
+            errors = self._decode_errors
+        return attrs.evolve(self._delivery.statistics(), decode_errors=errors)
+
+    def close(self) -> None:
+        """Undeclare the subscriber, then stop delivering; idempotent."""
+        if self._closed:
+            return
+        self._closed = True
+        self._transport._forget(self)
+        undeclare(self._sub)
+        self._delivery.close()
+
+
+def undeclare(entity: Any) -> None:
+    """Undeclare a Zenoh entity, tolerating a session that is already closed."""
+    try:
+        entity.undeclare()
+    except zenoh.ZError as exc:
+        # Fails harmlessly once the session is closed; keep a trace at debug level anyway.
+        logger.debug("undeclare failed: %s", exc)

@@ -1,0 +1,99 @@
+"""Opening the Zenoh session of a transport from its :class:`~agents_zenoh.config.ZenohConfig`.
+
+See :mod:`agents_zenoh.config` for the loopback-safe defaults and the rendezvous they implement.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+
+import zenoh
+
+from agents_core.errors import ConfigError, TransportError
+
+from .config import ZenohConfig
+
+__all__ = ["effective_mode", "open_session", "zenoh_config"]
+
+logger = logging.getLogger(__name__)
+
+
+def effective_mode(config: ZenohConfig) -> str:
+    """The session mode after applying the config file (peer when neither says)."""
+    if config.mode is not None:
+        return config.mode
+    if config.config_file is not None:
+        mode = json.loads(_load_file(config).get_json("mode"))
+        return str(mode or "peer")
+    return "peer"
+
+
+def _load_file(config: ZenohConfig) -> zenoh.Config:
+    if config.config_file is None:
+        return zenoh.Config()
+    try:
+        return zenoh.Config.from_file(config.config_file)
+    except zenoh.ZError as exc:
+        raise ConfigError(f"config_file {config.config_file!r}: {exc}") from exc
+
+
+def zenoh_config(config: ZenohConfig, *, listen: list[str] | None = None,
+                 connect: list[str] | None = None) -> zenoh.Config:
+    """The ``zenoh.Config`` for ``config`` (``listen`` / ``connect`` override its fields)."""
+    cfg = _load_file(config)
+    if config.mode is not None:
+        cfg.insert_json5("mode", json.dumps(config.mode))
+    listen = listen if listen is not None else config.listen
+    connect = connect if connect is not None else config.connect
+    if listen is not None:
+        cfg.insert_json5("listen/endpoints", json.dumps(listen))
+    if connect is not None:
+        cfg.insert_json5("connect/endpoints", json.dumps(connect))
+    # Always set, even over a config file: Zenoh's own default is on, and it reaches the LAN.
+    cfg.insert_json5("scouting/multicast/enabled", json.dumps(config.multicast_scouting))
+    # Needed by transient_local topics (Zenoh's advanced publisher caches timestamped samples).
+    cfg.insert_json5("timestamping/enabled", "true")
+    for key, value in config.zenoh_options.items():
+        try:
+            cfg.insert_json5(key, json.dumps(value))
+        except zenoh.ZError as exc:
+            raise ConfigError(f"zenoh_options[{key!r}] = {value!r}: {exc}") from exc
+    return cfg
+
+
+def open_session(config: ZenohConfig) -> zenoh.Session:
+    """Open the Zenoh session described by ``config``."""
+    if config.multicast_scouting:
+        logger.warning("Zenoh multicast scouting is ON: this process announces itself to, and links with, "
+                       "Zenoh peers on every network it can reach")
+    mode = effective_mode(config)
+    rendezvous = f"tcp/127.0.0.1:{config.port}"
+    from_file = config.config_file is not None
+    listen, connect = config.listen, config.connect
+    if not from_file and listen is None and connect is None:
+        if mode == "peer":
+            try:
+                session = zenoh.open(zenoh_config(config, listen=[rendezvous], connect=[]))
+            except zenoh.ZError:
+                # Someone (another recipe, a router) already holds the rendezvous port: join it.
+                logger.debug("%s is taken: listening on an OS-chosen loopback port and connecting to it",
+                             rendezvous)
+                listen, connect = ["tcp/127.0.0.1:0"], [rendezvous]
+            else:
+                logger.info("Zenoh peer listening on %s (loopback rendezvous)", rendezvous)
+                return session
+        elif mode == "router":
+            listen, connect = [rendezvous], []
+        else:
+            listen, connect = [], [rendezvous]
+    elif not from_file:
+        listen = listen if listen is not None else ([] if mode == "client" else ["tcp/127.0.0.1:0"])
+        connect = connect if connect is not None else []
+    try:
+        session = zenoh.open(zenoh_config(config, listen=listen, connect=connect))
+    except zenoh.ZError as exc:
+        raise TransportError(f"cannot open a Zenoh {mode} session (listen={listen}, connect={connect}): {exc}") \
+            from exc
+    logger.info("Zenoh %s session open (listen=%s, connect=%s)", mode, listen, connect)
+    return session
