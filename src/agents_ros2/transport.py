@@ -36,7 +36,6 @@ import threading
 import time
 from typing import TYPE_CHECKING, Any, Literal
 
-import attrs
 import rclpy
 
 from agents_core.errors import TransportNotAvailableError
@@ -163,7 +162,6 @@ class _Ros2Subscription:
         self._node = node
         self._conversion = conversion_for(topic.msg_type)
         self._delivery = BoundedDelivery(topic, callback)
-        self._decode_errors = 0
         self._lock = threading.Lock()
         self._closed = False
         try:
@@ -178,21 +176,13 @@ class _Ros2Subscription:
         try:
             value = self.topic.msg_type.validate(self._conversion.from_ros(message))
         except Exception as exc:
-            with self._lock:
-                self._decode_errors += 1
-                first = self._decode_errors == 1
-            # Once per subscription at warning level: a stream of bad messages must not flood the log.
-            log = logger.warning if first else logger.debug
-            log("dropped a message on %s that has no %s value: %s%s", absolute_name(self.topic.name),
-                self.topic.type_name, exc, " (further ones are counted in decode_errors)" if first else "")
+            self._delivery.reject(exc)
             return
         self._delivery.offer(value)
 
     def statistics(self) -> SubscriptionStatistics:
         """Delivered / dropped / callback-error / decode-error counts."""
-        with self._lock:
-            decode_errors = self._decode_errors
-        return attrs.evolve(self._delivery.statistics(), decode_errors=decode_errors)
+        return self._delivery.statistics()
 
     def close(self) -> None:
         """Stop receiving; no callback starts after this returns. Idempotent."""

@@ -7,7 +7,6 @@ import threading
 import time
 from typing import TYPE_CHECKING, Any
 
-import attrs
 import zenoh
 
 from agents_core.errors import TransportClosedError, TransportError
@@ -103,8 +102,6 @@ class ZenohSubscription:
         self.topic = topic
         self._transport = transport
         self._closed = False
-        self._decode_errors = 0
-        self._count_lock = threading.Lock()
         self._schema = topic.type_name
         self._delivery = BoundedDelivery(topic, callback)
         key = transport._key(topic.name)
@@ -128,9 +125,7 @@ class ZenohSubscription:
             self._check_encoding(str(sample.encoding))
             value = decode_value(self.topic.msg_type, sample.payload.to_bytes())
         except Exception as exc:
-            with self._count_lock:
-                self._decode_errors += 1
-            self._transport._report_decode_error(self.topic, exc)
+            self._delivery.reject(exc)
             return
         self._delivery.offer(value)
 
@@ -144,9 +139,7 @@ class ZenohSubscription:
 
     def statistics(self) -> SubscriptionStatistics:
         """Delivered / dropped / callback-error / decode-error counts."""
-        with self._count_lock:
-            errors = self._decode_errors
-        return attrs.evolve(self._delivery.statistics(), decode_errors=errors)
+        return self._delivery.statistics()
 
     def close(self) -> None:
         """Undeclare the subscriber, then stop delivering; idempotent."""

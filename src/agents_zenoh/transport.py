@@ -100,7 +100,6 @@ class ZenohTransport:
         self._entities: set[Any] = set()
         self._services: dict[str, ZenohService] = {}
         self._components: dict[str, ZenohPresence] = {}
-        self._decode_warned: set[str] = set()
         self._executor = ThreadPoolExecutor(max_workers=config.request_workers, thread_name_prefix="zenoh-request")
         try:
             self._session = open_session(config)
@@ -145,17 +144,6 @@ class ZenohTransport:
             self._executor.submit(func, query)
         except RuntimeError:  # the pool is shut down: the transport is closing
             query.drop()  # type: ignore[no-untyped-call]  # zenoh's stub leaves it unannotated
-
-    def _report_decode_error(self, topic: Topic, exc: BaseException) -> None:
-        with self._lock:
-            first = topic.name not in self._decode_warned
-            self._decode_warned.add(topic.name)
-        if first:
-            logger.warning("topic %r: skipped a sample that does not decode (%s); further decode errors on this "
-                           "topic are counted in the subscription's statistics().decode_errors and logged at "
-                           "debug level", topic.name, exc)
-        else:
-            logger.debug("topic %r: skipped a sample that does not decode (%s)", topic.name, exc)
 
     # -- pub / sub --------------------------------------------------------------------------
 

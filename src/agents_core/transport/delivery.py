@@ -92,11 +92,26 @@ class BoundedDelivery:
                 if self._on_count is not None:
                     self._on_count(delivered=1)
 
+    def reject(self, reason: object) -> None:
+        """Count a received payload that does not decode into the topic's type; never raises.
+
+        Adapters call this instead of :meth:`offer` when decoding fails. The first rejection is
+        logged as a warning with its reason, later ones at debug level, so a stream of bad
+        payloads cannot flood the log; all are counted in ``statistics().decode_errors``.
+        """
+        with self._cond:
+            self._stats.decode_errors += 1
+            first = self._stats.decode_errors == 1
+        log = logger.warning if first else logger.debug
+        log("topic %r: skipped a payload that does not decode as %s: %s%s", self.topic.name, self.topic.type_name,
+            reason, " (further ones are counted in statistics().decode_errors)" if first else "")
+
     def statistics(self) -> SubscriptionStatistics:
         """A snapshot of the counters."""
         with self._cond:
             s = self._stats
-            return SubscriptionStatistics(s.delivered, s.dropped, s.callback_errors, len(self._queue))
+            return SubscriptionStatistics(s.delivered, s.dropped, s.callback_errors, len(self._queue),
+                                          s.decode_errors)
 
     def close(self) -> None:
         """Stop delivering; waiting values are discarded. Idempotent."""
