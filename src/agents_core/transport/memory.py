@@ -21,7 +21,7 @@ from concurrent.futures import Future, ThreadPoolExecutor
 from concurrent.futures import TimeoutError as FutureTimeout
 from typing import TYPE_CHECKING, Any
 
-from attrs import define, field
+from attrs import define
 
 from ..errors import (
     RemoteError,
@@ -106,13 +106,11 @@ class _MemoryPresence:
     state: LifecycleState = LifecycleState.UNCONFIGURED
     health: HealthStatus = HealthStatus.HEALTHY
     message: str = ""
-    closed: bool = field(default=False)
 
     def update(self, state: LifecycleState, health: HealthStatus, message: str = "") -> None:
         self.state, self.health, self.message = state, health, message
 
     def close(self) -> None:
-        self.closed = True
         self.transport._remove_component(self.name)
 
 
