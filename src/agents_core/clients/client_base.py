@@ -24,13 +24,44 @@ from ..errors import (
     ModelClientError,
 )
 
-__all__ = ["BaseClient", "client_from_spec", "client_types"]
+__all__ = ["BaseClient", "client_from_spec", "client_types", "map_client_exception"]
 
 R = TypeVar("R")
 
 _client_types: dict[str, type[BaseClient]] = {}
 
 _LEVELS = {"debug", "info", "warning", "error", "critical"}
+
+
+def map_client_exception(context: str, exc: BaseException) -> ModelClientError:
+    """The typed error for ``exc`` raised while doing ``context`` ("OllamaClient at h:p: inference").
+
+    Timeouts become :class:`InferenceTimeoutError`, unreachable servers
+    :class:`ClientConnectionError`, HTTP error statuses :class:`HTTPStatusError` carrying the
+    server's own message, anything else :class:`InferenceError`.
+    """
+    if isinstance(exc, ModelClientError):
+        return exc
+    if isinstance(exc, httpx.HTTPStatusError):
+        return HTTPStatusError(f"{context}: server answered {exc.response.status_code}: "
+                               f"{_response_text(exc.response)}", status=exc.response.status_code)
+    if isinstance(exc, httpx.TimeoutException | TimeoutError):
+        return InferenceTimeoutError(f"{context} timed out: {exc}")
+    if isinstance(exc, httpx.TransportError | ConnectionError | OSError):
+        return ClientConnectionError(f"{context}: cannot reach the server: {exc}")
+    return InferenceError(f"{context} failed: {type(exc).__name__}: {exc}")
+
+
+def _response_text(response: httpx.Response) -> str:
+    try:
+        return response.text[:500]
+    except httpx.ResponseNotRead:
+        # A streamed response that failed: read its (short) error body now.
+        try:
+            response.read()
+            return response.text[:500]
+        except Exception:
+            return "(no body)"
 
 
 def client_types() -> dict[str, type[BaseClient]]:
@@ -87,15 +118,8 @@ class BaseClient:
             return func()
         except ModelClientError:
             raise
-        except httpx.HTTPStatusError as exc:
-            raise HTTPStatusError(f"{self._label()}: {what}: server answered {exc.response.status_code}: "
-                                  f"{exc.response.text[:500]}", status=exc.response.status_code) from exc
-        except (httpx.TimeoutException, TimeoutError) as exc:
-            raise InferenceTimeoutError(f"{self._label()}: {what} timed out: {exc}") from exc
-        except (httpx.TransportError, ConnectionError) as exc:
-            raise ClientConnectionError(f"{self._label()}: {what}: cannot reach the server: {exc}") from exc
         except Exception as exc:
-            raise InferenceError(f"{self._label()}: {what} failed: {type(exc).__name__}: {exc}") from exc
+            raise map_client_exception(f"{self._label()}: {what}", exc) from exc
 
     def _label(self) -> str:
         where = f" at {self.host}:{self.port}" if self.host else ""

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import time
 from abc import abstractmethod
-from collections.abc import MutableMapping
+from collections.abc import MutableMapping, Sequence
 from typing import Any
 
 from ..errors import ConfigError, InferenceError, ProtocolError
@@ -86,6 +86,10 @@ class ModelClient(BaseClient):
     def _deinitialize(self) -> None:
         """Release the model on the platform."""
 
+    def _embed(self, texts: list[str]) -> list[list[float]]:
+        """Embed texts (clients whose platform serves embeddings override this)."""
+        raise ConfigError(f"{type(self).__name__} cannot compute embeddings")
+
     @property
     def supports_tool_calls(self) -> bool:
         """Whether the platform handles tool descriptions (components then send them)."""
@@ -112,6 +116,17 @@ class ModelClient(BaseClient):
         if "output" not in result:
             raise ProtocolError(f"{self._label()}: inference result has no 'output' key: {sorted(result)}")
         return result
+
+    def embed(self, texts: Sequence[str]) -> list[list[float]]:
+        """One embedding vector per text, in order (typed error on failure or a count mismatch)."""
+        if isinstance(texts, str) or not all(isinstance(t, str) for t in texts):
+            raise ConfigError(f"{type(self).__name__}.embed takes a list of str")
+        if type(self)._embed is ModelClient._embed:
+            raise ConfigError(f"{type(self).__name__} cannot compute embeddings (its platform serves none)")
+        vectors = self._guard("embed", lambda: self._embed(list(texts)))
+        if len(vectors) != len(texts):
+            raise ProtocolError(f"{self._label()}: asked for {len(texts)} embeddings, got {len(vectors)}")
+        return vectors
 
     def deinitialize(self) -> None:
         """Release the model (errors are typed and raised)."""

@@ -1,0 +1,189 @@
+"""The shapes every model client and local model agrees on, and helpers to build them.
+
+Components build an *inference input* dict and clients translate it to their server's protocol;
+this module is the one place those shapes are written down.
+
+Chat (LLM / MLLM) input::
+
+    {
+        "query": [                                 # the conversation, oldest first
+            {"role": "system", "content": "You are a robot."},
+            {"role": "user", "content": "What do you see?",
+             "images": [ndarray(H, W, 3) uint8 RGB, ...]},     # optional, MLLM only
+            {"role": "assistant", "content": "", "tool_calls": [ToolCall dict, ...]},
+            {"role": "tool", "content": "42", "tool_call_id": "call_0", "name": "add"},
+        ],
+        "stream": False,                           # True: "output" is a ChunkStream of str
+        "tools": [{"type": "function", "function": {"name", "description", "parameters"}}],  # optional
+        "temperature": 0.7, "max_new_tokens": 500, ...  # the component's inference params
+    }
+
+Chat output::
+
+    {"output": str | ChunkStream, "tool_calls": [ToolCall dict, ...]}   # tool_calls only when asked for
+
+A *ToolCall dict* is ``{"id": str, "type": "function", "function": {"name": str, "arguments": dict}}``:
+arguments are always a parsed dict (clients parse the JSON string some servers send, and raise
+:class:`~agents_core.errors.ProtocolError` when it is not JSON). When ``tools`` are given, a
+client may answer without streaming: ``output`` is then a str.
+
+Other inputs: speech synthesis ``{"query": str, "voice": ...}`` → ``{"output": bytes}`` (an
+audio file, WAV unless the server says otherwise); transcription ``{"query": bytes | ndarray}``
+→ ``{"output": str}``; embeddings go through :meth:`ModelClient.embed`.
+
+Streaming: ``output`` is a :class:`ChunkStream`, an iterator of chunks that turns any failure
+while reading into a typed error and releases the connection when closed early (a component
+cancelling a stream calls ``close()``).
+"""
+
+from __future__ import annotations
+
+import base64
+import contextlib
+import json
+import struct
+import zlib
+from collections.abc import Callable, Iterator
+from typing import Any, Generic, TypeVar
+
+import numpy as np
+
+from ..errors import InferenceError, ModelClientError, ProtocolError
+from .client_base import map_client_exception
+
+__all__ = [
+    "ChunkStream",
+    "encode_png",
+    "image_to_base64_png",
+    "image_to_data_uri",
+    "make_tool_call",
+    "parse_tool_arguments",
+]
+
+T = TypeVar("T")
+
+
+class ChunkStream(Generic[T]):
+    """An iterator of streamed chunks (text or audio) with clean cancellation.
+
+    :param chunks: the iterator producing chunks (typically a generator reading the response).
+    :param on_close: called once when the stream ends, fails or is closed early (releases the
+        connection).
+    :param label: names the client and operation in error messages.
+    """
+
+    def __init__(self, chunks: Iterator[T], on_close: Callable[[], None] | None = None,
+                 label: str = "stream") -> None:
+        self._chunks = chunks
+        self._on_close = on_close
+        self._label = label
+        self._closed = False
+        self.chunk_count = 0
+
+    def __iter__(self) -> ChunkStream[T]:
+        return self
+
+    def __next__(self) -> T:
+        if self._closed:
+            raise StopIteration
+        try:
+            chunk = next(self._chunks)
+        except StopIteration:
+            self.close()
+            raise
+        except ModelClientError:
+            self.close()
+            raise
+        except Exception as exc:
+            self.close()
+            raise map_client_exception(f"{self._label}: reading the stream", exc) from exc
+        self.chunk_count += 1
+        return chunk
+
+    def close(self) -> None:
+        """Stop reading and release the connection (idempotent)."""
+        if self._closed:
+            return
+        self._closed = True
+        close = getattr(self._chunks, "close", None)
+        try:
+            if callable(close):
+                close()
+        finally:
+            if self._on_close is not None:
+                self._on_close()
+
+    @property
+    def closed(self) -> bool:
+        return self._closed
+
+    def __enter__(self) -> ChunkStream[T]:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def __del__(self) -> None:
+        # A stream dropped half-read must not keep a socket open.
+        with contextlib.suppress(Exception):
+            self.close()
+
+
+def _check_image(image: Any) -> np.ndarray:
+    array = np.asarray(image)
+    if array.dtype != np.uint8 or array.ndim not in (2, 3) or (array.ndim == 3 and array.shape[2] not in (1, 3, 4)):
+        raise InferenceError(f"an image must be a uint8 array (H, W), (H, W, 3) or (H, W, 4); "
+                             f"got dtype {array.dtype} shape {array.shape}")
+    return array
+
+
+def encode_png(image: Any) -> bytes:
+    """Encode a uint8 RGB / RGBA / grayscale array as PNG (lossless, no imaging library needed)."""
+    array = np.ascontiguousarray(_check_image(image))
+    if array.ndim == 3 and array.shape[2] == 1:
+        array = array[:, :, 0]
+    height, width = array.shape[:2]
+    color_type = {2: 0, 3: {3: 2, 4: 6}.get(array.shape[-1], 2)}[array.ndim]
+    # Filter byte 0 (none) before each row; zlib level 1 keeps a 640x480 image around 10 ms.
+    rows = np.concatenate([np.zeros((height, 1), np.uint8), array.reshape(height, -1)], axis=1)
+    raw = zlib.compress(rows.tobytes(), 1)
+
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF)
+
+    header = struct.pack(">IIBBBBB", width, height, 8, color_type, 0, 0, 0)
+    return b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", header) + chunk(b"IDAT", raw) + chunk(b"IEND", b"")
+
+
+def image_to_base64_png(image: Any) -> str:
+    """Base64 text of the PNG encoding (what Ollama and RoboML take)."""
+    return base64.b64encode(encode_png(image)).decode("ascii")
+
+
+def image_to_data_uri(image: Any) -> str:
+    """A ``data:image/png;base64,...`` URI (what OpenAI-compatible servers take)."""
+    return "data:image/png;base64," + image_to_base64_png(image)
+
+
+def parse_tool_arguments(arguments: Any, tool_name: str = "?") -> dict[str, Any]:
+    """Tool-call arguments as a dict, whether the server sent a dict or a JSON string."""
+    if arguments is None or arguments == "":
+        return {}
+    if isinstance(arguments, dict):
+        return arguments
+    if isinstance(arguments, str):
+        try:
+            parsed = json.loads(arguments)
+        except json.JSONDecodeError as exc:
+            raise ProtocolError(f"tool call {tool_name!r}: arguments are not JSON: {arguments[:200]!r}") from exc
+        if isinstance(parsed, dict):
+            return parsed
+    raise ProtocolError(f"tool call {tool_name!r}: arguments must be a JSON object, got {arguments!r:.200}")
+
+
+def make_tool_call(name: str, arguments: Any, call_id: str | None, index: int = 0) -> dict[str, Any]:
+    """A ToolCall dict; servers that send no id (Ollama) get ``call_<index>``."""
+    if not isinstance(name, str) or not name:
+        raise ProtocolError(f"a tool call needs a function name, got {name!r}")
+    return {"id": call_id or f"call_{index}", "type": "function",
+            "function": {"name": name, "arguments": parse_tool_arguments(arguments, name)}}
