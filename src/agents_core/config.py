@@ -31,7 +31,16 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover - exercised on Python 3.10 only
     import tomli as tomllib
 
-__all__ = ["BaseAttrs", "BaseComponentConfig", "ModelComponentConfig", "load_config_file"]
+__all__ = [
+    "BaseAttrs",
+    "BaseComponentConfig",
+    "LLMConfig",
+    "MLLMConfig",
+    "ModelComponentConfig",
+    "SemanticRouterConfig",
+    "VLMConfig",
+    "load_config_file",
+]
 
 T = TypeVar("T", bound="BaseAttrs")
 
@@ -143,3 +152,90 @@ class ModelComponentConfig(BaseComponentConfig):
     def _get_inference_params(self) -> dict[str, Any]:
         """The subset of fields sent with each inference call (none by default)."""
         return {}
+
+
+def _optional_str(instance: Any, attribute: attrs.Attribute[Any], value: Any) -> None:
+    if value is not None and not isinstance(value, str):
+        raise ConfigError(f"{type(instance).__name__}.{attribute.name} must be a str or None, got {value!r}")
+
+
+def _non_empty(instance: Any, attribute: attrs.Attribute[Any], value: Any) -> None:
+    if not isinstance(value, str) or not value:
+        raise ConfigError(f"{type(instance).__name__}.{attribute.name} must be a non-empty str, got {value!r}")
+
+
+@define(kw_only=True)
+class LLMConfig(ModelComponentConfig):
+    """Settings of the :class:`~agents_core.components.llm.LLM` component.
+
+    :param system_prompt: the first message of every conversation (None: none).
+    :param chat_history: keep the conversation between steps.
+    :param history_size: how many past messages (user and assistant) the history keeps.
+    :param history_reset_phrase: a query equal to this (case-insensitive) clears the history; the
+        system prompt stays.
+    :param temperature: sampling temperature.
+    :param max_new_tokens: the most tokens one answer may have.
+    :param stream: publish the answer while it is generated: chunk by chunk on StreamingString
+        outputs, sentence by sentence (split at ``break_character``) on String outputs.
+    :param break_character: where a streamed answer is cut for String outputs.
+    :param strip_think_tokens: remove ``<think>...</think>`` blocks (reasoning models) from answers.
+    :param max_tool_rounds: the most model calls in one step when the model keeps calling tools.
+    :param enable_rag: look up the query in the component's vector database and give the model
+        the ``n_results`` closest documents as context.
+    :param collection_name: the database collection used for RAG.
+    :param n_results: how many documents RAG adds.
+    :param add_metadata: also give the model the documents' metadata.
+    """
+
+    system_prompt: str | None = field(default=None, validator=_optional_str)
+    chat_history: bool = field(default=False)
+    history_size: int = field(default=10, validator=base_validators.in_range(2, 10_000))
+    history_reset_phrase: str = field(default="chat reset", validator=_non_empty)
+    temperature: float = field(default=0.8, validator=base_validators.in_range(0.0, 2.0))
+    max_new_tokens: int = field(default=500, validator=base_validators.in_range(1, 1_000_000))
+    stream: bool = field(default=False)
+    break_character: str = field(default=".", validator=_non_empty)
+    strip_think_tokens: bool = field(default=True)
+    max_tool_rounds: int = field(default=5, validator=base_validators.in_range(1, 100))
+    enable_rag: bool = field(default=False)
+    collection_name: str | None = field(default=None, validator=_optional_str)
+    n_results: int = field(default=1, validator=base_validators.in_range(1, 1000))
+    add_metadata: bool = field(default=False)
+
+    def _get_inference_params(self) -> dict[str, Any]:
+        return {"temperature": self.temperature, "max_new_tokens": self.max_new_tokens, "stream": self.stream}
+
+
+@define(kw_only=True)
+class MLLMConfig(LLMConfig):
+    """Settings of the :class:`~agents_core.components.mllm.MLLM` (VLM) component.
+
+    :param task: ``"general"`` (text answers), or a structured task whose answer is parsed into a
+        typed output: ``"grounding"`` (boxes → Detections), ``"pointing"`` (points →
+        PointsOfInterest), ``"affordance"`` (boxes of where to act → Detections), ``"trajectory"``
+        (an ordered path of points → PointsOfInterest).
+    :param local_mmproj_path: the local VLM's projector file, when it is not beside the model.
+    """
+
+    task: str = field(default="general", validator=base_validators.in_(
+        ["general", "grounding", "pointing", "affordance", "trajectory"]))
+    local_mmproj_path: str | None = field(default=None, validator=_optional_str)
+
+
+#: The upstream name of the same configuration.
+VLMConfig = MLLMConfig
+
+
+@define(kw_only=True)
+class SemanticRouterConfig(BaseComponentConfig):
+    """Settings of the :class:`~agents_core.components.semantic_router.SemanticRouter`.
+
+    :param router_name: names the collection of route samples in the vector database.
+    :param distance_func: the database's distance, ``"l2"``, ``"cosine"`` or ``"ip"``.
+    :param maximum_distance: in vector mode, a query farther than this from every route's samples
+        goes to the default route.
+    """
+
+    router_name: str = field(default="semantic_router", validator=_non_empty)
+    distance_func: str = field(default="l2", validator=base_validators.in_(["l2", "cosine", "ip"]))
+    maximum_distance: float = field(default=0.4, validator=base_validators.gt(0.0))

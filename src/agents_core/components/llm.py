@@ -1,0 +1,444 @@
+"""``LLM``: a component that answers text with a language model.
+
+Each step takes the text that fired it (or, on a timer or event, the latest text input), renders
+it through the prompt templates, optionally adds documents from a vector database (RAG) and the
+chat history, and asks the model. The answer is published on every output: whole, or while it is
+generated when ``config.stream`` is on (chunks on ``StreamingString`` outputs, sentences on
+``String`` outputs). When the model calls registered tools, the component runs them and, for
+tools that want it, hands the results back to the model, for at most ``max_tool_rounds`` calls.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import jinja2
+
+from ..actions import component_action
+from ..clients.db_base import DBClient
+from ..clients.model_base import ModelClient
+from ..config import LLMConfig
+from ..errors import AlgorithmFailure, ConfigError, WiringError
+from ..messages import DetectionsMsg, StreamingStringMsg
+from ..status import LifecycleState
+from ..supported_types import Detections, StreamingString, String, SupportedType
+from ..topics import Topic
+from .component_base import TriggerType
+from .model_component import ModelComponent
+
+__all__ = ["LLM", "ThinkStripper"]
+
+_THINK_OPEN, _THINK_CLOSE = "<think>", "</think>"
+
+
+class ThinkStripper:
+    """Removes ``<think>...</think>`` blocks from text that arrives in pieces.
+
+    Tags may be split across chunks, so a tail that could start a tag is held back until the next
+    chunk (or :meth:`flush`) decides.
+    """
+
+    def __init__(self) -> None:
+        self._inside = False
+        self._held = ""
+
+    def feed(self, chunk: str) -> str:
+        """The visible part of ``chunk`` (possibly empty)."""
+        text, out = self._held + chunk, []
+        self._held = ""
+        while text:
+            tag = _THINK_CLOSE if self._inside else _THINK_OPEN
+            pos = text.find(tag)
+            if pos >= 0:
+                if not self._inside:
+                    out.append(text[:pos])
+                text = text[pos + len(tag):]
+                self._inside = not self._inside
+                continue
+            keep = _partial_tag_suffix(text, tag)
+            visible, self._held = text[:len(text) - keep], text[len(text) - keep:]
+            if not self._inside:
+                out.append(visible)
+            break
+        return "".join(out)
+
+    def flush(self) -> str:
+        """What is held back at the end of the text (an unclosed think block is dropped)."""
+        held, self._held = self._held, ""
+        return "" if self._inside else held
+
+
+def _partial_tag_suffix(text: str, tag: str) -> int:
+    for n in range(min(len(tag) - 1, len(text)), 0, -1):
+        if text.endswith(tag[:n]):
+            return n
+    return 0
+
+
+def _variable_name(topic_name: str) -> str:
+    """A topic name as a template variable (``camera/text`` → ``camera_text``)."""
+    return re.sub(r"\W", "_", topic_name)
+
+
+class _Tool:
+    def __init__(self, func: Callable[..., Any], description: dict[str, Any], send_back: bool) -> None:
+        self.func = func
+        self.description = description
+        self.send_back = send_back
+
+
+class LLM(ModelComponent):
+    """Answers text inputs with a language model (a model client, or the built-in local LLM).
+
+    :param inputs: String topics (required) and optional Detections topics, whose labels can be
+        used in prompt templates.
+    :param outputs: String and/or StreamingString topics.
+    :param model_client: the model client; None with ``config.enable_local_model``.
+    :param config: an :class:`~agents_core.config.LLMConfig`.
+    :param db_client: a vector database client, needed with ``config.enable_rag``.
+    :param trigger: a topic, a list of topics, a rate in Hz or an Event.
+    :param component_name: the component's name (also its node / key name).
+    """
+
+    config_class = LLMConfig
+
+    def __init__(
+        self,
+        inputs: Sequence[Topic] | None = None,
+        outputs: Sequence[Topic] | None = None,
+        model_client: ModelClient | None = None,
+        config: LLMConfig | None = None,
+        db_client: DBClient | None = None,
+        trigger: TriggerType = 1.0,
+        component_name: str = "llm",
+        **kwargs: Any,
+    ) -> None:
+        if not hasattr(self, "allowed_inputs"):
+            self.allowed_inputs = {"Required": [String], "Optional": [Detections]}
+        self.allowed_outputs = {"Required": [[String, StreamingString]]}
+        self.handled_outputs: list[type[SupportedType]] = [String, StreamingString]
+        if config is not None and not isinstance(config, LLMConfig):
+            raise ConfigError(f"component {component_name!r}: config must be an LLMConfig, got {type(config).__name__}")
+        super().__init__(inputs=inputs, outputs=outputs, model_client=model_client, config=config,
+                         trigger=trigger, component_name=component_name, **kwargs)
+        self.config: LLMConfig
+        if db_client is not None and not isinstance(db_client, DBClient):
+            raise WiringError(f"component {self.component_name!r}: db_client must be a DBClient, "
+                              f"got {type(db_client).__name__}")
+        if self.config.enable_rag and db_client is None:
+            raise WiringError(f"component {self.component_name!r}: config.enable_rag needs a db_client")
+        self.db_client = db_client
+        #: The conversation so far (user and assistant turns; the system prompt is kept apart).
+        self.messages: list[dict[str, Any]] = []
+        # Prompts are plain text, not HTML: no autoescaping. StrictUndefined turns a typo into an error.
+        self._env = jinja2.Environment(undefined=jinja2.StrictUndefined, autoescape=False)
+        self._topic_templates: dict[str, jinja2.Template] = {}
+        self._component_template: jinja2.Template | None = None
+        self._tools: dict[str, _Tool] = {}
+
+    # -- prompts ------------------------------------------------------------------------------
+
+    def set_system_prompt(self, prompt: str | None) -> None:
+        """Set (or clear, with None) the system prompt; it survives history resets."""
+        self.config.system_prompt = prompt
+
+    def set_topic_prompt(self, input_topic: Topic, template: str | Path) -> None:
+        """Render the text of ``input_topic`` through a Jinja2 template before it is sent.
+
+        ``template`` is the template text or a path to a file holding it. Variables are the input
+        topic names (with characters other than letters, digits and ``_`` turned into ``_``), e.g.
+        ``"Answer briefly: {{ question }}"`` for a topic named ``question``.
+        """
+        if not any(t.name == input_topic.name for t in self.inputs):
+            raise WiringError(f"component {self.component_name!r}: {input_topic.name!r} is not one of its inputs")
+        self._topic_templates[input_topic.name] = self._compile(template, f"prompt of topic {input_topic.name!r}")
+
+    def set_component_prompt(self, template: str | Path) -> None:
+        """Build every query from one Jinja2 template over all input topics (see :meth:`set_topic_prompt`)."""
+        self._component_template = self._compile(template, "component prompt")
+
+    def _compile(self, template: str | Path, what: str) -> jinja2.Template:
+        text = str(template)
+        if isinstance(template, Path) or (len(text) < 4096 and "{" not in text and Path(text).is_file()):
+            text = Path(text).read_text(encoding="utf-8")
+        try:
+            return self._env.from_string(text)
+        except jinja2.TemplateSyntaxError as exc:
+            raise ConfigError(f"component {self.component_name!r}: {what} is not a valid Jinja2 template: "
+                              f"{exc}") from exc
+
+    def _input_values(self) -> dict[str, Any]:
+        values: dict[str, Any] = {}
+        for name, cb in {**self.callbacks, **self.trig_callbacks}.items():
+            value = cb.get_output()
+            if value is None:
+                continue
+            if isinstance(value, DetectionsMsg):
+                value = ", ".join(value.labels) if value.labels else "nothing"
+            values[_variable_name(name)] = value
+        return values
+
+    def _render(self, template: jinja2.Template, values: Mapping[str, Any], what: str) -> str:
+        try:
+            return template.render(**values)
+        except jinja2.UndefinedError as exc:
+            # A variable whose topic has not delivered yet: say which, instead of sending "None".
+            raise AlgorithmFailure(f"component {self.component_name!r}: {what} needs a value that has not "
+                                   f"arrived yet: {exc}") from exc
+
+    def _query_text(self, topic: Topic | None) -> str | None:
+        values = self._input_values()
+        text_topics = [t for t in self.inputs if issubclass(t.msg_type, String)]
+        source = topic if topic is not None and issubclass(topic.msg_type, String) else next(
+            (t for t in text_topics if _variable_name(t.name) in values), None)
+        if source is None:
+            return None
+        query = values.get(_variable_name(source.name))
+        if query is None:
+            return None
+        if source.name in self._topic_templates:
+            query = self._render(self._topic_templates[source.name], values, f"prompt of {source.name!r}")
+            values[_variable_name(source.name)] = query
+        if self._component_template is not None:
+            query = self._render(self._component_template, values, "component prompt")
+        return str(query)
+
+    # -- tools ----------------------------------------------------------------------------------
+
+    def register_tool(self, tool: Callable[..., Any], tool_description: Mapping[str, Any],
+                      send_tool_response_to_model: bool = False) -> None:
+        """Let the model call ``tool``.
+
+        :param tool_description: an OpenAI-style description, ``{"type": "function", "function":
+            {"name", "description", "parameters"}}`` (or just the inner ``function`` dict); the
+            name must be the function's name.
+        :param send_tool_response_to_model: give the tool's result back to the model so it can
+            answer with it; otherwise the result itself is published on the outputs.
+        """
+        if not callable(tool):
+            raise ConfigError(f"component {self.component_name!r}: tool must be callable, got {tool!r}")
+        function = dict(tool_description.get("function", tool_description))
+        name = function.get("name")
+        if name != getattr(tool, "__name__", name):
+            raise ConfigError(f"component {self.component_name!r}: tool description names {name!r} but the "
+                              f"function is {tool.__name__!r}")
+        if not isinstance(name, str) or not name:
+            raise ConfigError(f"component {self.component_name!r}: a tool description needs a 'name'")
+        if "parameters" in function and not isinstance(function["parameters"], dict):
+            raise ConfigError(f"component {self.component_name!r}: tool {name!r}: 'parameters' must be a "
+                              "JSON schema dict")
+        self._tools[name] = _Tool(tool, {"type": "function", "function": function}, send_tool_response_to_model)
+
+    def _tool_descriptions(self) -> list[dict[str, Any]]:
+        if not self._tools:
+            return []
+        if self.model_client is not None and not self.model_client.supports_tool_calls:
+            self._logger.warning("model client %s does not support tool calls; tools are not offered",
+                                 type(self.model_client).__name__)
+            return []
+        return [t.description for t in self._tools.values()]
+
+    def _run_tool(self, call: Mapping[str, Any]) -> tuple[_Tool | None, str]:
+        name = call["function"]["name"]
+        tool = self._tools.get(name)
+        if tool is None:
+            return None, f"error: there is no tool named {name!r}"
+        try:
+            result = tool.func(**call["function"]["arguments"])
+        except Exception as exc:
+            # The model gets to see what went wrong and may try again differently.
+            self._logger.warning("tool %s(%s) raised %s: %s", name, call["function"]["arguments"],
+                                 type(exc).__name__, exc)
+            return tool, f"error: {type(exc).__name__}: {exc}"
+        return tool, result if isinstance(result, str) else json.dumps(result, default=str)
+
+    # -- RAG ------------------------------------------------------------------------------------
+
+    @component_action
+    def add_documents(self, ids: list[str], documents: list[str],
+                      metadatas: list[dict[str, Any]] | None = None) -> bool:
+        """Add documents to the component's vector database (used for RAG)."""
+        if self.db_client is None:
+            raise WiringError(f"component {self.component_name!r} has no db_client to add documents to")
+        db_input: dict[str, Any] = {"collection_name": self._collection(), "ids": list(ids),
+                                    "documents": list(documents)}
+        if metadatas is not None:
+            db_input["metadatas"] = list(metadatas)
+        self.db_client.add(db_input)
+        return True
+
+    def _collection(self) -> str:
+        return self.config.collection_name or self.component_name.replace("/", "_")
+
+    def _rag_context(self, query: str) -> str | None:
+        if not (self.config.enable_rag and self.db_client is not None):
+            return None
+        found = self.db_client.query({"collection_name": self._collection(), "query": query,
+                                      "n_results": self.config.n_results})
+        result = found.get("output", found)
+        documents = list(result.get("documents") or [])
+        metadatas = list(result.get("metadatas") or [None] * len(documents))
+        if not documents:
+            return None
+        lines = []
+        for doc, meta in zip(documents, metadatas, strict=False):
+            lines.append(f"- {doc}" + (f" (metadata: {json.dumps(meta)})" if self.config.add_metadata and meta else ""))
+        return "\n".join(lines)
+
+    # -- the step -------------------------------------------------------------------------------
+
+    def _execution_step(self, **kwargs: Any) -> None:
+        query = self._query_text(kwargs.get("topic"))
+        if query is None or not query.strip():
+            return
+        if query.strip().lower() == self.config.history_reset_phrase.lower():
+            self.messages.clear()
+            self._logger.info("chat history cleared")
+            return
+        inference_input = self._create_input(query)
+        if inference_input is None:
+            return
+        answer = self._converse(inference_input)
+        if answer is not None and self.config.chat_history:
+            self._remember(query, answer)
+
+    def _create_input(self, query: str, images: Sequence[Any] | None = None, **kwargs: Any) -> dict[str, Any] | None:
+        context = self._rag_context(query)
+        content = f"Use this context if it helps:\n{context}\n\n{query}" if context else query
+        user: dict[str, Any] = {"role": "user", "content": content}
+        if images:
+            user["images"] = list(images)
+        messages: list[dict[str, Any]] = []
+        if self.config.system_prompt:
+            messages.append({"role": "system", "content": self.config.system_prompt})
+        if self.config.chat_history:
+            messages.extend(self.messages)
+        messages.append(user)
+        inference_input = {"query": messages, **self.inference_params}
+        tools = self._tool_descriptions()
+        if tools:
+            inference_input["tools"] = tools
+        return inference_input
+
+    def _converse(self, inference_input: dict[str, Any]) -> str | None:
+        """Call the model until it stops calling tools; publish and return the final answer."""
+        messages = inference_input["query"]
+        for _ in range(self.config.max_tool_rounds):
+            result = self._call_inference(inference_input)
+            calls = result.get("tool_calls") or []
+            if not calls:
+                return self._publish_answer(result["output"])
+            text = result["output"] if isinstance(result["output"], str) else "".join(result["output"])
+            messages.append({"role": "assistant", "content": text, "tool_calls": list(calls)})
+            answer_again = False
+            for call in calls:
+                tool, output = self._run_tool(call)
+                if tool is None or tool.send_back:
+                    messages.append({"role": "tool", "tool_call_id": call["id"], "name": call["function"]["name"],
+                                     "content": output})
+                    answer_again = True
+                else:
+                    self._publish_answer(output)
+            if not answer_again:
+                return None
+        raise AlgorithmFailure(f"component {self.component_name!r}: the model was still calling tools after "
+                               f"{self.config.max_tool_rounds} rounds (config.max_tool_rounds)")
+
+    def _remember(self, query: str, answer: str) -> None:
+        # Only text goes into the history: images are large and stale by the next question.
+        self.messages.append({"role": "user", "content": query})
+        self.messages.append({"role": "assistant", "content": answer})
+        excess = len(self.messages) - self.config.history_size
+        if excess > 0:
+            del self.messages[:excess]
+        # Never let the history start with an orphan answer.
+        while self.messages and self.messages[0]["role"] != "user":
+            self.messages.pop(0)
+
+    # -- publishing -----------------------------------------------------------------------------
+
+    def _text_publishers(self) -> tuple[list[Any], list[Any]]:
+        streaming = [p for p in self.publishers_dict.values() if issubclass(p.topic.msg_type, StreamingString)]
+        plain = [p for p in self.publishers_dict.values() if not issubclass(p.topic.msg_type, StreamingString)
+                 and issubclass(p.topic.msg_type, String)]
+        return streaming, plain
+
+    def _publish_answer(self, output: str | Iterable[str]) -> str:
+        if isinstance(output, str):
+            text = output
+            if self.config.strip_think_tokens:
+                stripper = ThinkStripper()
+                text = stripper.feed(text) + stripper.flush()
+            text = text.strip()
+            streaming, plain = self._text_publishers()
+            for pub in plain:
+                pub.publish(text)
+            for pub in streaming:
+                pub.publish(StreamingStringMsg(data=text, stream=False, done=True))
+            return text
+        return self._publish_stream(output)
+
+    def _publish_stream(self, chunks: Iterable[str]) -> str:
+        streaming, plain = self._text_publishers()
+        stripper = ThinkStripper() if self.config.strip_think_tokens else None
+        parts: list[str] = []
+        pending = ""
+        brk = self.config.break_character
+        try:
+            for chunk in chunks:
+                if self.lifecycle_state != LifecycleState.ACTIVE:
+                    self._logger.info("deactivated while streaming: answer cut short")
+                    break
+                visible = stripper.feed(chunk) if stripper else chunk
+                if not visible:
+                    continue
+                if not parts:
+                    visible = visible.lstrip()  # models often open with a newline
+                    if not visible:
+                        continue
+                parts.append(visible)
+                for pub in streaming:
+                    pub.publish(StreamingStringMsg(data=visible, stream=True, done=False))
+                pending += visible
+                while brk in pending:
+                    cut = pending.index(brk) + len(brk)
+                    sentence, pending = pending[:cut].strip(), pending[cut:]
+                    if sentence:
+                        for pub in plain:
+                            pub.publish(sentence)
+        finally:
+            close = getattr(chunks, "close", None)
+            if callable(close):
+                close()
+        tail = stripper.flush() if stripper else ""
+        if tail:
+            parts.append(tail)
+            pending += tail
+            for pub in streaming:
+                pub.publish(StreamingStringMsg(data=tail, stream=True, done=False))
+        if pending.strip():
+            for pub in plain:
+                pub.publish(pending.strip())
+        for pub in streaming:
+            pub.publish(StreamingStringMsg(data="", stream=True, done=True))
+        return "".join(parts).strip()
+
+    # -- local model and warm-up ------------------------------------------------------------------
+
+    def _deploy_local_model(self) -> None:
+        from ..utils.local_llm import LocalLLM  # noqa: PLC0415  (llama-cpp-python is optional)
+
+        self.local_model = LocalLLM(model_path=self.config.local_model_path, device=self.config.device_local_model,
+                                    ncpu=self.config.ncpu_local_model)
+
+    def _warmup(self, *args: Any, **kwargs: Any) -> None:
+        result = self._call_inference({"query": [{"role": "user", "content": "Hello"}], "max_new_tokens": 4,
+                                       "temperature": 0.0, "stream": False})
+        output = result["output"]
+        if not isinstance(output, str):
+            for _ in output:  # drain the stream so the connection is released
+                pass
