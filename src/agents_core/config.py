@@ -227,13 +227,14 @@ VLMConfig = MLLMConfig
 
 
 @define(kw_only=True)
-class SemanticRouterConfig(BaseComponentConfig):
+class SemanticRouterConfig(ModelComponentConfig):
     """Settings of the :class:`~agents_core.components.semantic_router.SemanticRouter`.
 
     :param router_name: names the collection of route samples in the vector database.
     :param distance_func: the database's distance, ``"l2"``, ``"cosine"`` or ``"ip"``.
     :param maximum_distance: in vector mode, a query farther than this from every route's samples
         goes to the default route.
+    :param enable_local_model: in LLM mode, choose routes with the built-in local LLM.
     """
 
     router_name: str = field(default="semantic_router", validator=_non_empty)

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from . import base_validators
 from .actions import Action, Fallback, component_action, component_fallback
+from .components.semantic_router import Route
 from .config import BaseAttrs, BaseComponentConfig
 from .events import Event
 from .launcher import Launcher
@@ -86,6 +87,7 @@ __all__ = [
     "Pose",
     "PoseStamped",
     "QoSConfig",
+    "Route",
     "StreamingString",
     "String",
     "SupportedType",

@@ -119,8 +119,10 @@ class LLM(ModelComponent):
     ) -> None:
         if not hasattr(self, "allowed_inputs"):
             self.allowed_inputs = {"Required": [String], "Optional": [Detections]}
-        self.allowed_outputs = {"Required": [[String, StreamingString]]}
-        self.handled_outputs: list[type[SupportedType]] = [String, StreamingString]
+        if not hasattr(self, "allowed_outputs"):
+            self.allowed_outputs = {"Required": [[String, StreamingString]]}
+        if not hasattr(self, "handled_outputs"):
+            self.handled_outputs: list[type[SupportedType]] = [String, StreamingString]
         if config is not None and not isinstance(config, LLMConfig):
             raise ConfigError(f"component {component_name!r}: config must be an LLMConfig, got {type(config).__name__}")
         super().__init__(inputs=inputs, outputs=outputs, model_client=model_client, config=config,

@@ -61,7 +61,7 @@ class ModelComponent(Component):
         if model_client is not None and not isinstance(model_client, ModelClient):
             raise WiringError(f"component {self.component_name!r}: model_client must be a ModelClient, "
                               f"got {type(model_client).__name__}")
-        if model_client is None and not self.config.enable_local_model:
+        if model_client is None and not self.config.enable_local_model and not self._runs_without_model():
             raise WiringError(f"component {self.component_name!r} needs a model_client, or "
                               "config.enable_local_model=True to use the built-in local model")
         self.model_client = model_client
@@ -76,6 +76,11 @@ class ModelComponent(Component):
         self.resp_queue: queue.Queue[Any] = queue.Queue()
         self._streaming_stop = threading.Event()
         self._streaming_thread: threading.Thread | None = None
+
+    def _runs_without_model(self) -> bool:
+        """Whether this component can work with neither a client nor a local model (e.g. a router
+        in vector mode); subclasses that can override it."""
+        return False
 
     def _validate_handled_outputs(self) -> None:
         if not self.handled_outputs:
