@@ -211,3 +211,19 @@ def test_router_wiring_errors() -> None:
         SemanticRouter(inputs=[REQUESTS], routes=ROUTES)
     with pytest.raises(ConfigError, match="samples"):
         Route(routes_to=GOTO, samples=[])
+
+
+def test_detections_input_is_prefaced_to_the_question() -> None:
+    seen = Topic("seen", "Detections")
+    client = ScriptedChatClient(["two things"])
+    vlm = MLLM(inputs=[QUESTION, CAMERA, seen], outputs=[ANSWER], model_client=client, trigger=QUESTION)
+    with running(vlm) as launcher:
+        answers = _collect(launcher, ANSWER)
+        t = launcher.transport
+        from agents_core.messages import DetectionsMsg
+        t.create_publisher(seen).publish(DetectionsMsg(boxes=[[0, 0, 1, 1]], labels=["cup"], scores=[0.9]))
+        t.create_publisher(CAMERA).publish(_frame())
+        assert wait_for(lambda: vlm.callbacks["seen"].got_msg and vlm.callbacks["camera"].got_msg)
+        t.create_publisher(QUESTION).publish("what is on the table?")
+        assert wait_for(lambda: len(answers) == 1)
+    assert client.inputs[0]["query"][-1]["content"] == "Objects detected (seen: cup).\nwhat is on the table?"

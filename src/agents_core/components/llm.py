@@ -207,6 +207,12 @@ class LLM(ModelComponent):
             values[_variable_name(source.name)] = query
         if self._component_template is not None:
             query = self._render(self._component_template, values, "component prompt")
+        else:
+            # Without a component template, detections still reach the model, as a short preface.
+            seen = [f"{t.name}: {values[_variable_name(t.name)]}" for t in self.inputs
+                    if issubclass(t.msg_type, Detections) and _variable_name(t.name) in values]
+            if seen:
+                query = "Objects detected (" + "; ".join(seen) + f").\n{query}"
         return str(query)
 
     # -- tools ----------------------------------------------------------------------------------
