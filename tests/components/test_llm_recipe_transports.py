@@ -114,9 +114,10 @@ def test_recipe_on_zenoh(tmp_path: Path) -> None:
     needs_smollm2()
     if importlib.util.find_spec("zenoh") is None:
         pytest.skip("zenoh transport not available here: the zenoh extra is not installed")
-    from agents_zenoh.transport import ZenohTransport
+    # Imported here: they exist only where the zenoh extra is installed.
+    from agents_zenoh.transport import ZenohTransport  # noqa: PLC0415
 
-    from ..conformance.zenoh_pair import free_tcp_port
+    from ..conformance.zenoh_pair import free_tcp_port  # noqa: PLC0415
 
     endpoint = f"tcp/127.0.0.1:{free_tcp_port()}"
     env = dict(os.environ, PYTHONUNBUFFERED="1")
@@ -132,9 +133,10 @@ def test_recipe_on_ros2(tmp_path: Path) -> None:
     needs_smollm2()
     if importlib.util.find_spec("rclpy") is None:
         pytest.skip("ros2 transport not available here: the ros2 extra (rclpy) is not installed")
-    from agents_ros2.transport import Ros2Transport
+    # Imported here: they exist only where the ros2 extra is installed.
+    from agents_ros2.transport import Ros2Transport  # noqa: PLC0415
 
-    from ..conformance.ros2_pair import private_ros_environment
+    from ..conformance.ros2_pair import private_ros_environment  # noqa: PLC0415
 
     domain_id = private_ros_environment()
     env: dict[str, Any] = dict(os.environ, PYTHONUNBUFFERED="1")

@@ -14,7 +14,7 @@ from agents_core.clients import DBClient
 from agents_core.components import MLLM, VLM, Route, SemanticRouter
 from agents_core.config import MLLMConfig, SemanticRouterConfig, VLMConfig
 from agents_core.errors import ConfigError, WiringError
-from agents_core.messages import ImageMsg
+from agents_core.messages import DetectionsMsg, ImageMsg
 from agents_core.status import HealthStatus
 from agents_core.vectordbs import DB
 
@@ -220,7 +220,6 @@ def test_detections_input_is_prefaced_to_the_question() -> None:
     with running(vlm) as launcher:
         answers = _collect(launcher, ANSWER)
         t = launcher.transport
-        from agents_core.messages import DetectionsMsg
         t.create_publisher(seen).publish(DetectionsMsg(boxes=[[0, 0, 1, 1]], labels=["cup"], scores=[0.9]))
         t.create_publisher(CAMERA).publish(_frame())
         assert wait_for(lambda: vlm.callbacks["seen"].got_msg and vlm.callbacks["camera"].got_msg)
