@@ -1,0 +1,414 @@
+"""``OllamaClient``: chat, generation and embeddings over Ollama's REST API.
+
+Ollama's endpoints used: ``GET /api/version`` (connection check), ``POST /api/show`` (is the
+model there?), ``POST /api/pull`` (download it, progress streamed as NDJSON), ``POST
+/api/generate`` (load / unload / plain generation), ``POST /api/chat`` and ``POST /api/embed``.
+Streamed answers are NDJSON: one JSON object per line, the last one with ``"done": true``; a
+failure after the 200 status arrives as a ``{"error": "..."}`` line and raises a typed error.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from collections.abc import Callable, Iterator, MutableMapping
+from typing import Any
+
+import httpx
+
+from ..errors import ConfigError, InferenceError, ProtocolError
+from ..models import OLLAMA_OPTIONS, Model, OllamaModel
+from .generic import check_response, response_json
+from .model_base import ModelClient
+from .payloads import ChunkStream, image_to_base64_png, make_tool_call
+
+__all__ = ["OllamaClient"]
+
+_DEFAULT_PORT = 11434
+_CHAT_ROLES = ("system", "user", "assistant", "tool")
+#: Keys of an inference input that are not model options.
+_CONTROL_KEYS = frozenset({"query", "stream", "tools", "keep_alive", "format", "images", "system"})
+#: A pull streams a few lines per progress update; this bounds a server that never says "success".
+_MAX_PULL_LINES = 1_000_000
+#: The timing fields of Ollama's final answer object (durations in nanoseconds).
+_STAT_KEYS = ("done_reason", "total_duration", "load_duration", "prompt_eval_count", "prompt_eval_duration",
+              "eval_count", "eval_duration")
+#: Seconds a model load may take when the model gives no ``init_timeout`` (big models, slow disks).
+_DEFAULT_LOAD_TIMEOUT = 300.0
+
+
+class OllamaClient(ModelClient):
+    """Client for an Ollama server.
+
+    :param model: an :class:`~agents_core.models.OllamaModel` (or its serialized dict); its
+        ``checkpoint`` is the Ollama tag, its ``options`` and ``keep_alive`` go with every request.
+    :param host: Ollama's host.
+    :param port: Ollama's port (None: the model's ``port``, else 11434).
+    :param inference_timeout: seconds to wait for an answer (for streams: for each piece of it).
+    :param pull_timeout: seconds a missing model may take to download during initialize.
+    :param init_on_activation: check, pull and load the model during configure.
+    :param logging_level: ``"debug"``, ``"info"``, ...
+    """
+
+    def __init__(
+        self,
+        model: Model | dict[str, Any],
+        host: str = "127.0.0.1",
+        port: int | None = None,
+        inference_timeout: int | float = 30,
+        pull_timeout: int | float = 3600,
+        init_on_activation: bool = True,
+        logging_level: str = "info",
+        **kwargs: Any,
+    ) -> None:
+        if port is None:
+            port = model.port if isinstance(model, OllamaModel) and model.port is not None else _DEFAULT_PORT
+        super().__init__(model=model, host=host, port=port, inference_timeout=inference_timeout,
+                         init_on_activation=init_on_activation, logging_level=logging_level, **kwargs)
+        if isinstance(pull_timeout, bool) or not isinstance(pull_timeout, int | float) or pull_timeout <= 0:
+            raise ConfigError(f"{type(self).__name__}: pull_timeout must be > 0 s, got {pull_timeout!r}")
+        self.pull_timeout = pull_timeout
+        self.checkpoint = str(self.model_init_params.get("checkpoint") or self.model_name)
+        #: The Ollama version seen by the last connection check.
+        self.server_version: str | None = None
+        #: Timing and token counts of the last finished answer (``eval_count``, ``eval_duration``...).
+        self.last_stats: dict[str, Any] | None = None
+        self._client: httpx.Client | None = None
+
+    # -- settings -------------------------------------------------------------------------------------
+
+    @property
+    def base_url(self) -> str:
+        """``http://host:port``."""
+        return f"http://{self.host}:{self.port}"
+
+    @property
+    def supports_tool_calls(self) -> bool:
+        """Ollama's chat endpoint takes tools."""
+        return True
+
+    @property
+    def keep_alive(self) -> Any:
+        """How long Ollama keeps the model loaded after a request (the model's setting)."""
+        return self.model_init_params.get("keep_alive")
+
+    def _timeout(self, read: float | None = None) -> httpx.Timeout:
+        seconds = float(self.inference_timeout if read is None else read)
+        return httpx.Timeout(seconds, connect=min(float(self.inference_timeout), 10.0))
+
+    def _http(self) -> httpx.Client:
+        # Created lazily too: with init_on_activation=False inference must still work.
+        if self._client is None:
+            self._client = httpx.Client(base_url=self.base_url, timeout=self._timeout())
+        return self._client
+
+    def _context(self, what: str) -> str:
+        return f"{self._label()}: {what}"
+
+    def _options(self, params: dict[str, Any]) -> dict[str, Any]:
+        """The model's options, overridden by the per-call ones (``max_new_tokens`` is ``num_predict``)."""
+        options: dict[str, Any] = dict(self.model_init_params.get("options") or {})
+        ignored: list[str] = []
+        for key, value in params.items():
+            if key in _CONTROL_KEYS or value is None:
+                continue
+            if key == "max_new_tokens":
+                options["num_predict"] = value
+            elif key in OLLAMA_OPTIONS:
+                options[key] = value
+            else:
+                ignored.append(key)
+        if ignored:
+            self.logger.debug("%s: parameters Ollama does not know, not sent: %s", self._label(), sorted(ignored))
+        return options
+
+    def _request_body(self, params: dict[str, Any], **fields: Any) -> dict[str, Any]:
+        body: dict[str, Any] = {"model": self.checkpoint, **fields}
+        options = self._options(params)
+        if options:
+            body["options"] = options
+        keep_alive = params.get("keep_alive", self.keep_alive)
+        if keep_alive is not None:
+            body["keep_alive"] = keep_alive
+        if params.get("format") is not None:
+            body["format"] = params["format"]
+        return body
+
+    # -- ModelClient ----------------------------------------------------------------------------------
+
+    def _check_connection(self) -> None:
+        """``GET /api/version``."""
+        with httpx.Client(base_url=self.base_url, timeout=self._timeout()) as http:
+            response = http.get("/api/version")
+            check_response(response, self._context("version"))
+            body = response_json(response, self._context("version"))
+        if not isinstance(body, dict) or not isinstance(body.get("version"), str):
+            raise ProtocolError(f"{self._context('version')}: expected {{'version': ...}}, got {str(body)[:200]}")
+        self.server_version = body["version"]
+        self.logger.info("%s: Ollama %s reachable", self._label(), self.server_version)
+
+    def _initialize(self) -> None:
+        """Pull the model if Ollama does not have it, then load it (so the first answer is fast)."""
+        http = self._http()
+        response = http.post("/api/show", json={"model": self.checkpoint})
+        if response.status_code == httpx.codes.NOT_FOUND:
+            self.logger.info("%s: model %r not present, pulling it", self._label(), self.checkpoint)
+            self.pull()
+        else:
+            check_response(response, self._context("show"))
+        self.load()
+
+    def _deinitialize(self) -> None:
+        """Unload the model from Ollama's memory and close the connection pool."""
+        try:
+            if self._client is not None:
+                self._unload()
+        finally:
+            self.close()
+
+    def close(self) -> None:
+        """Close the connection pool now (without telling the server anything); reopened on next use."""
+        if self._client is not None:
+            self._client.close()
+            self._client = None
+
+    def _inference(self, inference_input: dict[str, Any]) -> MutableMapping[str, Any] | None:
+        tools = inference_input.get("tools")
+        body = self._request_body(inference_input, messages=self._messages(inference_input.get("query")))
+        if tools:
+            body["tools"] = tools
+        # With tools the answer is read whole (older Ollama versions require it, and tool calls
+        # arrive complete that way); the contract lets a client answer a str then.
+        stream = bool(inference_input.get("stream")) and not tools
+        body["stream"] = stream
+        if stream:
+            return {"output": self._stream("/api/chat", body, "chat stream", _message_text)}
+        context = self._context("chat")
+        response = self._http().post("/api/chat", json=body)
+        check_response(response, context)
+        answer = self._final_object(response, context)
+        message = answer.get("message")
+        if not isinstance(message, dict):
+            raise ProtocolError(f"{context}: the answer has no 'message' object: {str(answer)[:200]}")
+        result: dict[str, Any] = {"output": str(message.get("content") or "")}
+        if tools:
+            calls = message.get("tool_calls") or []
+            if not isinstance(calls, list):
+                raise ProtocolError(f"{context}: tool_calls must be a list, got {str(calls)[:200]}")
+            result["tool_calls"] = [_tool_call(call, index) for index, call in enumerate(calls)]
+        return result
+
+    def _embed(self, texts: list[str]) -> list[list[float]]:
+        """``POST /api/embed`` with every text at once."""
+        context = self._context("embed")
+        body = self._request_body({}, input=texts)
+        response = self._http().post("/api/embed", json=body)
+        check_response(response, context)
+        answer = response_json(response, context)
+        vectors = answer.get("embeddings") if isinstance(answer, dict) else None
+        if not isinstance(vectors, list) or not all(
+                isinstance(v, list) and all(isinstance(x, int | float) for x in v) for v in vectors):
+            raise ProtocolError(f"{context}: expected {{'embeddings': [[...], ...]}}, got {str(answer)[:200]}")
+        return [[float(x) for x in vector] for vector in vectors]
+
+    def serialize(self) -> dict[str, Any]:
+        """The base spec plus ``pull_timeout``."""
+        spec = super().serialize()
+        spec["pull_timeout"] = self.pull_timeout
+        return spec
+
+    # -- Ollama-specific operations -----------------------------------------------------------------
+
+    def pull(self) -> None:
+        """Download the model (``POST /api/pull``), logging progress; raises a typed error on failure."""
+        self._guard("pull", self._pull)
+
+    def load(self) -> None:
+        """Load the model into memory (``POST /api/generate`` with no prompt)."""
+        self._guard("load", self._load)
+
+    def unload(self) -> None:
+        """Unload the model from memory now (``keep_alive`` 0)."""
+        self._guard("unload", self._unload)
+
+    def generate(self, prompt: str, *, images: list[Any] | None = None, system: str | None = None,
+                 stream: bool = False, **params: Any) -> str | ChunkStream[str]:
+        """One completion of ``prompt`` (``POST /api/generate``), without chat formatting of history.
+
+        :param images: uint8 image arrays for multimodal models.
+        :param system: overrides the model's system prompt.
+        :param stream: return a :class:`ChunkStream` of text pieces instead of the whole text.
+        :param params: ``temperature``, ``max_new_tokens`` and other options, ``keep_alive``, ``format``.
+        """
+        if not isinstance(prompt, str):
+            raise ConfigError(f"{type(self).__name__}.generate takes a str prompt")
+        return self._guard("generate", lambda: self._generate(prompt, images, system, stream, params))
+
+    def _generate(self, prompt: str, images: list[Any] | None, system: str | None, stream: bool,
+                  params: dict[str, Any]) -> str | ChunkStream[str]:
+        body = self._request_body(params, prompt=prompt, stream=stream)
+        if images:
+            body["images"] = [image_to_base64_png(image) for image in images]
+        if system is not None:
+            body["system"] = system
+        if stream:
+            return self._stream("/api/generate", body, "generate stream", _response_text)
+        context = self._context("generate")
+        response = self._http().post("/api/generate", json=body)
+        check_response(response, context)
+        answer = self._final_object(response, context)
+        return str(answer.get("response") or "")
+
+    def _pull(self) -> None:
+        context = self._context(f"pull {self.checkpoint}")
+        http = self._http()
+        deadline = time.monotonic() + float(self.pull_timeout)
+        request = http.build_request("POST", "/api/pull", json={"model": self.checkpoint, "stream": True},
+                                     timeout=self._timeout(max(float(self.inference_timeout), 60.0)))
+        response = http.send(request, stream=True)
+        try:
+            check_response(response, context)
+            last_status, last_decile = "", -1
+            for count, line in enumerate(response.iter_lines()):
+                if count >= _MAX_PULL_LINES or time.monotonic() > deadline:
+                    raise InferenceError(f"{context}: not finished after {self.pull_timeout} s")
+                if not line.strip():
+                    continue
+                progress = _json_line(line, context)
+                if "error" in progress:
+                    raise InferenceError(f"{context} failed: {progress['error']}")
+                status = str(progress.get("status", ""))
+                if status == "success":
+                    self.logger.info("%s: pulled %r", self._label(), self.checkpoint)
+                    return
+                total, completed = progress.get("total"), progress.get("completed")
+                if isinstance(total, int) and total > 0 and isinstance(completed, int):
+                    # One log line per 10 % per layer, not one per progress message (there are thousands).
+                    decile = min(10, completed * 10 // total)
+                    if status != last_status or decile != last_decile:
+                        self.logger.info("%s: %s %d%% (%d/%d bytes)", self._label(), status,
+                                         completed * 100 // total, completed, total)
+                    last_decile = decile
+                elif status != last_status:
+                    self.logger.info("%s: %s", self._label(), status)
+                last_status = status
+        finally:
+            response.close()
+        raise ProtocolError(f"{context}: the progress stream ended without 'success'")
+
+    def _load(self) -> None:
+        context = self._context("load")
+        load_timeout = float(self.init_timeout or _DEFAULT_LOAD_TIMEOUT)
+        body = self._request_body({}, stream=False)
+        response = self._http().post("/api/generate", json=body, timeout=self._timeout(load_timeout))
+        check_response(response, context)
+        self._final_object(response, context)
+        self.logger.info("%s: model %r loaded", self._label(), self.checkpoint)
+
+    def _unload(self) -> None:
+        context = self._context("unload")
+        response = self._http().post("/api/generate", json={"model": self.checkpoint, "keep_alive": 0,
+                                                            "stream": False})
+        check_response(response, context)
+        self._final_object(response, context)
+        self.logger.info("%s: model %r unloaded", self._label(), self.checkpoint)
+
+    # -- protocol details -----------------------------------------------------------------------------
+
+    def _messages(self, query: Any) -> list[dict[str, Any]]:
+        if isinstance(query, str):
+            query = [{"role": "user", "content": query}]
+        if not isinstance(query, list) or not query:
+            raise InferenceError(f"{self._label()}: 'query' must be a non-empty list of chat messages or a str")
+        messages: list[dict[str, Any]] = []
+        for message in query:
+            role = message.get("role") if isinstance(message, dict) else None
+            if role not in _CHAT_ROLES:
+                raise InferenceError(f"{self._label()}: a chat message needs a role in {_CHAT_ROLES}, "
+                                     f"got {message!r:.200}")
+            content = message.get("content")
+            out: dict[str, Any] = {"role": role, "content": "" if content is None else str(content)}
+            if message.get("images"):
+                out["images"] = [image_to_base64_png(image) for image in message["images"]]
+            if role == "assistant" and message.get("tool_calls"):
+                # Ollama takes arguments as a JSON object (no ids): exactly the contract's dict.
+                out["tool_calls"] = [{"function": {"name": call["function"]["name"],
+                                                   "arguments": call["function"].get("arguments") or {}}}
+                                     for call in message["tool_calls"]]
+            if role == "tool" and message.get("name"):
+                out["tool_name"] = str(message["name"])
+            messages.append(out)
+        return messages
+
+    def _final_object(self, response: httpx.Response, context: str) -> dict[str, Any]:
+        answer = response_json(response, context)
+        if not isinstance(answer, dict):
+            raise ProtocolError(f"{context}: expected a JSON object, got {str(answer)[:200]}")
+        if "error" in answer:
+            raise InferenceError(f"{context} failed: {answer['error']}")
+        self._keep_stats(answer)
+        return answer
+
+    def _keep_stats(self, answer: dict[str, Any]) -> None:
+        stats = {key: answer[key] for key in _STAT_KEYS if key in answer}
+        if stats:
+            self.last_stats = stats
+
+    def _stream(self, path: str, body: dict[str, Any], what: str,
+                text_of: Callable[[dict[str, Any]], str]) -> ChunkStream[str]:
+        context = self._context(what)
+        http = self._http()
+        response = http.send(http.build_request("POST", path, json=body), stream=True)
+        try:
+            check_response(response, context)
+        except BaseException:
+            response.close()
+            raise
+
+        def chunks() -> Iterator[str]:
+            for line in response.iter_lines():
+                if not line.strip():
+                    continue
+                obj = _json_line(line, context)
+                if "error" in obj:
+                    raise InferenceError(f"{context}: the server failed mid-stream: {obj['error']}")
+                text = text_of(obj)
+                if text:
+                    yield text
+                if obj.get("done"):
+                    self._keep_stats(obj)
+                    return
+            # A clean end of body without "done": true means the answer was cut short.
+            raise ProtocolError(f"{context}: the stream ended before the answer was done")
+
+        return ChunkStream(chunks(), on_close=response.close, label=context)
+
+
+def _json_line(line: str, context: str) -> dict[str, Any]:
+    try:
+        obj = json.loads(line)
+    except ValueError as exc:
+        raise ProtocolError(f"{context}: a streamed line is not JSON: {line[:200]!r}") from exc
+    if not isinstance(obj, dict):
+        raise ProtocolError(f"{context}: a streamed line is not a JSON object: {line[:200]!r}")
+    return obj
+
+
+def _message_text(obj: dict[str, Any]) -> str:
+    message = obj.get("message")
+    return str(message.get("content") or "") if isinstance(message, dict) else ""
+
+
+def _response_text(obj: dict[str, Any]) -> str:
+    return str(obj.get("response") or "")
+
+
+def _tool_call(call: Any, position: int) -> dict[str, Any]:
+    function = call.get("function") if isinstance(call, dict) else None
+    if not isinstance(function, dict):
+        raise ProtocolError(f"an Ollama tool call needs a 'function' object, got {str(call)[:200]}")
+    # Ollama sends no call id (recent versions send function.index); ids are made from the index.
+    index = function.get("index")
+    index = index if isinstance(index, int) and not isinstance(index, bool) else position
+    name = function.get("name")
+    return make_tool_call(name if isinstance(name, str) else "", function.get("arguments"), call.get("id"), index)
