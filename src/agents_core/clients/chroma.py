@@ -454,7 +454,8 @@ class ChromaClient(DBClient):
 
     def _deinitialize(self) -> None:
         try:
-            if self.embedding_client is not None and self.embedding_client.initialized:
+            # Also when it was used without initialize(): embedding opens its connection lazily.
+            if self.embedding_client is not None:
                 self.embedding_client.deinitialize()
         finally:
             if self._http is not None:

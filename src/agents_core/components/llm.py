@@ -435,6 +435,23 @@ class LLM(ModelComponent):
             pub.publish(StreamingStringMsg(data="", stream=True, done=True))
         return "".join(parts).strip()
 
+    # -- lifecycle ------------------------------------------------------------------------------
+
+    def custom_on_configure(self) -> None:
+        if self.db_client is not None:
+            self.db_client.check_connection()
+            if self.db_client.init_on_activation:
+                self.db_client.initialize()
+        super().custom_on_configure()
+
+    def custom_on_shutdown(self) -> None:
+        super().custom_on_shutdown()
+        if self.db_client is not None:
+            try:
+                self.db_client.deinitialize()
+            except Exception as exc:
+                self._logger.warning("database client did not deinitialize cleanly: %s", exc)
+
     # -- local model and warm-up ------------------------------------------------------------------
 
     def _deploy_local_model(self) -> None:

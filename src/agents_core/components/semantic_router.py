@@ -157,6 +157,14 @@ class SemanticRouter(ModelComponent):
                             "ids": ids, "documents": documents, "metadatas": metadatas})
         self._logger.info("stored %d samples of %d routes in %r", len(ids), len(self.routes), self.config.router_name)
 
+    def custom_on_shutdown(self) -> None:
+        super().custom_on_shutdown()
+        if self.db_client is not None:
+            try:
+                self.db_client.deinitialize()
+            except Exception as exc:
+                self._logger.warning("database client did not deinitialize cleanly: %s", exc)
+
     # -- routing --------------------------------------------------------------------------------
 
     def _execution_step(self, **kwargs: Any) -> None:
