@@ -37,7 +37,7 @@ def _install_with_local_models(session: nox.Session, extras: str) -> None:
 @nox.session
 def tests(session: nox.Session) -> None:
     """Unit tests, the conformance suite (memory, zenoh), real model servers and local models."""
-    _install_with_local_models(session, "dev,zenoh,local,servers")
+    _install_with_local_models(session, "dev,zenoh,local,roboml,servers")
     session.run("pytest", *(session.posargs or ["tests"]))
 
 

@@ -8,6 +8,9 @@ from .db_base import DBClient
 from .generic import GenericHTTPClient
 from .model_base import ModelClient
 from .ollama import OllamaClient
+from .roboml_http import RoboMLHTTPClient
+from .roboml_resp import RoboMLRESPClient
+from .roboml_ws import RoboMLWSClient
 
 __all__ = ["BaseClient", "ChromaClient", "DBClient", "GenericHTTPClient", "ModelClient", "OllamaClient",
-           "client_from_spec", "client_types"]
+           "RoboMLHTTPClient", "RoboMLRESPClient", "RoboMLWSClient", "client_from_spec", "client_types"]

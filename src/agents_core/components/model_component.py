@@ -114,7 +114,11 @@ class ModelComponent(Component):
             client.initialize()
 
     def custom_on_activate(self) -> None:
-        if getattr(self.config, "stream", False) and getattr(self.model_client, "is_websocket", False):
+        # The queue-fed streaming thread only runs for components that consume it; the others
+        # (LLM among them) stream through the client's ChunkStream, the same for every client.
+        consumes_queue = type(self)._handle_websocket_streaming is not ModelComponent._handle_websocket_streaming
+        if consumes_queue and getattr(self.config, "stream", False) and getattr(self.model_client, "is_websocket",
+                                                                                False):
             self._streaming_stop.clear()
             self._streaming_thread = threading.Thread(target=self._streaming_loop,
                                                       name=f"stream:{self.component_name}", daemon=True)

@@ -1,0 +1,189 @@
+"""``RoboMLHTTPClient``: a model served by RoboML, reached over its HTTP API.
+
+The protocol (routes, bodies, status codes) is described in :mod:`agents_core.clients.roboml`.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Iterator, MutableMapping
+from typing import Any, ClassVar
+
+import httpx
+
+from ..errors import HTTPStatusError, ProtocolError
+from ..models import Model
+from .model_base import ModelClient
+from .payloads import ChunkStream
+from .roboml import (
+    build_roboml_input,
+    check_node_name,
+    error_detail,
+    normalize_result,
+    resolve_node_model,
+    retry_connect,
+)
+
+__all__ = ["RoboMLHTTPClient"]
+
+
+class RoboMLHTTPClient(ModelClient):
+    """A model served by `RoboML <https://github.com/automatika-robotics/roboml>`_ over HTTP.
+
+    Configure creates a node named after the model on the server, with the RoboML model class
+    that serves it (``TransformersLLM``, ``Whisper``, ``VisionModel``, ...), and loads the model
+    with its init parameters; shutdown removes the node. LLM inferences with ``stream: True``
+    return a :class:`~agents_core.clients.payloads.ChunkStream` of text chunks.
+
+    :param model: a RoboML model (:class:`~agents_core.models.TransformersLLM`,
+        :class:`~agents_core.models.TransformersMLLM`, :class:`~agents_core.models.RoboBrain2`,
+        :class:`~agents_core.models.Whisper`, :class:`~agents_core.models.TransformersTTS`,
+        :class:`~agents_core.models.VisionModel` or a subclass), or its serialized dict. Its
+        ``name`` names the node, so it may hold letters, digits, ``_`` and ``-`` only.
+    :param host: RoboML's host.
+    :param port: RoboML's HTTP port (8000 by default, as ``roboml`` starts).
+    :param inference_timeout: seconds an inference may wait for the server (for a stream: for
+        each chunk).
+    :param init_on_activation: create and load the node during configure.
+    :param logging_level: ``"debug"``, ``"info"``, ...
+    """
+
+    #: Attempts of a connection check (and of opening a connection) before giving up.
+    connect_attempts: ClassVar[int] = 3
+    #: Seconds before the second attempt; doubled for each one after.
+    connect_retry_delay: ClassVar[float] = 0.2
+    #: Seconds a model may take to load when its ``init_timeout`` is None (RoboML's own default).
+    default_init_timeout: ClassVar[float] = 600.0
+
+    def __init__(
+        self,
+        model: Model | dict[str, Any],
+        host: str = "127.0.0.1",
+        port: int = 8000,
+        inference_timeout: int | float = 30,
+        init_on_activation: bool = True,
+        logging_level: str = "info",
+        **kwargs: Any,
+    ) -> None:
+        super().__init__(model=model, host=host, port=port, inference_timeout=inference_timeout,
+                         init_on_activation=init_on_activation, logging_level=logging_level, **kwargs)
+        self.node_name = check_node_name(type(self).__name__, self.model_name)
+        self.node_model = resolve_node_model(type(self).__name__, self.model_type)
+        self._http: httpx.Client | None = None
+        self._http_lock = threading.Lock()
+
+    @property
+    def url(self) -> str:
+        """RoboML's base HTTP URL."""
+        return f"http://{self.host}:{self.port}"
+
+    @property
+    def _init_seconds(self) -> float:
+        return float(self.init_timeout) if self.init_timeout else self.default_init_timeout
+
+    def _client(self) -> httpx.Client:
+        # Created on first use, never in the constructor (a client is built in processes that may
+        # never use it, and must not touch the network there).
+        with self._http_lock:
+            if self._http is None or self._http.is_closed:
+                self._http = httpx.Client(base_url=self.url, timeout=httpx.Timeout(self.inference_timeout))
+            return self._http
+
+    def _raise_for_status(self, response: httpx.Response, what: str) -> None:
+        if not response.is_error:
+            return
+        try:
+            response.read()  # a streamed response has not read its (short) error body yet
+        except httpx.HTTPError:
+            detail = "(no body)"
+        else:
+            try:
+                detail = error_detail(response.json())
+            except ValueError:
+                detail = response.text[:500]
+        raise HTTPStatusError(f"{self._label()}: {what}: RoboML answered {response.status_code}: {detail}",
+                              status=response.status_code)
+
+    def _json(self, response: httpx.Response, what: str) -> Any:
+        try:
+            return response.json()
+        except ValueError as exc:
+            raise ProtocolError(f"{self._label()}: {what}: RoboML's answer is not JSON: {response.text[:200]!r}") \
+                from exc
+
+    # -- ModelClient ------------------------------------------------------------------------
+
+    def _check_connection(self) -> None:
+        def ping() -> None:
+            response = self._client().get("/", timeout=min(float(self.inference_timeout), 10.0))
+            self._raise_for_status(response, "connection check")
+
+        retry_connect(ping, attempts=self.connect_attempts, delay=self.connect_retry_delay,
+                      retry_on=(httpx.ConnectError, httpx.ConnectTimeout), logger=self.logger,
+                      what=f"{self._label()}: connection check")
+
+    def _initialize(self) -> None:
+        client = self._client()
+        response = client.post("/add_node", params={"node_name": self.node_name, "node_model": self.node_model})
+        self._raise_for_status(response, f"add_node {self.node_name!r} ({self.node_model})")
+        answer = self._json(response, "add_node")
+        if isinstance(answer, dict) and "warning" in answer:
+            # The node exists (another client, or a previous run): RoboML keeps the loaded model
+            # and answers initialize at once if it is ready.
+            self.logger.warning("RoboML: %s", answer["warning"])
+        response = client.post(f"/{self.node_name}/initialize", json=self.model_init_params,
+                               timeout=self._init_seconds)
+        self._raise_for_status(response, f"initialize node {self.node_name!r}")
+        self.logger.info("RoboML node %r (%s) is ready", self.node_name, self.node_model)
+
+    def _inference(self, inference_input: dict[str, Any]) -> MutableMapping[str, Any] | None:
+        payload, stream = build_roboml_input(self.node_model, inference_input, binary=False)
+        path = f"/{self.node_name}/inference"
+        if stream:
+            return {"output": self._stream_http(path, payload)}
+        response = self._client().post(path, json=payload)
+        self._raise_for_status(response, "inference")
+        return normalize_result(self.node_model, self._json(response, "inference"), self._label())
+
+    def _stream_http(self, path: str, payload: dict[str, Any]) -> ChunkStream[str]:
+        client = self._client()
+        response = client.send(client.build_request("POST", path, json=payload), stream=True)
+        try:
+            self._raise_for_status(response, "inference")
+        except BaseException:
+            response.close()
+            raise
+
+        def chunks() -> Iterator[str]:
+            # RoboML streams tokens as plain text with no framing; httpx's decoder keeps
+            # characters split across network reads whole.
+            for text in response.iter_text():
+                if text:
+                    yield text
+
+        return ChunkStream(chunks(), on_close=response.close, label=f"{self._label()}: inference")
+
+    def _deinitialize(self) -> None:
+        try:
+            response = self._client().post("/remove_node", params={"node_name": self.node_name})
+            self._raise_for_status(response, f"remove_node {self.node_name!r}")
+        finally:
+            self.close()
+
+    # -- extras -----------------------------------------------------------------------------
+
+    def node_status(self) -> str:
+        """The node's status: ``"LOADED"``, ``"INITIALIZING"``, ``"READY"`` or ``"INITIALIZATION_ERROR"``."""
+        def get() -> str:
+            response = self._client().get(f"/{self.node_name}/get_status")
+            self._raise_for_status(response, "get_status")
+            return str(self._json(response, "get_status"))
+
+        return self._guard("node status", get)
+
+    def close(self) -> None:
+        """Close the HTTP connections (idempotent; the next call opens new ones)."""
+        with self._http_lock:
+            http, self._http = self._http, None
+        if http is not None:
+            http.close()
