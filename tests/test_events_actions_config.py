@@ -7,7 +7,6 @@ import signal
 import subprocess
 import sys
 import textwrap
-import time
 from pathlib import Path
 from typing import Any
 
@@ -204,6 +203,9 @@ def test_bringup_shuts_down_cleanly_on_sigterm(tmp_path: Path) -> None:
         from tests.recipe_parts import Relay
 
         class Loud(Relay):
+            def custom_on_activate(self):
+                print("active", flush=True)
+
             def custom_on_shutdown(self):
                 print("shutdown hook ran", flush=True)
 
@@ -218,9 +220,17 @@ def test_bringup_shuts_down_cleanly_on_sigterm(tmp_path: Path) -> None:
     proc = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
                             text=True, env=env)
     try:
-        time.sleep(1.5)
+        assert proc.stdout is not None
+        seen = []
+        for _ in range(10):  # bounded: "active" is the second line
+            line = proc.stdout.readline()
+            seen.append(line)
+            if line.strip() == "active" or not line:
+                break
+        assert seen[-1].strip() == "active", seen
         proc.send_signal(signal.SIGTERM)
         out, _ = proc.communicate(timeout=20)
+        out = "".join(seen) + out
     finally:
         if proc.poll() is None:
             proc.kill()

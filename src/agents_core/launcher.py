@@ -198,17 +198,18 @@ class Launcher:
 
     def bringup(self) -> None:
         """Start, run until SIGINT / SIGTERM (or :meth:`request_stop`), then stop cleanly."""
-        self.start()
         previous: dict[signal.Signals, Any] = {}
 
         def handler(signum: int, frame: FrameType | None) -> None:
             logger.info("received signal %d, shutting down", signum)
             self._stop_requested.set()
 
+        # Handlers first: a signal that arrives while components start still ends in a clean stop.
         if threading.current_thread() is threading.main_thread():
             for sig in (signal.SIGINT, signal.SIGTERM):
                 previous[sig] = signal.signal(sig, handler)
         try:
+            self.start()
             while not self._stop_requested.wait(0.5):
                 pass
         finally:
