@@ -10,7 +10,7 @@ from pathlib import Path
 
 import nox
 
-nox.options.sessions = ["tests", "tests_ros2", "install_check", "lint", "types"]
+nox.options.sessions = ["tests", "tests_ros2", "install_check", "lint", "types", "bench"]
 nox.options.reuse_existing_virtualenvs = True
 
 # Sessions use the interpreter that runs nox, so a fresh machine needs no particular version.
@@ -63,7 +63,7 @@ def install_check(session: nox.Session) -> None:
 def lint(session: nox.Session) -> None:
     """Ruff: style, imports, likely bugs."""
     session.install("ruff>=0.5")
-    session.run("ruff", "check", "src", "tests", "noxfile.py")
+    session.run("ruff", "check", "src", "tests", "benchmarks", "noxfile.py")
 
 
 @nox.session
@@ -78,3 +78,13 @@ def demo(session: nox.Session) -> None:
     """The demo: an LLM agent on the local SmolLM2 model over Zenoh, answering in a stream (README's first command)."""
     _install_with_local_models(session, "zenoh,local")
     session.run("python", "-m", "agents_core.demo", *session.posargs)
+
+
+@nox.session
+def bench(session: nox.Session) -> None:
+    """Benchmarks: the framework against the raw middleware in one run (``-- --quick`` for CI; benchmarks/README.md)."""
+    _install_with_local_models(session, "zenoh,ros2,local")
+    session.install("matplotlib")
+    # agents_interfaces must build against the ROS packages of this very environment.
+    session.install("--no-build-isolation", "./interfaces")
+    session.run("python", "-m", "benchmarks.run", *session.posargs)

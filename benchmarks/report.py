@@ -1,0 +1,184 @@
+"""Turning measurement records into figures (framework, raw, ratio), a markdown table and a plot."""
+
+from __future__ import annotations
+
+import importlib.metadata
+import os
+import platform
+import statistics
+import subprocess
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Any
+
+from .common import REPO
+
+#: suite -> [(metric, unit, better, how to read it from a record)]
+METRICS: dict[str, list[tuple[str, str, str, str]]] = {
+    "hop": [("rtt_median", "us", "lower", "rtt.median_us"), ("rtt_p99", "us", "lower", "rtt.p99_us")],
+    "throughput": [("msgs_per_s", "msg/s", "higher", "msgs_per_s"), ("mb_per_s", "MB/s", "higher", "mb_per_s")],
+    "startup": [("start_to_active", "ms", "lower", "median_ms")],
+    "model": [("ttft", "ms", "lower", "ttft_ms"), ("tokens_per_s", "tokens/s", "higher", "tokens_per_s")],
+}
+
+#: Above this slowdown (framework cost / raw cost) a latency figure needs a profile note.
+NOTE_THRESHOLD = 1.3
+
+
+def _read(record: dict[str, Any], path: str) -> float:
+    value: Any = record
+    for key in path.split("."):
+        value = value[key]
+    return float(value)
+
+
+def build_figures(records: Iterable[dict[str, Any]]) -> list[dict[str, Any]]:
+    """One figure per (suite, transport, payload, metric), with the framework, raw and their ratio.
+
+    A value is the median over rounds (a run may measure each pair several times). ``ratio`` is
+    framework / raw as measured; ``slowdown`` is how many times costlier the framework is
+    whichever way the metric points (the ratio for times, raw / framework for rates).
+    """
+    by_key: dict[tuple[str, str, str], dict[str, list[dict[str, Any]]]] = {}
+    for r in records:
+        by_key.setdefault((r["suite"], r["transport"], r["payload"]), {}).setdefault(r["mode"], []).append(r)
+    figures = []
+    for (suite, transport, payload), modes in by_key.items():
+        for metric, unit, better, path in METRICS[suite]:
+            fw = statistics.median(_read(r, path) for r in modes["framework"]) if "framework" in modes else None
+            raw = statistics.median(_read(r, path) for r in modes["raw"]) if "raw" in modes else None
+            ratio = fw / raw if fw is not None and raw else None
+            slowdown = None
+            if ratio is not None and ratio > 0:
+                slowdown = ratio if better == "lower" else 1.0 / ratio
+            figures.append({"id": f"{suite}/{transport}/{payload}/{metric}", "suite": suite, "transport": transport,
+                            "payload": payload, "metric": metric, "unit": unit, "better": better,
+                            "framework": fw, "raw": raw, "ratio": ratio, "slowdown": slowdown,
+                            "rounds": {mode: len(rs) for mode, rs in modes.items()}})
+    return figures
+
+
+def _fmt(value: float | None) -> str:
+    if value is None:
+        return "n/a"
+    if value >= 100:
+        return f"{value:,.0f}"
+    if value >= 10:
+        return f"{value:.1f}"
+    return f"{value:.2f}"
+
+
+def markdown_table(figures: list[dict[str, Any]], skipped: list[dict[str, str]]) -> str:
+    """The summary: one row per figure; ratios over the threshold on latencies are starred."""
+    lines = ["| figure | unit | framework | raw | framework / raw |", "|---|---|---:|---:|---:|"]
+    for f in figures:
+        ratio = "n/a" if f["ratio"] is None else f"{f['ratio']:.2f}"
+        if f["suite"] == "hop" and f["slowdown"] is not None and f["slowdown"] > NOTE_THRESHOLD:
+            ratio += " *"
+        arrow = "lower is better" if f["better"] == "lower" else "higher is better"
+        lines.append(f"| {f['id']} | {f['unit']} ({arrow}) | {_fmt(f['framework'])} | {_fmt(f['raw'])} | {ratio} |")
+    lines.append("")
+    lines.append(f"\\* latency ratio above {NOTE_THRESHOLD}: see the profile notes in benchmarks/README.md.")
+    for s in skipped:
+        lines.append(f"- skipped {s['suite']} on {s['transport']} ({s.get('mode', '')}): "
+                     f"{s['reason'].strip().splitlines()[0] if s['reason'].strip() else 'no reason given'}")
+    return "\n".join(lines)
+
+
+# -- machine and versions -------------------------------------------------------------------------
+
+
+def _cpu_model() -> str:
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or "unknown"
+
+
+def _memory_gib() -> float | None:
+    try:
+        for line in Path("/proc/meminfo").read_text().splitlines():
+            if line.startswith("MemTotal:"):
+                return round(int(line.split()[1]) / 1024 / 1024, 1)
+    except OSError:
+        pass
+    return None
+
+
+def machine_info() -> dict[str, Any]:
+    load = os.getloadavg() if hasattr(os, "getloadavg") else None
+    return {"platform": platform.platform(), "machine": platform.machine(), "cpu": _cpu_model(),
+            "cpu_count": os.cpu_count(), "memory_gib": _memory_gib(), "python": platform.python_version(),
+            "loadavg_at_start": list(load) if load else None}
+
+
+def versions() -> dict[str, str | None]:
+    out: dict[str, str | None] = {}
+    for dist in ("agents-core", "eclipse-zenoh", "msgpack", "numpy", "ros-jazzy-rclpy", "llama-cpp-python",
+                 "matplotlib"):
+        try:
+            out[dist] = importlib.metadata.version(dist)
+        except importlib.metadata.PackageNotFoundError:
+            out[dist] = None
+    try:
+        commit = subprocess.run(["git", "rev-parse", "HEAD"], cwd=REPO, capture_output=True, text=True,
+                                timeout=10, check=False).stdout.strip()
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=REPO,
+                               capture_output=True, text=True, timeout=10, check=False).stdout.strip()
+        out["git_commit"] = (commit + ("+dirty" if dirty else "")) or None
+    except (OSError, subprocess.SubprocessError):
+        out["git_commit"] = None
+    return out
+
+
+# -- plot -----------------------------------------------------------------------------------------
+
+
+def plot(figures: list[dict[str, Any]], records: list[dict[str, Any]], path: Path, title: str) -> None:
+    """Left: the framework's slowdown per figure. Right: hop RTT medians, framework and raw (log scale)."""
+    import matplotlib  # noqa: PLC0415  (optional: only for the plot)
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt  # noqa: PLC0415
+
+    shown = [f for f in figures if f["slowdown"] is not None and f["metric"] not in ("mb_per_s",)]
+    fig, (left, right) = plt.subplots(1, 2, figsize=(15, max(5.0, 0.32 * len(shown) + 1.5)),
+                                      gridspec_kw={"width_ratios": [3, 2]})
+    colors = {"hop": "tab:blue", "throughput": "tab:orange", "startup": "tab:green", "model": "tab:purple"}
+    labels = [f["id"] for f in shown]
+    values = [f["slowdown"] for f in shown]
+    y = list(range(len(shown)))
+    left.barh(y, values, color=[colors[f["suite"]] for f in shown])
+    left.set_yticks(y, labels, fontsize=8)
+    left.invert_yaxis()
+    left.set_xscale("log")
+    left.axvline(1.0, color="black", linewidth=1)
+    left.axvline(NOTE_THRESHOLD, color="grey", linestyle="--", linewidth=1)
+    left.set_xlabel("framework cost / raw cost (x, log scale); 1 = as fast as the raw library")
+    for yi, v in zip(y, values, strict=True):
+        left.text(v, yi, f" {v:.2f}", va="center", fontsize=7)
+    left.set_title("slowdown against the raw library (lower is better)")
+
+    hops = [r for r in records if r["suite"] == "hop"]
+    keys = sorted({(r["transport"], r["payload"]) for r in hops})
+    width = 0.38
+    for i, mode in enumerate(("raw", "framework")):
+        medians = []
+        for transport, payload in keys:
+            match = [r["rtt"]["median_us"] for r in hops
+                     if r["transport"] == transport and r["payload"] == payload and r["mode"] == mode]
+            medians.append(statistics.median(match) if match else 0.0)
+        right.bar([k + (i - 0.5) * width for k in range(len(keys))], medians, width, label=mode,
+                  color="tab:grey" if mode == "raw" else "tab:blue")
+    right.set_xticks(range(len(keys)), [f"{t}\n{p}" for t, p in keys], fontsize=8)
+    right.set_yscale("log")
+    right.set_ylabel("round trip, median (us, log scale)")
+    right.set_title("hop latency: ping -> relay -> pong")
+    right.legend()
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)

@@ -1,0 +1,166 @@
+"""Run the benchmarks: ``python -m benchmarks.run [--quick] [--transports memory,zenoh,ros2] [--out DIR]``.
+
+Runs the suites (hop latency and throughput, start-up, model path) for every transport this
+environment has, framework and raw library side by side, then writes
+``<out>/<stamp>-<quick|full>.json`` and ``.png`` and prints a markdown table. A transport or suite
+that cannot run here (its extra is not installed) is skipped, and the reason is recorded in the
+JSON. Child logs go to ``<out>/<stamp>-logs/``. See ``benchmarks/README.md``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import json
+import os
+import random
+import signal
+import sys
+import time
+from pathlib import Path
+from types import FrameType
+from typing import Any
+
+from . import hop, model, report, startup
+from .common import IMAGE_SHAPE, REPO, STRING_BYTES, Children, available
+from .throughput import WINDOW
+
+SCHEMA = "agents-core-bench/1"
+
+SETTINGS: dict[str, dict[str, Any]] = {
+    "quick": {"string_warmup": 50, "string_count": 200, "image_warmup": 10, "image_count": 50,
+              "throughput_seconds": 1.5, "latency_max_seconds": 30.0, "startup_reps": 2,
+              "model_reps": 2, "model_max_tokens": 64, "model_threads": 1, "rounds": 1},
+    "full": {"string_warmup": 200, "string_count": 2000, "image_warmup": 30, "image_count": 300,
+             "throughput_seconds": 5.0, "latency_max_seconds": 120.0, "startup_reps": 5,
+             "model_reps": 8, "model_max_tokens": 64, "model_threads": 1, "rounds": 3},
+}
+
+SUITES = ("hop", "startup", "model")
+
+
+def transport_unavailable(name: str) -> str | None:
+    """Why ``name`` cannot be measured in this environment, or None."""
+    if name == "zenoh" and not (available("zenoh") and available("msgpack")):
+        return "the zenoh extra is not installed (pip install 'agents-core[zenoh]')"
+    if name == "ros2":
+        if not available("rclpy"):
+            return "the ros2 extra is not installed (pip install 'agents-core[ros2]')"
+        if not available("agents_interfaces"):
+            return "agents_interfaces is not built here (pip install --no-build-isolation ./interfaces)"
+    return None
+
+
+def _progress(start: float) -> Any:
+    def progress(line: str) -> None:
+        print(f"[{time.monotonic() - start:6.1f}s] {line}", flush=True)
+
+    return progress
+
+
+def _terminate(signum: int, frame: FrameType | None) -> None:
+    raise KeyboardInterrupt(f"signal {signum}")
+
+
+def parse_args(argv: list[str] | None) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--quick", action="store_true", help="small counts, for CI (a couple of minutes)")
+    parser.add_argument("--transports", default="memory,zenoh,ros2", help="comma-separated (default: all)")
+    parser.add_argument("--suites", default=",".join(SUITES), help=f"comma-separated of {', '.join(SUITES)} "
+                        "(hop includes throughput)")
+    parser.add_argument("--out", type=Path, default=REPO / "benchmarks" / "results", help="output folder")
+    parser.add_argument("--ros-domain", type=int, default=None, help="ROS_DOMAIN_ID (default: random 1..101)")
+    parser.add_argument("--no-plot", action="store_true", help="skip the PNG")
+    args = parser.parse_args(argv)
+    args.transports = [t.strip() for t in args.transports.split(",") if t.strip()]
+    args.suites = [s.strip() for s in args.suites.split(",") if s.strip()]
+    for name in args.transports:
+        if name not in ("memory", "zenoh", "ros2"):
+            parser.error(f"unknown transport {name!r}")
+    for name in args.suites:
+        if name not in SUITES:
+            parser.error(f"unknown suite {name!r}")
+    return args
+
+
+def run_suites(transports: list[str], suites: list[str], settings: dict[str, Any], ros_domain: int,
+               children: Children, progress: Any) -> tuple[list[dict[str, Any]], list[dict[str, str]]]:
+    """Every selected suite, in order; all children are stopped by PID before this returns."""
+    records: list[dict[str, Any]] = []
+    skipped: list[dict[str, str]] = []
+    previous = signal.signal(signal.SIGTERM, _terminate)
+    try:
+        if "hop" in suites:
+            got, lost = hop.run_suite(transports, settings, children, ros_domain, progress)
+            records += got
+            skipped += lost
+        if "startup" in suites:
+            got, lost = startup.run_suite(transports, settings, children, ros_domain, progress)
+            records += got
+            skipped += lost
+        if "model" in suites:
+            got, lost = model.run_suite(settings, children, progress)
+            records += got
+            skipped += lost
+    finally:
+        children.stop_all()
+        signal.signal(signal.SIGTERM, previous)
+    return records, skipped
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parse_args(argv)
+    kind = "quick" if args.quick else "full"
+    settings = dict(SETTINGS[kind])
+    ros_domain = args.ros_domain if args.ros_domain is not None else random.randint(1, 101)
+    stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
+    log_dir = args.out / f"{stamp}-logs"
+    log_dir.mkdir(parents=True, exist_ok=True)
+
+    started = time.monotonic()
+    machine = report.machine_info()  # before the run: the load average says how busy the machine was
+    progress = _progress(started)
+    skipped: list[dict[str, str]] = []
+    runnable = []
+    for name in args.transports:
+        reason = transport_unavailable(name)
+        if reason is None:
+            runnable.append(name)
+        else:
+            progress(f"{name}: skipped: {reason}")
+            skipped.append({"suite": "all", "transport": name, "mode": "both", "reason": reason})
+    progress(f"{kind} run: transports {', '.join(runnable) or 'none'}; suites {', '.join(args.suites)}; "
+             f"ROS_DOMAIN_ID {ros_domain}; logs in {log_dir}")
+    records, lost = run_suites(runnable, args.suites, settings, ros_domain, Children(log_dir), progress)
+    skipped += lost
+
+    figures = report.build_figures(records)
+    duration = time.monotonic() - started
+    result = {
+        "schema": SCHEMA, "kind": kind, "started": stamp, "duration_s": round(duration, 1),
+        "argv": sys.argv[1:] if argv is None else argv,
+        "machine": {**machine, "loadavg_at_end": list(os.getloadavg())},
+        "versions": report.versions(),
+        "settings": {**settings, "transports": runnable, "suites": args.suites, "ros_domain_id": ros_domain,
+                     "string_bytes": STRING_BYTES, "image_shape": list(IMAGE_SHAPE), "throughput_window": WINDOW},
+        "figures": figures, "skipped": skipped, "records": records,
+    }
+    json_path = args.out / f"{stamp}-{kind}.json"
+    json_path.write_text(json.dumps(result, indent=2))
+    png_path = args.out / f"{stamp}-{kind}.png"
+    if not args.no_plot and records:
+        if available("matplotlib"):
+            report.plot(figures, records, png_path, f"agents-core benchmarks, {kind} run {stamp} "
+                        f"({result['machine']['cpu']}, {result['machine']['cpu_count']} cores)")
+        else:
+            progress("plot: skipped (matplotlib is not installed)")
+    print(f"\n## Benchmarks ({kind}, {duration:.0f} s): framework vs the raw library\n")
+    print(report.markdown_table(figures, skipped))
+    print(f"\nJSON: {json_path}")
+    if png_path.exists():
+        print(f"plot: {png_path}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
