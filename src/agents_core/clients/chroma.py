@@ -72,9 +72,9 @@ from urllib.parse import quote
 
 import httpx
 
-from ..errors import ConfigError, HTTPStatusError, ModelClientError, ProtocolError
+from ..errors import ConfigError, HTTPStatusError, ProtocolError
 from ..vectordbs import DB, ChromaDB, db_types
-from .client_base import client_from_spec, map_client_exception
+from .client_base import client_from_spec
 from .db_base import DBClient
 from .model_base import ModelClient
 
@@ -168,16 +168,6 @@ class ChromaClient(DBClient):
         self._max_batch: int | None = None
 
     # -- HTTP plumbing --------------------------------------------------------------------------
-
-    def _guard(self, what: str, func: Callable[[], R]) -> R:
-        # A malformed db_input is the caller's mistake, not a server failure: it keeps its type
-        # (ConfigError naming the field) instead of becoming an InferenceError.
-        try:
-            return func()
-        except (ModelClientError, ConfigError):
-            raise
-        except Exception as exc:
-            raise map_client_exception(f"{self._label()}: {what}", exc) from exc
 
     def _client(self) -> httpx.Client:
         if self._http is None:
