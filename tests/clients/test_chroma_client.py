@@ -34,6 +34,8 @@ from agents_core.errors import (
 from agents_core.models import Model
 from agents_core.vectordbs import ChromaDB
 
+from ..conftest import free_tcp_port
+
 _STARTUP_TIMEOUT_S = 60.0
 
 
@@ -95,13 +97,6 @@ def _embedder(**kwargs: Any) -> HashEmbeddingClient:
     return HashEmbeddingClient(Model(name="hash", checkpoint="hash-bow-64"), **kwargs)
 
 
-def _free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        port: int = sock.getsockname()[1]
-        return port
-
-
 @pytest.fixture(scope="module")
 def chroma_port(tmp_path_factory: pytest.TempPathFactory) -> Iterator[int]:
     """A real Chroma server on 127.0.0.1, storing under a temporary folder; stopped by its PID."""
@@ -110,7 +105,7 @@ def chroma_port(tmp_path_factory: pytest.TempPathFactory) -> Iterator[int]:
     chroma = Path(sys.executable).with_name("chroma")
     if not chroma.exists():
         pytest.skip(f"no `chroma` executable next to {sys.executable}")
-    port = _free_port()
+    port = free_tcp_port()
     data = tmp_path_factory.mktemp("chroma")
     # Telemetry off: the tests must never reach beyond 127.0.0.1.
     env = {**os.environ, "ANONYMIZED_TELEMETRY": "False"}
@@ -171,7 +166,7 @@ PLACES = {
 
 
 def test_constructor_does_no_io_and_checks_its_arguments() -> None:
-    port = _free_port()  # nothing listens there
+    port = free_tcp_port()  # nothing listens there
     client = ChromaClient(ChromaDB(name="map"), port=port, embedding_client=_embedder(api_key="s3cret"))
     assert client._http is None and client.base_url == f"http://127.0.0.1:{port}/api/v2"
     assert "s3cret" not in repr(client)
@@ -200,7 +195,7 @@ def test_serialize_round_trip_includes_the_embedding_client() -> None:
 
 def test_db_input_is_validated_before_any_request() -> None:
     # Nothing listens on this port: each error must come from validation, not the network.
-    client = ChromaClient(ChromaDB(name="map"), port=_free_port(), embedding_client=_embedder())
+    client = ChromaClient(ChromaDB(name="map"), port=free_tcp_port(), embedding_client=_embedder())
     with pytest.raises(ConfigError, match="lacks 'ids'"):
         client.add({"documents": ["a"]})
     with pytest.raises(ConfigError, match="lacks 'documents'"):
@@ -221,7 +216,7 @@ def test_db_input_is_validated_before_any_request() -> None:
         client.query({"query": "door", "n_results": 0})
     with pytest.raises(ConfigError, match="exactly one of"):
         client.metadata_query({})
-    without_embedder = ChromaClient(ChromaDB(name="map"), port=_free_port())
+    without_embedder = ChromaClient(ChromaDB(name="map"), port=free_tcp_port())
     with pytest.raises(ConfigError, match="needs embeddings"):
         without_embedder.add({"ids": ["a"], "documents": ["x"]})
 
@@ -331,7 +326,7 @@ def test_typed_errors(make_client: Any, chroma_port: int) -> None:
     with pytest.raises(HTTPStatusError, match="dimension of 64, got 2"):
         client.add({"ids": ["y"], "documents": ["y"], "embeddings": [[1.0, 0.0]]})
 
-    refused = ChromaClient(ChromaDB(name="map"), port=_free_port(), connection_retries=1)
+    refused = ChromaClient(ChromaDB(name="map"), port=free_tcp_port(), connection_retries=1)
     start = time.monotonic()
     with pytest.raises(ClientConnectionError, match="cannot reach the server"):
         refused.check_connection()

@@ -20,7 +20,6 @@ import json
 import logging
 import math
 import os
-import socket
 import subprocess
 import sys
 import time
@@ -47,6 +46,7 @@ from agents_core.errors import (
     ProtocolError,
 )
 from agents_core.models import GenericLLM, GenericMLLM, GenericSTT, GenericTTS
+from tests.conftest import free_tcp_port
 from tests.servers.ollama_server import Fault, ProtocolHandler, ProtocolServer, RecordedRequest
 
 REPO = Path(__file__).resolve().parents[2]
@@ -56,12 +56,6 @@ API_KEY = "sk-test-7f3a9c-do-not-log"
 WEATHER_TOOL = {"type": "function", "function": {
     "name": "get_weather", "description": "Get the current weather for a city",
     "parameters": {"type": "object", "properties": {"city": {"type": "string"}}, "required": ["city"]}}}
-
-
-def free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return int(sock.getsockname()[1])
 
 
 # ======================================================================================================
@@ -118,7 +112,7 @@ def llama_server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[LlamaServ
     if tiny.is_file() and mmproj.is_file():
         models.append({"model": str(tiny), "model_alias": "tiny-vlm", "chat_format": "moondream",
                        "clip_model_path": str(mmproj), "n_ctx": 512, "n_threads": 2, "verbose": False})
-    port = free_port()
+    port = free_tcp_port()
     workdir = tmp_path_factory.mktemp("llama_server")
     config = workdir / "config.json"
     # The key goes in a file, not on the command line (argv is visible to every local user).
@@ -418,7 +412,7 @@ def client(openai: OpenAITestServer) -> Iterator[GenericHTTPClient]:
 
 def test_constructor_does_no_io_and_round_trips(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv("OPENAI_API_KEY", "sk-from-env")
-    port = free_port()
+    port = free_tcp_port()
     explicit = GenericHTTPClient(GenericLLM(name="llm", checkpoint="gpt-test"), port=port, api_key=API_KEY,
                                  base_path="/api/v1/", use_https=True)
     assert explicit._client is None
@@ -439,7 +433,7 @@ def test_constructor_does_no_io_and_round_trips(monkeypatch: pytest.MonkeyPatch)
 
 
 def test_connection_refused_is_typed() -> None:
-    client = GenericHTTPClient(GenericLLM(name="llm", checkpoint="x"), port=free_port(), inference_timeout=1.0)
+    client = GenericHTTPClient(GenericLLM(name="llm", checkpoint="x"), port=free_tcp_port(), inference_timeout=1.0)
     with pytest.raises(ClientConnectionError, match="cannot reach the server"):
         client.check_connection()
     with pytest.raises(ClientConnectionError):

@@ -247,7 +247,7 @@ class _ListDB(DBClient):
         for i, doc in enumerate(db_input["documents"]):
             self.docs.append({"id": db_input["ids"][i], "document": doc,
                               "metadata": (db_input.get("metadatas") or [{}] * len(db_input["ids"]))[i]})
-        return {"output": db_input["ids"]}
+        return {"ids": db_input["ids"]}
 
     def _conditional_add(self, db_input: dict[str, Any]) -> dict[str, Any]:
         return self._add(db_input)
@@ -255,10 +255,11 @@ class _ListDB(DBClient):
     def _query(self, db_input: dict[str, Any]) -> dict[str, Any]:
         self.queries.append(db_input)
         hits = self.docs[: db_input["n_results"]]
-        return {"output": {"documents": [h["document"] for h in hits], "metadatas": [h["metadata"] for h in hits]}}
+        return {"ids": [h["id"] for h in hits], "documents": [h["document"] for h in hits],
+                "metadatas": [h["metadata"] for h in hits], "distances": [0.0] * len(hits)}
 
     def _metadata_query(self, db_input: dict[str, Any]) -> dict[str, Any]:
-        return {"output": {}}
+        return {"ids": [], "documents": [], "metadatas": []}
 
 
 def test_rag_adds_retrieved_documents_to_the_question() -> None:

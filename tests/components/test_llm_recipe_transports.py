@@ -22,7 +22,7 @@ from agents_core import Launcher
 from agents_core.messages import StreamingStringMsg
 from agents_core.transport.contract import Transport
 
-from ..conftest import wait_for
+from ..conftest import free_tcp_port, wait_for
 from . import llm_recipe
 from .models_dir import REPO, needs_smollm2
 
@@ -116,8 +116,6 @@ def test_recipe_on_zenoh(tmp_path: Path) -> None:
         pytest.skip("zenoh transport not available here: the zenoh extra is not installed")
     # Imported here: they exist only where the zenoh extra is installed.
     from agents_zenoh.transport import ZenohTransport  # noqa: PLC0415
-
-    from ..conformance.zenoh_pair import free_tcp_port  # noqa: PLC0415
 
     endpoint = f"tcp/127.0.0.1:{free_tcp_port()}"
     env = dict(os.environ, PYTHONUNBUFFERED="1")

@@ -135,7 +135,7 @@ class _WordVectorDB(DBClient):
     def _add(self, db_input: dict[str, Any]) -> dict[str, Any]:
         for i, doc, meta in zip(db_input["ids"], db_input["documents"], db_input["metadatas"], strict=True):
             self.rows[i] = (doc, meta)
-        return {"output": list(db_input["ids"])}
+        return {"ids": list(db_input["ids"])}
 
     def _conditional_add(self, db_input: dict[str, Any]) -> dict[str, Any]:
         return self._add(db_input)
@@ -148,11 +148,11 @@ class _WordVectorDB(DBClient):
             return 1.0 - sum(q.get(w, 0.0) * v for w, v in d.items())
 
         ranked = sorted(self.rows.values(), key=lambda row: distance(row[0]))[: db_input["n_results"]]
-        return {"output": {"documents": [[r[0] for r in ranked]], "metadatas": [[r[1] for r in ranked]],
-                           "distances": [[distance(r[0]) for r in ranked]]}}
+        return {"ids": [], "documents": [r[0] for r in ranked], "metadatas": [r[1] for r in ranked],
+                "distances": [distance(r[0]) for r in ranked]}
 
     def _metadata_query(self, db_input: dict[str, Any]) -> dict[str, Any]:
-        return {"output": {}}
+        return {"ids": [], "documents": [], "metadatas": []}
 
 
 GOTO, CHAT, FALLBACK = Topic("goto", "String"), Topic("chat", "String"), Topic("unsure", "String")

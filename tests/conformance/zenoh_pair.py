@@ -8,18 +8,11 @@ is off, so nothing leaves the host and parallel runs never meet.
 from __future__ import annotations
 
 import contextlib
-import socket
 from collections.abc import Iterator
 
 from agents_zenoh.transport import ZenohTransport
 
-
-def free_tcp_port() -> int:
-    """A loopback TCP port that was free a moment ago (the OS picks it)."""
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
+from ..conftest import free_tcp_port
 
 # Zenoh's open() waits up to scouting/delay (500 ms by default) for its connections; on
 # loopback they take a few ms, so a short delay saves half a second per test.

@@ -13,7 +13,6 @@ import json
 import os
 import re
 import signal
-import socket
 import subprocess
 import sys
 import time
@@ -28,18 +27,13 @@ pytest.importorskip("msgpack")
 
 import zenoh  # after the importorskip guards
 
+from tests.conftest import free_tcp_port
 from tests.zenoh_adapter import raw_client as rc
 
 pytestmark = pytest.mark.zenoh
 
 REPO = Path(__file__).resolve().parents[2]
 STARTUP_TIMEOUT = 60.0
-
-
-def free_tcp_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 class Recipe:

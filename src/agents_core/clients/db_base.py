@@ -1,6 +1,17 @@
 """``DBClient``: the base of clients for vector databases (used by MapEncoding, SemanticRouter, RAG).
 
 Implement the underscored methods; components call the public ones, which type every failure.
+
+The ``db_input`` and result shapes components rely on (every call may name a
+``"collection_name"``)::
+
+    add / conditional_add: {"ids": [str], "documents": [str], "metadatas": [dict],   # metadatas optional
+                            "distance_func": "l2" | "cosine" | "ip"}              # for a new collection
+    query:                 {"query": str, "n_results": int, "where": dict}            # where optional
+        -> {"ids": [...], "documents": [...], "metadatas": [...], "distances": [...]}  # nearest first
+    metadata_query:        {"where": dict} -> {"ids": [...], "documents": [...], "metadatas": [...]}
+
+:class:`~agents_core.clients.chroma.ChromaClient` documents the extra keys it accepts.
 """
 
 from __future__ import annotations

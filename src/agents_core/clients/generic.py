@@ -35,7 +35,7 @@ import numpy as np
 from ..errors import ConfigError, HTTPStatusError, InferenceError, ProtocolError
 from ..models import OPENAI_CHAT_OPTIONS, GenericSTT, GenericTTS, Model, model_types
 from .model_base import ModelClient
-from .payloads import ChunkStream, image_to_data_uri, make_tool_call
+from .payloads import ChunkStream, checked_messages, image_to_data_uri, make_tool_call, message_text
 
 __all__ = [
     "GenericHTTPClient",
@@ -49,7 +49,6 @@ __all__ = [
 #: The environment variable read when no ``api_key`` is given.
 API_KEY_ENV = "OPENAI_API_KEY"
 
-_CHAT_ROLES = ("system", "user", "assistant", "tool")
 #: Keys of a chat inference input that are not sampling parameters.
 _CHAT_CONTROL_KEYS = frozenset({"query", "stream", "tools"})
 #: Request fields beyond the model's sampling options that a chat request may carry.
@@ -353,18 +352,9 @@ class GenericHTTPClient(ModelClient):
     # -- chat -----------------------------------------------------------------------------------------
 
     def _messages(self, query: Any) -> list[dict[str, Any]]:
-        if isinstance(query, str):
-            query = [{"role": "user", "content": query}]
-        if not isinstance(query, list) or not query:
-            raise InferenceError(f"{self._label()}: 'query' must be a non-empty list of chat messages or a str")
         messages: list[dict[str, Any]] = []
-        for message in query:
-            role = message.get("role") if isinstance(message, dict) else None
-            if role not in _CHAT_ROLES:
-                raise InferenceError(f"{self._label()}: a chat message needs a role in {_CHAT_ROLES}, "
-                                     f"got {message!r:.200}")
-            content = message.get("content")
-            content = "" if content is None else str(content)
+        for message in checked_messages(query, self._label()):
+            role, content = message["role"], message_text(message)
             out: dict[str, Any] = {"role": role}
             images = message.get("images")
             if images:

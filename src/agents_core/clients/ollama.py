@@ -20,12 +20,11 @@ from ..errors import ConfigError, InferenceError, ProtocolError
 from ..models import OLLAMA_OPTIONS, Model, OllamaModel
 from .generic import check_response, response_json
 from .model_base import ModelClient
-from .payloads import ChunkStream, image_to_base64_png, make_tool_call
+from .payloads import ChunkStream, checked_messages, image_to_base64_png, make_tool_call, message_text
 
 __all__ = ["OllamaClient"]
 
 _DEFAULT_PORT = 11434
-_CHAT_ROLES = ("system", "user", "assistant", "tool")
 #: Keys of an inference input that are not model options.
 _CONTROL_KEYS = frozenset({"query", "stream", "tools", "keep_alive", "format", "images", "system"})
 #: A pull streams a few lines per progress update; this bounds a server that never says "success".
@@ -316,18 +315,10 @@ class OllamaClient(ModelClient):
     # -- protocol details -----------------------------------------------------------------------------
 
     def _messages(self, query: Any) -> list[dict[str, Any]]:
-        if isinstance(query, str):
-            query = [{"role": "user", "content": query}]
-        if not isinstance(query, list) or not query:
-            raise InferenceError(f"{self._label()}: 'query' must be a non-empty list of chat messages or a str")
         messages: list[dict[str, Any]] = []
-        for message in query:
-            role = message.get("role") if isinstance(message, dict) else None
-            if role not in _CHAT_ROLES:
-                raise InferenceError(f"{self._label()}: a chat message needs a role in {_CHAT_ROLES}, "
-                                     f"got {message!r:.200}")
-            content = message.get("content")
-            out: dict[str, Any] = {"role": role, "content": "" if content is None else str(content)}
+        for message in checked_messages(query, self._label()):
+            role = message["role"]
+            out: dict[str, Any] = {"role": role, "content": message_text(message)}
             if message.get("images"):
                 out["images"] = [image_to_base64_png(image) for image in message["images"]]
             if role == "assistant" and message.get("tool_calls"):

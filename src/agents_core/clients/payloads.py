@@ -52,13 +52,19 @@ from ..errors import InferenceError, ModelClientError, ProtocolError
 from .client_base import map_client_exception
 
 __all__ = [
+    "CHAT_ROLES",
     "ChunkStream",
+    "checked_messages",
     "encode_png",
     "image_to_base64_png",
     "image_to_data_uri",
     "make_tool_call",
+    "message_text",
     "parse_tool_arguments",
 ]
+
+#: The roles a chat message may have.
+CHAT_ROLES = ("system", "user", "assistant", "tool")
 
 T = TypeVar("T")
 
@@ -127,6 +133,28 @@ class ChunkStream(Generic[T]):
         # A stream dropped half-read must not keep a socket open.
         with contextlib.suppress(Exception):
             self.close()
+
+
+def checked_messages(query: Any, label: str) -> list[dict[str, Any]]:
+    """The chat messages of an inference input's ``query``, each checked to have a known role.
+
+    A str is taken as one user message. ``label`` names the client in the error.
+    """
+    if isinstance(query, str):
+        query = [{"role": "user", "content": query}]
+    if not isinstance(query, list) or not query:
+        raise InferenceError(f"{label}: 'query' must be a non-empty list of chat messages or a str")
+    for message in query:
+        role = message.get("role") if isinstance(message, dict) else None
+        if role not in CHAT_ROLES:
+            raise InferenceError(f"{label}: a chat message needs a role in {CHAT_ROLES}, got {message!r:.200}")
+    return query
+
+
+def message_text(message: dict[str, Any]) -> str:
+    """A message's text content ("" when it has none)."""
+    content = message.get("content")
+    return "" if content is None else str(content)
 
 
 def _check_image(image: Any) -> np.ndarray:

@@ -56,13 +56,14 @@ import logging
 import re
 import time
 from collections.abc import Callable, Iterator
-from typing import TYPE_CHECKING, Any, Final, TypeVar
+from typing import TYPE_CHECKING, Any, ClassVar, Final, TypeVar
 
 import msgpack  # type: ignore[import-untyped]  # msgpack ships no type information
 import numpy as np
 
 from ..errors import ConfigError, InferenceError, ProtocolError
-from ..models import model_types
+from ..models import Model, model_types
+from .model_base import ModelClient
 from .payloads import ChunkStream, image_to_base64_png
 
 if TYPE_CHECKING:
@@ -76,6 +77,7 @@ __all__ = [
     "STREAMING_NODE_MODELS",
     "WS_CHUNK_SIZE",
     "RoboMLHTTPClient",
+    "RoboMLNodeClient",
     "RoboMLRESPClient",
     "RoboMLWSClient",
     "build_roboml_input",
@@ -354,6 +356,41 @@ def error_detail(body: Any) -> str:
         detail = body["detail"]
         return detail if isinstance(detail, str) else json.dumps(detail)[:500]
     return str(body)[:500]
+
+
+class RoboMLNodeClient(ModelClient):
+    """What the RoboML clients share: a node named after the model, the RoboML model class serving
+    it, connection retries and the model's load timeout. Parameters as ModelClient; ``port``
+    defaults to the transport's own (``default_port``)."""
+
+    #: The port RoboML listens on for this transport.
+    default_port: ClassVar[int] = 8000
+    #: Attempts of a connection check (and of opening a connection) before giving up.
+    connect_attempts: ClassVar[int] = 3
+    #: Seconds before the second attempt; doubled for each one after.
+    connect_retry_delay: ClassVar[float] = 0.2
+    #: Seconds a model may take to load when its ``init_timeout`` is None (RoboML's own default).
+    default_init_timeout: ClassVar[float] = 600.0
+
+    def __init__(
+        self,
+        model: Model | dict[str, Any],
+        host: str = "127.0.0.1",
+        port: int | None = None,
+        inference_timeout: int | float = 30,
+        init_on_activation: bool = True,
+        logging_level: str = "info",
+        **kwargs: Any,
+    ) -> None:
+        super().__init__(model=model, host=host, port=self.default_port if port is None else port,
+                         inference_timeout=inference_timeout, init_on_activation=init_on_activation,
+                         logging_level=logging_level, **kwargs)
+        self.node_name = check_node_name(type(self).__name__, self.model_name)
+        self.node_model = resolve_node_model(type(self).__name__, self.model_type)
+
+    @property
+    def _init_seconds(self) -> float:
+        return float(self.init_timeout) if self.init_timeout else self.default_init_timeout
 
 
 def retry_connect(func: Callable[[], T], *, attempts: int, delay: float,

@@ -12,22 +12,19 @@ from typing import Any, ClassVar
 import httpx
 
 from ..errors import HTTPStatusError, ProtocolError
-from ..models import Model
-from .model_base import ModelClient
 from .payloads import ChunkStream
 from .roboml import (
+    RoboMLNodeClient,
     build_roboml_input,
-    check_node_name,
     error_detail,
     normalize_result,
-    resolve_node_model,
     retry_connect,
 )
 
 __all__ = ["RoboMLHTTPClient"]
 
 
-class RoboMLHTTPClient(ModelClient):
+class RoboMLHTTPClient(RoboMLNodeClient):
     """A model served by `RoboML <https://github.com/automatika-robotics/roboml>`_ over HTTP.
 
     Configure creates a node named after the model on the server, with the RoboML model class
@@ -48,27 +45,10 @@ class RoboMLHTTPClient(ModelClient):
     :param logging_level: ``"debug"``, ``"info"``, ...
     """
 
-    #: Attempts of a connection check (and of opening a connection) before giving up.
-    connect_attempts: ClassVar[int] = 3
-    #: Seconds before the second attempt; doubled for each one after.
-    connect_retry_delay: ClassVar[float] = 0.2
-    #: Seconds a model may take to load when its ``init_timeout`` is None (RoboML's own default).
-    default_init_timeout: ClassVar[float] = 600.0
+    default_port: ClassVar[int] = 8000
 
-    def __init__(
-        self,
-        model: Model | dict[str, Any],
-        host: str = "127.0.0.1",
-        port: int = 8000,
-        inference_timeout: int | float = 30,
-        init_on_activation: bool = True,
-        logging_level: str = "info",
-        **kwargs: Any,
-    ) -> None:
-        super().__init__(model=model, host=host, port=port, inference_timeout=inference_timeout,
-                         init_on_activation=init_on_activation, logging_level=logging_level, **kwargs)
-        self.node_name = check_node_name(type(self).__name__, self.model_name)
-        self.node_model = resolve_node_model(type(self).__name__, self.model_type)
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
         self._http: httpx.Client | None = None
         self._http_lock = threading.Lock()
 
@@ -76,10 +56,6 @@ class RoboMLHTTPClient(ModelClient):
     def url(self) -> str:
         """RoboML's base HTTP URL."""
         return f"http://{self.host}:{self.port}"
-
-    @property
-    def _init_seconds(self) -> float:
-        return float(self.init_timeout) if self.init_timeout else self.default_init_timeout
 
     def _client(self) -> httpx.Client:
         # Created on first use, never in the constructor (a client is built in processes that may

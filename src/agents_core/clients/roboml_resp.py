@@ -21,14 +21,11 @@ from ..errors import (
     ModelClientError,
     ProtocolError,
 )
-from ..models import Model
-from .model_base import ModelClient
 from .roboml import (
+    RoboMLNodeClient,
     build_roboml_input,
-    check_node_name,
     normalize_result,
     packb,
-    resolve_node_model,
     retry_connect,
     single_chunk_stream,
     unpackb,
@@ -50,7 +47,7 @@ def _import_redis() -> SimpleNamespace:
         raise ConfigError("RoboMLRESPClient needs the redis package: pip install redis") from exc
 
 
-class RoboMLRESPClient(ModelClient):
+class RoboMLRESPClient(RoboMLNodeClient):
     """A model served by RoboML's RESP server (``roboml-resp``), a lighter transport than HTTP.
 
     Parameters as :class:`~agents_core.clients.roboml_http.RoboMLHTTPClient`; ``port`` defaults
@@ -58,27 +55,10 @@ class RoboMLRESPClient(ModelClient):
     with ``stream: True`` gets its whole answer as a single chunk.
     """
 
-    #: Attempts of a connection check before giving up.
-    connect_attempts: ClassVar[int] = 3
-    #: Seconds before the second attempt; doubled for each one after.
-    connect_retry_delay: ClassVar[float] = 0.2
-    #: Seconds a model may take to load when its ``init_timeout`` is None (RoboML's own default).
-    default_init_timeout: ClassVar[float] = 600.0
+    default_port: ClassVar[int] = 6379
 
-    def __init__(
-        self,
-        model: Model | dict[str, Any],
-        host: str = "127.0.0.1",
-        port: int = 6379,
-        inference_timeout: int | float = 30,
-        init_on_activation: bool = True,
-        logging_level: str = "info",
-        **kwargs: Any,
-    ) -> None:
-        super().__init__(model=model, host=host, port=port, inference_timeout=inference_timeout,
-                         init_on_activation=init_on_activation, logging_level=logging_level, **kwargs)
-        self.node_name = check_node_name(type(self).__name__, self.model_name)
-        self.node_model = resolve_node_model(type(self).__name__, self.model_type)
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
         self._redis: Any = None  # for inference and pings: times out after inference_timeout
         self._admin: Any = None  # for node lifecycle: times out after the model's init timeout
         self._lock = threading.Lock()
@@ -89,7 +69,6 @@ class RoboMLRESPClient(ModelClient):
         with self._lock:
             if self._redis is None:
                 rd = self._rd = _import_redis()
-                init_seconds = float(self.init_timeout) if self.init_timeout else self.default_init_timeout
                 common = {
                     "host": self.host, "port": self.port,
                     # RoboML's server speaks RESP2 only: redis-py 8 would open with HELLO 3.
@@ -99,7 +78,7 @@ class RoboMLRESPClient(ModelClient):
                     "socket_connect_timeout": min(float(self.inference_timeout), 10.0),
                 }
                 self._redis = rd.Redis(socket_timeout=float(self.inference_timeout), **common)
-                self._admin = rd.Redis(socket_timeout=init_seconds, **common)
+                self._admin = rd.Redis(socket_timeout=self._init_seconds, **common)
             return self._redis, self._admin
 
     def _call(self, connection: Any, what: str, command: str, arguments: dict[str, Any] | None = None) -> Any:

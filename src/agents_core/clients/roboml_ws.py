@@ -27,7 +27,6 @@ from ..errors import (
     ModelClientError,
     ProtocolError,
 )
-from ..models import Model
 from .payloads import ChunkStream
 from .roboml import RESPONSE_ENDED, WS_CHUNK_SIZE, build_roboml_input, normalize_result, packb, retry_connect, unpackb
 from .roboml_http import RoboMLHTTPClient
@@ -57,18 +56,8 @@ class RoboMLWSClient(RoboMLHTTPClient):
     #: Largest frame accepted (RoboML's frames are at most 1 MiB, or 4 MiB of UTF-8 for text).
     max_frame_size: ClassVar[int] = 8 * 1024 * 1024
 
-    def __init__(
-        self,
-        model: Model | dict[str, Any],
-        host: str = "127.0.0.1",
-        port: int = 8000,
-        inference_timeout: int | float = 30,
-        init_on_activation: bool = True,
-        logging_level: str = "info",
-        **kwargs: Any,
-    ) -> None:
-        super().__init__(model=model, host=host, port=port, inference_timeout=inference_timeout,
-                         init_on_activation=init_on_activation, logging_level=logging_level, **kwargs)
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
         self._ws: ClientConnection | None = None
         self._ws_lock = threading.Lock()  # guards self._ws
         self._request_lock = threading.Lock()  # one request in flight on the connection

@@ -287,9 +287,8 @@ class LLM(ModelComponent):
             return None
         found = self.db_client.query({"collection_name": self._collection(), "query": query,
                                       "n_results": self.config.n_results})
-        result = found.get("output", found)
-        documents = list(result.get("documents") or [])
-        metadatas = list(result.get("metadatas") or [None] * len(documents))
+        documents = list(found.get("documents") or [])
+        metadatas = list(found.get("metadatas") or [None] * len(documents))
         if not documents:
             return None
         lines = []
@@ -307,12 +306,17 @@ class LLM(ModelComponent):
             self.messages.clear()
             self._logger.info("chat history cleared")
             return
+        self._answer(query)
+
+    def _answer(self, query: str) -> str | None:
+        """Ask the model ``query`` (with history and context), publish and remember the answer."""
         inference_input = self._create_input(query)
         if inference_input is None:
-            return
+            return None
         answer = self._converse(inference_input)
         if answer is not None and self.config.chat_history:
             self._remember(query, answer)
+        return answer
 
     def _create_input(self, query: str, images: Sequence[Any] | None = None, **kwargs: Any) -> dict[str, Any] | None:
         context = self._rag_context(query)

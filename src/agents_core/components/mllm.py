@@ -111,17 +111,8 @@ class MLLM(LLM):
                 frames.append(cb.msg)
         return frames
 
-    def _execution_step(self, **kwargs: Any) -> None:
-        query = self._query_text(kwargs.get("topic"))
-        if query is None or not query.strip():
-            return
-        if query.strip().lower() == self.config.history_reset_phrase.lower():
-            self.messages.clear()
-            self._logger.info("chat history cleared")
-            return
-        self._ask(query)
-
-    def _ask(self, query: str) -> str | None:
+    def _answer(self, query: str) -> str | None:
+        """Ask ``query`` about the latest frames; a structured task publishes its typed output."""
         frames = self._latest_frames()
         if not frames:
             self._logger.warning("no image has arrived yet: question %r not asked", query[:80])
@@ -195,7 +186,7 @@ class MLLM(LLM):
     })
     def describe(self, question: str = "Describe what you see in one sentence.") -> str:
         """Ask ``question`` about the latest image now; the answer is published and returned."""
-        return self._ask(question) or ""
+        return self._answer(question) or ""
 
     def _deploy_local_model(self) -> None:
         from ..utils.local_llm import LocalVLM  # noqa: PLC0415  (llama-cpp-python is optional)

@@ -59,14 +59,8 @@ class Route:
 
 
 def _nearest(result: dict[str, Any]) -> tuple[dict[str, Any] | None, float | None]:
-    """The metadata and distance of the best hit of a DB query (flat or per-query nested lists)."""
-    body = result.get("output", result)
-    metadatas, distances = body.get("metadatas") or [], body.get("distances") or []
-    # Chroma's own shape nests one list per query text; accept both.
-    if metadatas and isinstance(metadatas[0], list):
-        metadatas = metadatas[0]
-    if distances and isinstance(distances[0], list):
-        distances = distances[0]
+    """The metadata and distance of the best hit of a DB query (the DBClient result shape)."""
+    metadatas, distances = result.get("metadatas") or [], result.get("distances") or []
     if not metadatas:
         return None, None
     return metadatas[0], float(distances[0]) if distances else None

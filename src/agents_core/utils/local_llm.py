@@ -20,7 +20,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-from ..clients.payloads import ChunkStream, image_to_data_uri, make_tool_call
+from ..clients.payloads import ChunkStream, checked_messages, image_to_data_uri, make_tool_call, message_text
 from ..errors import ConfigError, InferenceError
 from .model_files import default_llm_path, resolve_model_file
 
@@ -88,9 +88,8 @@ class LocalLLM:
 
     def __call__(self, inference_input: dict[str, Any]) -> dict[str, Any]:
         """Answer a chat inference input (see :mod:`agents_core.clients.payloads`)."""
-        messages = [self._to_llama_message(m) for m in inference_input.get("query", [])]
-        if not messages:
-            raise InferenceError(f"{type(self).__name__}: the inference input has no messages in 'query'")
+        messages = [self._to_llama_message(m)
+                    for m in checked_messages(inference_input.get("query"), type(self).__name__)]
         kwargs = {k: v for k, v in inference_input.items() if k in _SAMPLING_KEYS}
         if "max_new_tokens" in inference_input:
             kwargs["max_tokens"] = inference_input["max_new_tokens"]
@@ -154,10 +153,7 @@ class LocalLLM:
         return [{"role": "system", "content": instruction}, *messages]
 
     def _to_llama_message(self, message: dict[str, Any]) -> dict[str, Any]:
-        role = message.get("role")
-        if role not in ("system", "user", "assistant", "tool"):
-            raise InferenceError(f"{type(self).__name__}: unknown message role {role!r}")
-        content = message.get("content") or ""
+        role, content = message["role"], message_text(message)
         if role == "tool":
             # Chat templates of small models rarely know the tool role: hand the result back as user text.
             return {"role": "user", "content": f"Result of tool {message.get('name', '')}: {content}"}
@@ -183,8 +179,6 @@ class LocalVLM(LocalLLM):
     :param mmproj_path: the projector file, when it is not beside the model.
     Other parameters as :class:`LocalLLM`. Images are RGB uint8 arrays in the messages' ``images``.
     """
-
-    file_pattern = "*.gguf"
 
     def __init__(self, model_path: str | None = None, device: str = "cpu", ncpu: int = 1,
                  n_ctx: int = 2048, seed: int = 0, mmproj_path: str | None = None) -> None:
@@ -230,5 +224,5 @@ class LocalVLM(LocalLLM):
             return super()._to_llama_message({k: v for k, v in message.items() if k != "images"})
         parts: list[dict[str, Any]] = [{"type": "image_url", "image_url": {"url": image_to_data_uri(img)}}
                                        for img in images]
-        parts.append({"type": "text", "text": message.get("content") or ""})
+        parts.append({"type": "text", "text": message_text(message)})
         return {"role": message["role"], "content": parts}
