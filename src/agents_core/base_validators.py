@@ -6,6 +6,7 @@ and the field, and says what was expected.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Collection
 from typing import Any
 
@@ -25,6 +26,9 @@ def _where(instance: Any, attribute: attrs.Attribute[Any]) -> str:
 def _numeric(instance: Any, attribute: attrs.Attribute[Any], value: Any) -> None:
     if isinstance(value, bool) or not isinstance(value, int | float):
         raise ConfigError(f"{_where(instance, attribute)} must be a number, got {value!r}")
+    # NaN compares False with every bound and inf passes a lower one: neither is a setting.
+    if not math.isfinite(value):
+        raise ConfigError(f"{_where(instance, attribute)} must be a finite number, got {value!r}")
 
 
 def _bound(check: Callable[[Any], bool], text: str) -> Validator:

@@ -24,6 +24,7 @@ import yaml
 from attrs import define, field
 
 from . import base_validators
+from .checked_attrs import CheckedFieldsMeta
 from .errors import ConfigError
 
 if sys.version_info >= (3, 11):
@@ -39,8 +40,19 @@ __all__ = [
     "ModelComponentConfig",
     "SemanticRouterConfig",
     "VLMConfig",
+    "configure_time_fields",
     "load_config_file",
 ]
+
+#: Field metadata of settings read only at configure (model files, local model placement):
+#: ``set_param`` refuses them on a configured component instead of storing a value that
+#: would not take effect.
+AT_CONFIGURE: dict[str, Any] = {"applies": "at configure"}
+
+
+def configure_time_fields(config: Any) -> set[str]:
+    """Names of the fields of ``config`` that take effect only at configure."""
+    return {a.name for a in attrs.fields(type(config)) if a.metadata.get("applies") == "at configure"}
 
 T = TypeVar("T", bound="BaseAttrs")
 
@@ -72,7 +84,7 @@ def load_config_file(path: str | Path) -> dict[str, Any]:
 
 
 @define(kw_only=True)
-class BaseAttrs:
+class BaseAttrs(metaclass=CheckedFieldsMeta):
     """Base of configs and model descriptions: dict and file round trips with clear errors."""
 
     def asdict(self) -> dict[str, Any]:
@@ -89,7 +101,7 @@ class BaseAttrs:
             raise ConfigError(f"{cls.__name__}: unknown field(s) {unknown}{where}; known fields: {sorted(names)}")
         try:
             return cls(**data)
-        except TypeError as exc:
+        except (TypeError, ConfigError) as exc:
             raise ConfigError(f"{cls.__name__}{where}: {exc}") from exc
 
     @classmethod
@@ -121,6 +133,10 @@ class BaseComponentConfig(BaseAttrs):
         discards the incoming one; either way the drop is counted.
     :param status_rate: how often (Hz) the health status is re-published when nothing changes.
     :param log_level: ``"debug"``, ``"info"``, ``"warning"`` or ``"error"``.
+    :param step_finish_timeout: how long (s) a deactivate waits for a running step to finish;
+        a step still running then has its outputs discarded (counted), never reported as a failure.
+
+    All of them can be changed on a running component (``set_param``) and take effect at once.
     """
 
     execution_queue_depth: int = field(default=10, validator=base_validators.in_range(1, 100_000))
@@ -129,6 +145,7 @@ class BaseComponentConfig(BaseAttrs):
     )
     status_rate: float = field(default=1.0, validator=base_validators.in_range(0.01, 10.0))
     log_level: str = field(default="info", validator=base_validators.in_(["debug", "info", "warning", "error"]))
+    step_finish_timeout: float = field(default=5.0, validator=base_validators.in_range(0.0, 600.0))
 
 
 @define(kw_only=True)
@@ -141,13 +158,16 @@ class ModelComponentConfig(BaseComponentConfig):
         without a GPU are the common case, and llama.cpp on cuda needs a CUDA build anyway).
     :param ncpu_local_model: CPU threads for the local model.
     :param local_model_path: a local file path or a hub repository id for the local model.
+
+    These apply at configure: ``set_param`` refuses them while the component is configured.
     """
 
-    warmup: bool = field(default=False)
-    enable_local_model: bool = field(default=False)
-    device_local_model: Literal["cpu", "cuda"] = field(default="cpu", validator=base_validators.in_(["cpu", "cuda"]))
-    ncpu_local_model: int = field(default=1, validator=base_validators.gt(0))
-    local_model_path: str | None = field(default=None)
+    warmup: bool = field(default=False, metadata=AT_CONFIGURE)
+    enable_local_model: bool = field(default=False, metadata=AT_CONFIGURE)
+    device_local_model: Literal["cpu", "cuda"] = field(default="cpu", validator=base_validators.in_(["cpu", "cuda"]),
+                                                       metadata=AT_CONFIGURE)
+    ncpu_local_model: int = field(default=1, validator=base_validators.gt(0), metadata=AT_CONFIGURE)
+    local_model_path: str | None = field(default=None, metadata=AT_CONFIGURE)
 
     def _get_inference_params(self) -> dict[str, Any]:
         """The subset of fields sent with each inference call (none by default)."""
@@ -219,7 +239,7 @@ class MLLMConfig(LLMConfig):
 
     task: str = field(default="general", validator=base_validators.in_(
         ["general", "grounding", "pointing", "affordance", "trajectory"]))
-    local_mmproj_path: str | None = field(default=None, validator=_optional_str)
+    local_mmproj_path: str | None = field(default=None, validator=_optional_str, metadata=AT_CONFIGURE)
 
 
 #: The upstream name of the same configuration.
@@ -237,6 +257,7 @@ class SemanticRouterConfig(ModelComponentConfig):
     :param enable_local_model: in LLM mode, choose routes with the built-in local LLM.
     """
 
-    router_name: str = field(default="semantic_router", validator=_non_empty)
-    distance_func: str = field(default="l2", validator=base_validators.in_(["l2", "cosine", "ip"]))
+    router_name: str = field(default="semantic_router", validator=_non_empty, metadata=AT_CONFIGURE)
+    distance_func: str = field(default="l2", validator=base_validators.in_(["l2", "cosine", "ip"]),
+                               metadata=AT_CONFIGURE)
     maximum_distance: float = field(default=0.4, validator=base_validators.gt(0.0))

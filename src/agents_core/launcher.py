@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import functools
 import logging
+import os
 import signal
 import threading
 from collections.abc import Mapping, Sequence
@@ -66,6 +67,7 @@ class Launcher:
         self._action_worker: StepWorker | None = None
         self._started = False
         self._stop_requested = threading.Event()
+        self._hurry = threading.Event()
         self._process_fail_retries: int | None = None
 
     # -- recipe -------------------------------------------------------------------------------
@@ -171,40 +173,70 @@ class Launcher:
             logger.exception("action %s for event %r failed", action.name, event.name)
 
     def stop(self) -> None:
-        """Deactivate and shut down every component, then close the transport if the launcher made it."""
-        for sub in self._event_subscriptions:
-            sub.close()
-        self._event_subscriptions.clear()
-        for event, runner in self._event_runners:
-            event.remove_listener(runner)
-        self._event_runners.clear()
-        for c in reversed(self.components):
-            if c._transport is None:
-                continue
-            try:
-                c.shutdown()
-            except Exception as exc:
-                logger.warning("component %r did not shut down cleanly: %s", c.component_name, exc)
-        if self._action_worker is not None:
-            self._action_worker.stop()
-            self._action_worker = None
-        if self._transport is not None and self._owns_transport:
-            self._transport.close()
-        self._started = False
+        """Deactivate and shut down every component, then close the transport if the launcher made it.
+
+        The transport is closed whatever happens before (a component that fails to stop, an
+        interrupt): its threads and shared-memory segments must not outlive the recipe.
+        """
+        try:
+            for sub in self._event_subscriptions:
+                sub.close()
+            self._event_subscriptions.clear()
+            for event, runner in self._event_runners:
+                event.remove_listener(runner)
+            self._event_runners.clear()
+            for c in reversed(self.components):
+                if c._transport is None:
+                    continue
+                try:
+                    c.shutdown()
+                except Exception as exc:
+                    logger.warning("component %r did not shut down cleanly: %s", c.component_name, exc)
+            if self._action_worker is not None:
+                self._action_worker.stop(timeout=2.0, abort=self._hurry)
+                self._action_worker = None
+        finally:
+            if self._transport is not None and self._owns_transport:
+                self._transport.close()
+            self._started = False
+
+    def hurry(self) -> None:
+        """Make a running or coming :meth:`stop` stop waiting for components' running steps."""
+        self._hurry.set()
+        for c in self.components:
+            c.hurry_shutdown()
 
     def all_active(self) -> bool:
         """True when every component is in the active state."""
         return all(c.lifecycle_state == LifecycleState.ACTIVE for c in self.components)
 
     def bringup(self) -> None:
-        """Start, run until SIGINT / SIGTERM (or :meth:`request_stop`), then stop cleanly."""
+        """Start, run until SIGINT / SIGTERM (or :meth:`request_stop`), then stop cleanly.
+
+        The first signal starts a clean shutdown (running steps get ``step_finish_timeout`` to
+        finish); a second one makes it hurry (nothing more is waited for, the transport is still
+        closed); a third exits the process at once with status 128 + the signal number.
+        """
         previous: dict[signal.Signals, Any] = {}
+        received = 0
 
         def handler(signum: int, frame: FrameType | None) -> None:
-            logger.info("received signal %d, shutting down", signum)
-            self._stop_requested.set()
+            nonlocal received
+            received += 1
+            if received == 1:
+                logger.info("received signal %d, shutting down (again to hurry, a third time to exit at once)",
+                            signum)
+                self._stop_requested.set()
+            elif received == 2:
+                logger.warning("received signal %d again: not waiting for running steps any longer", signum)
+                self._stop_requested.set()
+                self.hurry()
+            else:
+                os._exit(128 + signum)
 
         # Handlers first: a signal that arrives while components start still ends in a clean stop.
+        # They stay installed until stop() has returned, so a repeated Ctrl-C never raises
+        # KeyboardInterrupt in the middle of the shutdown.
         if threading.current_thread() is threading.main_thread():
             for sig in (signal.SIGINT, signal.SIGTERM):
                 previous[sig] = signal.signal(sig, handler)
@@ -213,9 +245,11 @@ class Launcher:
             while not self._stop_requested.wait(0.5):
                 pass
         finally:
-            for sig, old in previous.items():
-                signal.signal(sig, old)
-            self.stop()
+            try:
+                self.stop()
+            finally:
+                for sig, old in previous.items():
+                    signal.signal(sig, old)
 
     def request_stop(self) -> None:
         """Make :meth:`bringup` return (thread-safe)."""

@@ -11,8 +11,10 @@ from __future__ import annotations
 import re
 from typing import TYPE_CHECKING, Any, Literal
 
-from attrs import define, field, validators
+from attrs import define, field
 
+from . import base_validators
+from .checked_attrs import CheckedFieldsMeta
 from .errors import ConfigError, TopicNameError, TypeValidationError
 from .supported_types import SupportedType, get_type
 
@@ -43,7 +45,7 @@ def validate_topic_name(name: Any, what: str = "topic") -> str:
 
 
 @define(kw_only=True, frozen=True)
-class QoSConfig:
+class QoSConfig(metaclass=CheckedFieldsMeta):
     """Quality of service of a topic.
 
     - ``reliability``: ``"reliable"`` (retransmit / block) or ``"best_effort"`` (may drop).
@@ -55,20 +57,20 @@ class QoSConfig:
     """
 
     reliability: Literal["reliable", "best_effort"] = field(
-        default="reliable", validator=validators.in_(("reliable", "best_effort"))
+        default="reliable", validator=base_validators.in_(("reliable", "best_effort"))
     )
     history: Literal["keep_last", "keep_all"] = field(
-        default="keep_last", validator=validators.in_(("keep_last", "keep_all"))
+        default="keep_last", validator=base_validators.in_(("keep_last", "keep_all"))
     )
     depth: int = field(default=10)
     durability: Literal["volatile", "transient_local"] = field(
-        default="volatile", validator=validators.in_(("volatile", "transient_local"))
+        default="volatile", validator=base_validators.in_(("volatile", "transient_local"))
     )
 
     @depth.validator
     def _check_depth(self, _: Any, value: int) -> None:
         if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= 100_000:
-            raise ConfigError(f"QoS depth must be an int in [1, 100000], got {value!r}")
+            raise ConfigError(f"QoSConfig.depth must be an int in [1, 100000], got {value!r}")
 
 
 def _resolve_type(value: Any) -> type[SupportedType]:

@@ -7,11 +7,12 @@ from __future__ import annotations
 
 import logging
 import weakref
-from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
+
+from agents_core.transport.requests import RequestLanes
 
 __all__ = ["OffloadingExecutor"]
 
@@ -32,12 +33,14 @@ class OffloadingExecutor(SingleThreadedExecutor):  # type: ignore[misc]  # rclpy
 
     def __init__(self, context: Context, threads: int) -> None:
         super().__init__(context=context)
-        self._pool = ThreadPoolExecutor(max_workers=threads, thread_name_prefix="ros2-service")
-        self._offloaded: weakref.WeakSet[Any] = weakref.WeakSet()
+        # One lane per owning component, so a component busy for a while never delays another's
+        # requests; services without an owner share a lane of ``threads`` threads.
+        self._lanes = RequestLanes("ros2-service", shared_workers=threads)
+        self._offloaded: weakref.WeakKeyDictionary[Any, str | None] = weakref.WeakKeyDictionary()
 
-    def offload(self, service: Any) -> None:
-        """Answer ``service``'s requests on the pool from now on."""
-        self._offloaded.add(service)
+    def offload(self, service: Any, lane: str | None = None) -> None:
+        """Answer ``service``'s requests on the lane named ``lane`` (the owning component) from now on."""
+        self._offloaded[service] = lane
 
     def _take_service(self, srv: Any) -> Any:
         # Overrides the base executor's hook that takes one request and returns the coroutine that
@@ -51,7 +54,10 @@ class OffloadingExecutor(SingleThreadedExecutor):  # type: ignore[misc]  # rclpy
             logger.debug("taking a request of %s: %s", getattr(srv, "srv_name", srv), exc)
             return None
         if header is not None:
-            self._pool.submit(self._serve, srv, request, header)
+            try:
+                self._lanes.submit(self._offloaded.get(srv), self._serve, srv, request, header)
+            except RuntimeError:  # shutting down: the caller times out
+                logger.debug("dropped a request of %s: the executor is shutting down", getattr(srv, "srv_name", srv))
         return None
 
     @staticmethod
@@ -66,5 +72,5 @@ class OffloadingExecutor(SingleThreadedExecutor):  # type: ignore[misc]  # rclpy
         """Stop the executor and the service pool."""
         done = bool(super().shutdown(timeout_sec))
         # Requests not started yet are dropped (their callers time out); running handlers finish.
-        self._pool.shutdown(wait=False, cancel_futures=True)
+        self._lanes.shutdown()
         return done

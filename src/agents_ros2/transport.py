@@ -73,7 +73,8 @@ from agents_core.transport.contract import (
     Transport,
     TransportCapabilities,
 )
-from agents_core.transport.delivery import BoundedDelivery, SubscriptionStatistics
+from agents_core.transport.delivery import BoundedDelivery, SubscriptionStatistics, TopicCounters, TopicStatistics
+from agents_core.transport.requests import check_timeout, serve_with_caller_deadline, with_caller_timeout
 
 from .conversions import RosConversion, conversion_for
 from .executor import OffloadingExecutor
@@ -128,6 +129,7 @@ class _Ros2Publisher:
         except InvalidHandle as exc:
             # Its node was destroyed (transport closed, or the owning component withdrawn).
             raise TransportClosedError(f"publisher on {self.topic.name!r} is closed") from exc
+        self._transport._counters.count(self.topic.name, published=1)
 
     def _wait_for_match(self) -> None:
         # DDS matches a new writer with existing readers asynchronously, and a reliable writer
@@ -161,7 +163,9 @@ class _Ros2Subscription:
         self._transport = transport
         self._node = node
         self._conversion = conversion_for(topic.msg_type)
-        self._delivery = BoundedDelivery(topic, callback)
+        counters = transport._counters
+        counters.track(topic.name)
+        self._delivery = BoundedDelivery(topic, callback, lambda **counts: counters.count(topic.name, **counts))
         self._lock = threading.Lock()
         self._closed = False
         try:
@@ -201,21 +205,23 @@ class _Ros2Subscription:
 class _Ros2Service:
     """Serves ``JsonCall`` requests on one name with a JSON-dict handler."""
 
-    def __init__(self, transport: Ros2Transport, name: str, handler: ServiceHandler, node: Node) -> None:
+    def __init__(self, transport: Ros2Transport, name: str, handler: ServiceHandler, node: Node,
+                 owner: str | None = None) -> None:
         self.name = name
         self._transport = transport
         self._handler = handler
         self._node = node
         self._closed = False
         self._service = node.create_service(JsonCall, absolute_name(name), self._serve)
-        transport._offload(self._service)
+        transport._offload(self._service, owner)
 
     def _serve(self, request: Any, response: Any) -> Any:
         try:
             payload = json.loads(request.request_json or "{}")
             if not isinstance(payload, dict):
                 raise ConfigError(f"a request must be a JSON object, got {type(payload).__name__}")
-            response.response_json = json.dumps(self._handler(payload))
+            response.response_json = json.dumps(serve_with_caller_deadline(self._handler, payload,
+                                                                           f"request to {self.name!r}"))
             response.success = True
         except Exception as exc:
             response.success = False
@@ -276,6 +282,7 @@ class Ros2Transport:
         self._subscriptions: list[_Ros2Subscription] = []
         self._services: dict[str, _Ros2Service] = {}
         self._components: dict[str, ComponentLifecycle] = {}
+        self._counters = TopicCounters()
         self._clients: dict[tuple[str, str], Client] = {}
         self._status_watches: dict[str, Any] = {}
         self._latest_status: dict[str, ComponentStatusMsg] = {}
@@ -300,9 +307,17 @@ class Ros2Transport:
             return OffloadingExecutor(self._context, threads)
         return EventsExecutor(context=self._context)
 
-    def _offload(self, service: Any) -> None:
+    def _offload(self, service: Any, lane: str | None = None) -> None:
         if isinstance(self._executor, OffloadingExecutor):
-            self._executor.offload(service)
+            self._executor.offload(service, lane)
+
+    def statistics(self, topic_name: str | None = None) -> dict[str, TopicStatistics]:
+        """Counters per topic of this transport's publishers and subscriptions, as a snapshot.
+
+        ``published`` counts values this process sent; ``delivered`` / ``dropped`` /
+        ``callback_errors`` / ``discarded`` / ``decode_errors`` sum over its subscriptions.
+        """
+        return self._counters.snapshot(topic_name)
 
     def _spin(self) -> None:
         while not self._stop.is_set():
@@ -414,7 +429,7 @@ class Ros2Transport:
             self._check_open()
             if name in self._services:
                 raise WiringError(f"service {name!r} is already served on this transport")
-            service = _Ros2Service(self, name, handler, self._node_for(owner))
+            service = _Ros2Service(self, name, handler, self._node_for(owner), owner)
             self._services[name] = service
             return service
 
@@ -424,8 +439,9 @@ class Ros2Transport:
 
     def request(self, name: str, payload: dict[str, Any], *, timeout: float = 5.0) -> dict[str, Any]:
         """Send ``payload`` to the service ``name`` and return its reply (see the contract for errors)."""
+        timeout = check_timeout(timeout, f"request to {name!r}")
         self._check_open()
-        body = json.dumps(payload)
+        body = json.dumps(with_caller_timeout(payload, timeout))
         deadline = time.monotonic() + timeout
         client = self._client(JsonCall, absolute_name(name))
         if not self._wait_for_server(client, deadline):
@@ -453,7 +469,7 @@ class Ros2Transport:
                 raise WiringError(f"a component named {name!r} is already declared on this transport")
             presence = ComponentLifecycle(name, self._context, on_transition, self._forget_component)
             self._components[name] = presence
-            self._offload(presence.node._service_change_state)
+            self._offload(presence.node._service_change_state, name)
             self._executor.add_node(presence.node)
             return presence
 
@@ -483,6 +499,7 @@ class Ros2Transport:
 
     def get_component_state(self, name: str, *, timeout: float = 2.0) -> ComponentStatusMsg | None:
         """The component's lifecycle state (``get_state``) and health (``<name>/status``); None if absent."""
+        timeout = check_timeout(timeout, f"state of {name!r}")
         self._check_open()
         deadline = time.monotonic() + timeout
         self._watch_status(name)
@@ -506,6 +523,7 @@ class Ros2Transport:
 
     def request_transition(self, name: str, transition: str, *, timeout: float = 5.0) -> bool:
         """Ask the component's lifecycle node for ``transition`` through ``change_state``."""
+        timeout = check_timeout(timeout, f"transition of {name!r}")
         self._check_open()
         deadline = time.monotonic() + timeout
         client = self._client(ChangeState, absolute_name(f"{name}/change_state"))

@@ -20,6 +20,7 @@ from agents_core.messages import ComponentStatusMsg
 from agents_core.status import HealthStatus, LifecycleState
 from agents_core.supported_types import ComponentStatus
 from agents_core.transport.contract import ServiceHandler, TransitionHandler
+from agents_core.transport.requests import serve_with_caller_deadline
 
 from .codecs import MSGPACK, CodecError, codec_for, encode_value, pack, unpack
 from .keys import liveliness_key, state_key, transition_key
@@ -72,23 +73,25 @@ def _reply_error(query: zenoh.Query, exc: BaseException, as_json: bool) -> None:
 class ZenohService:
     """A queryable on ``<namespace>/<service>`` whose queries run ``handler`` on the request pool."""
 
-    def __init__(self, transport: ZenohTransport, name: str, handler: ServiceHandler) -> None:
+    def __init__(self, transport: ZenohTransport, name: str, handler: ServiceHandler,
+                 owner: str | None = None) -> None:
         self.name = name
         self._transport = transport
         self._handler = handler
+        self._owner = owner
         self._key = transport._key(name, "service")
         self._queryable = transport._session.declare_queryable(self._key, self._on_query)
 
     def _on_query(self, query: zenoh.Query) -> None:
-        # Zenoh's thread must not run user code that may block: hand the query to the pool.
-        self._transport._submit(self._serve, query)
+        # Zenoh's thread must not run user code that may block: hand the query to its owner's lane.
+        self._transport._submit(self._owner, self._serve, query)
 
     def _serve(self, query: zenoh.Query) -> None:
         with query:  # dropping the query finalises it, so the caller stops waiting
             as_json = False
             try:
                 request, as_json = _read_request(query)
-                result = self._handler(request)
+                result = serve_with_caller_deadline(self._handler, request, f"request to {self.name!r}")
                 if not isinstance(result, dict):
                     raise TypeError(f"the handler returned {type(result).__name__}, not a dict")
                 _reply(query, self._key, result, as_json)
@@ -151,7 +154,7 @@ class ZenohPresence:
                 logger.warning("component %r: state query failed: %s", self.name, exc)
 
     def _on_transition_query(self, query: zenoh.Query) -> None:
-        self._transport._submit(self._serve_transition, query)
+        self._transport._submit(self.name, self._serve_transition, query)
 
     def _serve_transition(self, query: zenoh.Query) -> None:
         with query:
@@ -161,7 +164,9 @@ class ZenohPresence:
                 transition = request.get("transition")
                 if not isinstance(transition, str):
                     raise CodecError("a transition request is {'transition': '<name>'}")
-                _reply(query, self._transition_key, {"ok": bool(self._on_transition(transition))}, as_json)
+                ok = serve_with_caller_deadline(lambda _: self._on_transition(transition), request,
+                                                f"transition {transition!r} of {self.name!r}")
+                _reply(query, self._transition_key, {"ok": bool(ok)}, as_json)
             except Exception as exc:
                 _reply_error(query, exc, as_json)
 

@@ -30,7 +30,7 @@ from __future__ import annotations
 import logging
 import threading
 import time
-from concurrent.futures import ThreadPoolExecutor
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 import zenoh
@@ -53,6 +53,8 @@ from agents_core.transport.contract import (
     Transport,
     TransportCapabilities,
 )
+from agents_core.transport.delivery import TopicCounters, TopicStatistics
+from agents_core.transport.requests import RequestLanes, check_timeout, with_caller_timeout
 
 from .codecs import MSGPACK, CodecError, codec_for, decode_value, pack
 from .config import ZenohConfig
@@ -100,11 +102,13 @@ class ZenohTransport:
         self._entities: set[Any] = set()
         self._services: dict[str, ZenohService] = {}
         self._components: dict[str, ZenohPresence] = {}
-        self._executor = ThreadPoolExecutor(max_workers=config.request_workers, thread_name_prefix="zenoh-request")
+        self._counters = TopicCounters()
+        # Each component's requests on a lane of its own: a busy component never delays another's.
+        self._lanes = RequestLanes("zenoh-request", shared_workers=config.request_workers)
         try:
             self._session = open_session(config)
         except BaseException:
-            self._executor.shutdown(wait=False)
+            self._lanes.shutdown()
             raise
 
     # -- helpers ----------------------------------------------------------------------------
@@ -139,11 +143,19 @@ class ZenohTransport:
             if isinstance(entity, ZenohPresence) and self._components.get(entity.name) is entity:
                 del self._components[entity.name]
 
-    def _submit(self, func: Any, query: zenoh.Query) -> None:
+    def _submit(self, owner: str | None, func: Callable[[zenoh.Query], None], query: zenoh.Query) -> None:
         try:
-            self._executor.submit(func, query)
-        except RuntimeError:  # the pool is shut down: the transport is closing
+            self._lanes.submit(owner, func, query)
+        except RuntimeError:  # the lanes are shut down: the transport is closing
             query.drop()  # type: ignore[no-untyped-call]  # zenoh's stub leaves it unannotated
+
+    def statistics(self, topic_name: str | None = None) -> dict[str, TopicStatistics]:
+        """Counters per topic of this transport's publishers and subscriptions, as a snapshot.
+
+        ``published`` counts values this process put; ``delivered`` / ``dropped`` /
+        ``callback_errors`` / ``discarded`` / ``decode_errors`` sum over its subscriptions.
+        """
+        return self._counters.snapshot(topic_name)
 
     # -- pub / sub --------------------------------------------------------------------------
 
@@ -153,6 +165,7 @@ class ZenohTransport:
             self._check_open(f"create a publisher on {topic.name!r}")
             self._check_type(topic)
             pub = ZenohPublisher(self, topic)
+            self._counters.track(topic.name)
             self._entities.add(pub)
         return pub
 
@@ -175,15 +188,17 @@ class ZenohTransport:
             self._check_open(f"serve {name!r}")
             if name in self._services:
                 raise WiringError(f"service {name!r} is already served on this transport")
-            service = ZenohService(self, name, handler)
+            service = ZenohService(self, name, handler, owner)
             self._services[name] = service
             self._entities.add(service)
         return service
 
     def request(self, name: str, payload: dict[str, Any], *, timeout: float = 5.0) -> dict[str, Any]:
         """Send ``payload`` to the service ``name`` and return its reply map."""
+        timeout = check_timeout(timeout, f"request to {name!r}")
         self._check_open(f"request {name!r}")
-        return self._query(self._key(name, "service"), repr(name), pack(payload), timeout)
+        return self._query(self._key(name, "service"), repr(name), pack(with_caller_timeout(payload, timeout)),
+                           timeout)
 
     def _query(self, key: str, what: str, body: bytes | bytearray, timeout: float) -> dict[str, Any]:
         start = time.monotonic()
@@ -217,6 +232,7 @@ class ZenohTransport:
 
     def get_component_state(self, name: str, *, timeout: float = 2.0) -> ComponentStatusMsg | None:
         """Query ``<ns>/@agents/state/<name>``; None when no such component answers."""
+        timeout = check_timeout(timeout, f"state of {name!r}")
         self._check_open(f"read the state of {name!r}")
         key = state_key(self.config.namespace, name)
         try:
@@ -237,9 +253,10 @@ class ZenohTransport:
 
     def request_transition(self, name: str, transition: str, *, timeout: float = 5.0) -> bool:
         """Ask component ``name`` (in any process) to run ``transition``; True if it did."""
+        timeout = check_timeout(timeout, f"transition of {name!r}")
         self._check_open(f"request a transition of {name!r}")
         reply = self._query(transition_key(self.config.namespace, name), f"{name!r} lifecycle",
-                            pack({"transition": transition}), timeout)
+                            pack(with_caller_timeout({"transition": transition}, timeout)), timeout)
         return bool(reply.get("ok"))
 
     # -- teardown ---------------------------------------------------------------------------
@@ -257,7 +274,7 @@ class ZenohTransport:
                 entity.close()
             except Exception as exc:
                 logger.debug("closing %r failed: %s", entity, exc)
-        self._executor.shutdown(wait=False, cancel_futures=True)
+        self._lanes.shutdown()
         try:
             self._session.close()  # type: ignore[no-untyped-call]  # zenoh's stub leaves it unannotated
         except zenoh.ZError as exc:

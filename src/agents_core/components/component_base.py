@@ -18,19 +18,23 @@ from __future__ import annotations
 
 import copy
 import logging
+import math
 import threading
+import time
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from ..actions import ACTION_MARK, Action, Fallback
 from ..callbacks import GenericCallback, callback_for
-from ..config import BaseComponentConfig
+from ..config import BaseComponentConfig, configure_time_fields
 from ..errors import (
     AlgorithmFailure,
     ComponentError,
     ConfigError,
     LifecycleError,
+    RequestTimeoutError,
+    TransportClosedError,
     TransportError,
     WiringError,
 )
@@ -40,7 +44,9 @@ from ..status import TRANSITIONS, HealthStatus, LifecycleState
 from ..supported_types import ComponentStatus, SupportedType
 from ..topics import FixedInput, QoSConfig, Topic, validate_topic_name
 from .run_type import ComponentRunType
-from .worker import PeriodicTimer, StepWorker, WorkerStatistics
+from ..transport.delivery import SubscriptionStatistics
+from ..transport.requests import check_timeout, request_deadline
+from .worker import MAX_TIMER_RATE_HZ, PeriodicTimer, StepWorker, WorkerStatistics
 
 if TYPE_CHECKING:
     from ..transport.contract import ComponentPresence, Publisher, ServiceServer, Subscription, Transport
@@ -65,14 +71,27 @@ class ComponentPublisher:
         self._preprocessors.append(func)
 
     def publish(self, value: Any) -> None:
-        """Apply pre-processors, validate against the topic type and send."""
-        if self._publisher is None:
-            raise ComponentError(
-                f"component {self._component.component_name!r}: output {self.topic.name!r} is not active"
-            )
+        """Apply pre-processors, validate against the topic type and send.
+
+        An output of a step that a deactivate overtook is discarded and counted
+        (``Component.discarded_outputs``), not an error: the component was asked to stop.
+        """
+        component = self._component
+        publisher = self._publisher
+        if publisher is None:
+            if component._in_overtaken_step():
+                component._discard_output(self.topic.name)
+                return
+            raise ComponentError(f"component {component.component_name!r}: output {self.topic.name!r} is not active")
         for func in self._preprocessors:
             value = func(value)
-        self._publisher.publish(value)
+        try:
+            publisher.publish(value)
+        except TransportClosedError:
+            if component._in_overtaken_step():
+                component._discard_output(self.topic.name)
+                return
+            raise
 
 
 def _type_label(entry: type[SupportedType] | Sequence[type[SupportedType]]) -> str:
@@ -159,8 +178,18 @@ class Component:
         self._subscriptions: list[Subscription] = []
         self._status_publisher: Publisher | None = None
         self._timers: list[PeriodicTimer] = []
+        self._status_timer: PeriodicTimer | None = None
         self._worker: StepWorker | None = None
         self._failed_steps = 0
+        # Bumped by every deactivate: a step that started under an older epoch was overtaken by
+        # it, and its outputs and failures are discarded (counted), never reported as failures.
+        self._epoch = 0
+        self._step_epoch: int | None = None
+        self._accepting_steps = False
+        self._discarded_outputs = 0
+        self._overtaken_steps = 0
+        # Set by hurry_shutdown() (a second Ctrl-C): stop waiting for a running step.
+        self._hurry = threading.Event()
 
         for cb_name, cb in self.trig_callbacks.items():
             cb.on_callback_execute(self._make_topic_trigger(self._topic(cb_name)))
@@ -223,8 +252,9 @@ class Component:
         if isinstance(trigger, bool):
             raise WiringError(f"component {name!r}: trigger cannot be a bool")
         if isinstance(trigger, int | float):
-            if trigger <= 0:
-                raise WiringError(f"component {name!r}: a timed trigger needs a rate > 0 Hz, got {trigger}")
+            if not math.isfinite(trigger) or not 0 < trigger <= MAX_TIMER_RATE_HZ:
+                raise WiringError(f"component {name!r}: a timed trigger needs a rate > 0 Hz (finite, at most "
+                                  f"{MAX_TIMER_RATE_HZ:g} Hz), got {trigger}")
             derived = ComponentRunType.TIMED
         elif isinstance(trigger, Topic):
             if trigger.name not in input_names:
@@ -306,8 +336,22 @@ class Component:
 
     @property
     def failed_steps(self) -> int:
-        """How many steps raised."""
+        """How many steps raised (not counting steps overtaken by a deactivate)."""
         return self._failed_steps
+
+    @property
+    def discarded_outputs(self) -> int:
+        """Outputs of steps overtaken by a deactivate, discarded instead of published."""
+        return self._discarded_outputs
+
+    @property
+    def overtaken_steps(self) -> int:
+        """Steps that were running when a deactivate came, whose results were discarded."""
+        return self._overtaken_steps
+
+    def input_statistics(self) -> dict[str, SubscriptionStatistics]:
+        """Counters of each input subscription while active (delivered, dropped, decode errors, ...)."""
+        return {sub.topic.name: sub.statistics() for sub in list(self._subscriptions)}
 
     @property
     def transport(self) -> Transport:
@@ -386,12 +430,21 @@ class Component:
         self._transition("activate", self._do_activate)
 
     def deactivate(self) -> None:
-        """active -> inactive: stop triggers and subscriptions; pending steps are discarded."""
+        """active -> inactive: stop triggers and subscriptions; pending steps are discarded.
+
+        A step running meanwhile may finish for up to ``config.step_finish_timeout`` seconds;
+        its outputs are discarded and counted, and a failure it raises is not a component
+        failure (no health change, no fallback).
+        """
         self._transition("deactivate", self._do_deactivate)
 
     def cleanup(self) -> None:
         """inactive -> unconfigured: undo configure."""
         self._transition("cleanup", self._do_cleanup)
+
+    def hurry_shutdown(self) -> None:
+        """Stop waiting for a running step in deactivate and shutdown (what a second Ctrl-C asks)."""
+        self._hurry.set()
 
     def shutdown(self) -> None:
         """any -> finalized: release everything (deactivating first if active)."""
@@ -407,6 +460,7 @@ class Component:
 
     def _do_activate(self) -> None:
         transport = self.transport
+        self._accepting_steps = True
         for name, pub in self.publishers_dict.items():
             pub._publisher = transport.create_publisher(self._topic(name), owner=self.component_name)
         for t in self.inputs:
@@ -420,24 +474,35 @@ class Component:
                                               f"{self.component_name}:trigger"))
         elif isinstance(self.trigger, Event):
             self.trigger.add_listener(self._on_trigger_event)
-        self._timers.append(PeriodicTimer(self.config.status_rate, self._report_status,
-                                          f"{self.component_name}:status"))
+        self._status_timer = PeriodicTimer(self.config.status_rate, self._report_status,
+                                           f"{self.component_name}:status")
         self.custom_on_activate()
 
     def _do_deactivate(self) -> None:
+        # First of all: no new step starts, and the running one (if any) is overtaken.
+        self._accepting_steps = False
+        self._epoch += 1
         self.custom_on_deactivate()
         if isinstance(self.trigger, Event):
             self.trigger.remove_listener(self._on_trigger_event)
         for timer in self._timers:
             timer.stop()
         self._timers.clear()
+        if self._status_timer is not None:
+            self._status_timer.stop()
+            self._status_timer = None
         for sub in self._subscriptions:
             sub.close()
         self._subscriptions.clear()
-        if self._worker is not None:
-            dropped = self._worker.discard_steps()
+        worker = self._worker
+        if worker is not None:
+            dropped = worker.discard_steps()
             if dropped:
                 self._logger.info("discarded %d pending step(s) on deactivate", dropped)
+            if not worker.on_worker_thread and not worker.wait_step_done(self.config.step_finish_timeout,
+                                                                          self._hurry):
+                self._logger.info("a step is still running after %.1f s; its outputs will be discarded",
+                                  self.config.step_finish_timeout)
         for pub in self.publishers_dict.values():
             if pub._publisher is not None:
                 pub._publisher.close()
@@ -449,7 +514,7 @@ class Component:
     def _do_shutdown(self) -> None:
         self.custom_on_shutdown()
         if self._worker is not None:
-            self._worker.stop()
+            self._worker.stop(timeout=max(self.config.step_finish_timeout, 1.0), abort=self._hurry)
         for srv in self._services:
             srv.close()
         self._services.clear()
@@ -531,7 +596,8 @@ class Component:
         if not isinstance(args, list) or not isinstance(kwargs, dict):
             raise ConfigError("execute_method needs 'args' as a list and 'kwargs' as a mapping")
         method = getattr(self, str(method_name))
-        result = self.run_on_worker(lambda: method(*args, **kwargs), timeout=float(request.get("timeout", 30.0)))
+        timeout = check_timeout(request.get("timeout", 30.0), f"component {self.component_name!r}: execute_method")
+        result = self.run_on_worker(lambda: method(*args, **kwargs), timeout=timeout)
         return {"result": result if isinstance(result, str | int | float | bool | type(None) | list | dict)
                 else repr(result)}
 
@@ -541,16 +607,57 @@ class Component:
             params = {request["name"]: request.get("value")}
         if not isinstance(params, dict) or not params:
             raise ConfigError("set_param needs {'name': ..., 'value': ...} or {'params': {...}}")
-        self.run_on_worker(lambda: self.config.update(**params), timeout=10.0)
+        self.set_params(**params)
         return {"ok": True, "params": sorted(params)}
 
+    def set_params(self, **params: Any) -> None:
+        """Change config fields of a running component, validated, applied at once.
+
+        Live settings (``execution_queue_depth``, ``queue_full_policy``, ``log_level``,
+        ``status_rate`` and what the component reads at each step) take effect immediately. Fields
+        used only at configure (model files, local model settings, ...) are refused with
+        :class:`~agents_core.errors.ConfigError` unless the component is unconfigured. An invalid
+        value changes nothing.
+        """
+        at_configure = sorted(set(params) & configure_time_fields(self.config))
+        if at_configure and self._state != LifecycleState.UNCONFIGURED:
+            raise ConfigError(f"component {self.component_name!r}: {at_configure} apply at configure only; "
+                              "deactivate and clean up the component, set them, then configure it again")
+        self.run_on_worker(lambda: self._apply_params(params), timeout=10.0)
+
+    def _apply_params(self, params: dict[str, Any]) -> None:
+        self.config.update(**params)
+        changed = set(params)
+        if "log_level" in changed:
+            self._logger.setLevel(self.config.log_level.upper())
+        if self._worker is not None and changed & {"execution_queue_depth", "queue_full_policy"}:
+            self._worker.set_queue(self.config.execution_queue_depth, self.config.queue_full_policy)
+        if "status_rate" in changed and self._status_timer is not None:
+            self._status_timer.stop()
+            self._status_timer = PeriodicTimer(self.config.status_rate, self._report_status,
+                                               f"{self.component_name}:status")
+
     def run_on_worker(self, func: Callable[[], Any], timeout: float = 30.0) -> Any:
-        """Run ``func`` on the component's worker (between steps) and return its result."""
-        if self._worker is None:
+        """Run ``func`` on the component's worker (between steps) and return its result.
+
+        Waits at most ``timeout`` s, less when serving a request whose caller waits less; an
+        item whose wait expired before it started is never run (``RequestTimeoutError``).
+        """
+        if self._worker is None or self._worker.on_worker_thread:
             return func()
-        if self._worker.on_worker_thread:
-            return func()
-        return self._worker.submit_control(func).result(timeout=timeout)
+        timeout = check_timeout(timeout, f"component {self.component_name!r}: run_on_worker")
+        deadline = time.monotonic() + timeout
+        caller_deadline = request_deadline()
+        if caller_deadline is not None:
+            deadline = min(deadline, caller_deadline)
+        future = self._worker.submit_control(func, deadline=deadline)
+        try:
+            return future.result(timeout=max(0.0, deadline - time.monotonic()))
+        except TimeoutError:
+            if future.cancel() or not future.done():
+                raise RequestTimeoutError(f"component {self.component_name!r}: the worker did not get to the "
+                                          f"request within {timeout:g} s (busy with a step?)") from None
+            raise
 
     # -- triggers and steps -----------------------------------------------------------------
 
@@ -567,26 +674,46 @@ class Component:
         self._submit_step({"event": event})
 
     def _submit_step(self, kwargs: dict[str, Any], snapshot: tuple[str, Any] | None = None) -> None:
-        if self._state != LifecycleState.ACTIVE or self._worker is None:
+        if self._state != LifecycleState.ACTIVE or not self._accepting_steps or self._worker is None:
             return
-        self._worker.submit_step(lambda: self._run_step(kwargs, snapshot))
+        epoch = self._epoch
+        self._worker.submit_step(lambda: self._run_step(kwargs, snapshot, epoch))
 
-    def _run_step(self, kwargs: dict[str, Any], snapshot: tuple[str, Any] | None) -> None:
-        if self._state != LifecycleState.ACTIVE:
+    def _in_overtaken_step(self) -> bool:
+        """True on the worker thread, in a step that a deactivate has overtaken."""
+        return (self._worker is not None and self._worker.on_worker_thread and self._step_epoch is not None
+                and self._step_epoch != self._epoch)
+
+    def _discard_output(self, topic_name: str) -> None:
+        self._discarded_outputs += 1
+        self._logger.debug("discarded an output on %r: the component was deactivated during the step", topic_name)
+
+    def _run_step(self, kwargs: dict[str, Any], snapshot: tuple[str, Any] | None, epoch: int) -> None:
+        if self._state != LifecycleState.ACTIVE or epoch != self._epoch:
             return
         cb = None
         if snapshot is not None:
             cb = self.trig_callbacks[snapshot[0]]
             cb._begin_step(snapshot[1])
+        self._step_epoch = epoch
         try:
             self._execution_step(**kwargs)
-        except AlgorithmFailure as exc:
-            self._step_failed(HealthStatus.ALGORITHM_FAILURE, exc)
-        except TransportError as exc:
-            self._step_failed(HealthStatus.SYSTEM_FAILURE, exc)
         except Exception as exc:
-            self._step_failed(HealthStatus.COMPONENT_FAILURE, exc)
+            if epoch != self._epoch:
+                # Deactivated under the step: whatever failed (a closed publisher, a cancelled
+                # stream) failed because the component was asked to stop.
+                self._overtaken_steps += 1
+                self._logger.debug("a step overtaken by deactivate ended with %s: %s", type(exc).__name__, exc)
+            elif isinstance(exc, AlgorithmFailure):
+                self._step_failed(HealthStatus.ALGORITHM_FAILURE, exc)
+            elif isinstance(exc, TransportError):
+                self._step_failed(HealthStatus.SYSTEM_FAILURE, exc)
+            else:
+                self._step_failed(HealthStatus.COMPONENT_FAILURE, exc)
         else:
+            if epoch != self._epoch:
+                self._overtaken_steps += 1
+                return
             if self._health != HealthStatus.HEALTHY:
                 self._set_health(HealthStatus.HEALTHY, "")
             if self._gave_up or any(f._index or f._tries for f in self._fallbacks.values()):
@@ -594,6 +721,7 @@ class Component:
                     f.reset()
                 self._gave_up = False
         finally:
+            self._step_epoch = None
             if cb is not None:
                 cb._end_step()
 

@@ -21,10 +21,11 @@ from typing import Any
 from ..actions import component_fallback
 from ..clients.model_base import ModelClient
 from ..config import ModelComponentConfig
-from ..errors import ComponentError, ConfigError, InferenceError, WiringError
+from ..errors import ComponentError, ConfigError, InferenceError, RequestTimeoutError, WiringError
 from ..supported_types import SupportedType
 from ..topics import Topic
 from .component_base import Component, TriggerType
+from .worker import control_deadline_passed
 
 __all__ = ["ModelComponent"]
 
@@ -183,15 +184,26 @@ class ModelComponent(Component):
             raise ComponentError(f"component {self.component_name!r} has no additional model client "
                                  f"{model_client_name!r} (has {sorted(self.additional_model_clients)})")
         self._start_client(client)
+        if control_deadline_passed():
+            # The caller (an action's or a request's timeout) gave up while the new client was
+            # connecting: switching now would surprise it. Stay on the current client.
+            self._release_client(client)
+            raise RequestTimeoutError(f"component {self.component_name!r}: switching to {model_client_name!r} "
+                                      "took longer than the caller waited; still using the previous client")
         old = self.model_client
         self.model_client = client
-        if old is not None and old is not client and old.initialized:
-            try:
-                old.deinitialize()
-            except Exception as exc:  # the old server is often the one that failed
-                self._logger.warning("previous model client did not deinitialize: %s", exc)
+        if old is not None and old is not client:
+            self._release_client(old)
         self._logger.info("now using model client %r", model_client_name)
         return True
+
+    def _release_client(self, client: ModelClient) -> None:
+        if not client.initialized:
+            return
+        try:
+            client.deinitialize()
+        except Exception as exc:  # the old server is often the one that failed
+            self._logger.warning("model client %r did not deinitialize: %s", client, exc)
 
     @component_fallback(description={
         "description": "Stop using the remote model client and answer with the built-in local model.",

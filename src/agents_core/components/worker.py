@@ -12,7 +12,9 @@ pending steps.
 from __future__ import annotations
 
 import collections
+import contextvars
 import logging
+import math
 import threading
 import time
 from collections.abc import Callable
@@ -23,12 +25,38 @@ from attrs import define
 
 from ..errors import ComponentError
 
-__all__ = ["PeriodicTimer", "StepWorker", "WorkerStatistics"]
+__all__ = ["MAX_TIMER_RATE_HZ", "PeriodicTimer", "StepWorker", "WorkerStatistics", "control_deadline_passed"]
 
 logger = logging.getLogger(__name__)
 
 #: Control items beyond this many pending mean something is flooding a component with actions.
 MAX_PENDING_CONTROL = 10_000
+#: The fastest timer a component may ask for: a Python thread cannot keep a shorter period.
+MAX_TIMER_RATE_HZ = 1000.0
+
+# The monotonic time by which the caller of the running control item stops waiting (None: never).
+_control_deadline: contextvars.ContextVar[float | None] = contextvars.ContextVar("control_deadline", default=None)
+
+
+def control_deadline_passed() -> bool:
+    """True when the caller of the control item running now has already given up waiting.
+
+    A long action (switching model clients, say) checks it before committing its effect, so an
+    action whose caller timed out does not take effect anyway.
+    """
+    deadline = _control_deadline.get()
+    return deadline is not None and time.monotonic() >= deadline
+
+
+def wait_on_thread(thread: threading.Thread, timeout: float, abort: threading.Event | None) -> bool:
+    """Join ``thread`` for up to ``timeout`` s, sooner when ``abort`` is set; True if it ended."""
+    deadline = time.monotonic() + timeout
+    while thread.is_alive():
+        remaining = deadline - time.monotonic()
+        if remaining <= 0 or (abort is not None and abort.is_set()):
+            return False
+        thread.join(min(remaining, 0.05))
+    return True
 
 
 @define
@@ -56,6 +84,7 @@ class StepWorker:
         self._stats = WorkerStatistics()
         self._stopping = False
         self._busy = False
+        self._busy_is_step = False
         self._thread = threading.Thread(target=self._run, name=f"worker:{name}", daemon=True)
         self._thread.start()
 
@@ -79,17 +108,40 @@ class StepWorker:
             self._cond.notify()
             return True
 
-    def submit_control(self, func: Callable[[], Any]) -> Future[Any]:
-        """Queue a control item ahead of pending steps; its result arrives in the returned future."""
+    def set_queue(self, depth: int | None = None,
+                  policy: Literal["drop_oldest", "drop_newest"] | None = None) -> None:
+        """Change the step queue's depth or full policy while running (a smaller depth drops the
+        oldest pending steps beyond it, counted)."""
+        with self._cond:
+            if policy is not None:
+                self.policy = policy
+            if depth is not None:
+                self.depth = depth
+                while len(self._steps) > depth:
+                    self._steps.popleft()
+                    self._stats.dropped += 1
+
+    def submit_control(self, func: Callable[[], Any], deadline: float | None = None) -> Future[Any]:
+        """Queue a control item ahead of pending steps; its result arrives in the returned future.
+
+        ``deadline`` (monotonic seconds) is when the caller stops waiting: an item not started by
+        then is skipped, and one running can ask :func:`control_deadline_passed`.
+        """
         future: Future[Any] = Future()
 
         def run() -> None:
             if not future.set_running_or_notify_cancel():
                 return
+            if deadline is not None and time.monotonic() >= deadline:
+                future.set_exception(TimeoutError("the caller stopped waiting before the item started"))
+                return
+            token = _control_deadline.set(deadline)
             try:
                 future.set_result(func())
             except BaseException as exc:
                 future.set_exception(exc)
+            finally:
+                _control_deadline.reset(token)
 
         with self._cond:
             if self._stopping:
@@ -107,6 +159,23 @@ class StepWorker:
             self._steps.clear()
             self._stats.discarded += n
             return n
+
+    @property
+    def running_step(self) -> bool:
+        """True while a step (not a control item) runs."""
+        with self._cond:
+            return self._busy and self._busy_is_step
+
+    def wait_step_done(self, timeout: float, abort: threading.Event | None = None) -> bool:
+        """Wait until no step is running (pending ones are not waited for); True if so in time."""
+        deadline = time.monotonic() + timeout
+        with self._cond:
+            while self._busy and self._busy_is_step:
+                remaining = deadline - time.monotonic()
+                if remaining <= 0 or (abort is not None and abort.is_set()):
+                    return False
+                self._cond.wait(min(remaining, 0.05))
+        return True
 
     def statistics(self) -> WorkerStatistics:
         """A snapshot of the counters."""
@@ -129,34 +198,44 @@ class StepWorker:
                 else:
                     return
                 self._busy = True
+                self._busy_is_step = is_step
             try:
                 item()
             except Exception:
                 logger.exception("unhandled error on the worker of %r", self.name)
             with self._cond:
                 self._busy = False
+                self._busy_is_step = False
                 if is_step:
                     self._stats.executed += 1
+                self._cond.notify_all()
 
-    def stop(self, timeout: float = 10.0) -> None:
-        """Finish the item in progress and the pending control items, then end the thread."""
+    def stop(self, timeout: float = 10.0, abort: threading.Event | None = None) -> bool:
+        """Finish the item in progress and the pending control items, then end the thread.
+
+        Waits up to ``timeout`` s, less when ``abort`` is set meanwhile (a second Ctrl-C); an item
+        still running then is left to finish on its (daemon) thread. True if the thread ended.
+        """
         with self._cond:
             self._stopping = True
             self._stats.discarded += len(self._steps)
             self._steps.clear()
             self._cond.notify_all()
-        if not self.on_worker_thread:
-            self._thread.join(timeout)
-            if self._thread.is_alive():
-                logger.warning("worker of %r did not stop within %.1f s", self.name, timeout)
+        if self.on_worker_thread:
+            return False
+        if wait_on_thread(self._thread, timeout, abort):
+            return True
+        logger.warning("worker of %r is still busy; not waiting for it any longer", self.name)
+        return False
 
 
 class PeriodicTimer:
     """Calls ``func`` at ``rate`` Hz on its own thread until stopped (drift-free schedule)."""
 
     def __init__(self, rate: float, func: Callable[[], None], name: str) -> None:
-        if rate <= 0:
-            raise ComponentError(f"timer {name!r}: rate must be > 0 Hz, got {rate}")
+        if not math.isfinite(rate) or not 0 < rate <= MAX_TIMER_RATE_HZ:
+            raise ComponentError(f"timer {name!r}: rate must be a finite number in (0, {MAX_TIMER_RATE_HZ:g}] Hz, "
+                                 f"got {rate}")
         self.period = 1.0 / rate
         self._func = func
         self._stop = threading.Event()

@@ -18,7 +18,7 @@ from attrs import define
 
 from ..topics import Topic
 
-__all__ = ["BoundedDelivery", "SubscriptionStatistics"]
+__all__ = ["BoundedDelivery", "SubscriptionStatistics", "TopicCounters", "TopicStatistics"]
 
 logger = logging.getLogger(__name__)
 
@@ -33,13 +33,62 @@ class SubscriptionStatistics:
     queued: int = 0
     #: Received payloads that did not decode into the topic's type (networked transports).
     decode_errors: int = 0
+    #: Values still waiting when the subscription closed (e.g. on a component's deactivate).
+    discarded: int = 0
+
+
+@define
+class TopicStatistics:
+    """Counters for one topic in one transport instance, summed over its subscriptions.
+
+    Each value published reaches each local subscription once and there ends delivered,
+    dropped, callback_errors or discarded (or is still queued); payloads from the network that
+    do not decode are counted in decode_errors.
+    """
+
+    published: int = 0
+    delivered: int = 0
+    dropped: int = 0
+    callback_errors: int = 0
+    #: Values waiting in a subscription's queue when it closed.
+    discarded: int = 0
+    #: Received payloads that did not decode (networked transports; always 0 in memory).
+    decode_errors: int = 0
+
+
+class TopicCounters:
+    """Thread-safe per-topic :class:`TopicStatistics`, what ``Transport.statistics()`` returns."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._stats: dict[str, TopicStatistics] = {}
+
+    def track(self, topic_name: str) -> None:
+        """Make ``topic_name`` appear in snapshots (with zero counts) from now on."""
+        with self._lock:
+            self._stats.setdefault(topic_name, TopicStatistics())
+
+    def count(self, topic_name: str, **counts: int) -> None:
+        """Add ``counts`` (field name -> increment) to the topic's counters."""
+        with self._lock:
+            stats = self._stats.setdefault(topic_name, TopicStatistics())
+            for name, n in counts.items():
+                setattr(stats, name, getattr(stats, name) + n)
+
+    def snapshot(self, topic_name: str | None = None) -> dict[str, TopicStatistics]:
+        """A copy of the counters of every topic, or of ``topic_name`` only."""
+        with self._lock:
+            return {name: TopicStatistics(s.published, s.delivered, s.dropped, s.callback_errors, s.discarded,
+                                          s.decode_errors)
+                    for name, s in self._stats.items() if topic_name is None or name == topic_name}
 
 
 class BoundedDelivery:
     """A queue of ``topic.qos_profile.depth`` values drained by one thread into ``callback``.
 
-    ``on_count(delivered=, dropped=, callback_errors=)`` is told about every event, for
-    transport-wide statistics.
+    ``on_count(delivered=, dropped=, callback_errors=, discarded=)`` is told about every event,
+    for transport-wide statistics. Every value offered ends in exactly one of delivered,
+    dropped, callback_errors or discarded (or is still queued).
     """
 
     def __init__(self, topic: Topic, callback: Callable[[Any], None],
@@ -102,6 +151,8 @@ class BoundedDelivery:
         with self._cond:
             self._stats.decode_errors += 1
             first = self._stats.decode_errors == 1
+        if self._on_count is not None:
+            self._on_count(decode_errors=1)
         log = logger.warning if first else logger.debug
         log("topic %r: skipped a payload that does not decode as %s: %s%s", self.topic.name, self.topic.type_name,
             reason, " (further ones are counted in statistics().decode_errors)" if first else "")
@@ -111,15 +162,19 @@ class BoundedDelivery:
         with self._cond:
             s = self._stats
             return SubscriptionStatistics(s.delivered, s.dropped, s.callback_errors, len(self._queue),
-                                          s.decode_errors)
+                                          s.decode_errors, s.discarded)
 
     def close(self) -> None:
-        """Stop delivering; waiting values are discarded. Idempotent."""
+        """Stop delivering; waiting values are discarded and counted. Idempotent."""
         with self._cond:
             if self._closed:
                 return
             self._closed = True
+            discarded = len(self._queue)
+            self._stats.discarded += discarded
             self._queue.clear()
             self._cond.notify_all()
+        if discarded and self._on_count is not None:
+            self._on_count(discarded=discarded)
         if threading.current_thread() is not self._thread:
             self._thread.join(timeout=5.0)

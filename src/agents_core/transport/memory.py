@@ -17,7 +17,7 @@ from __future__ import annotations
 import collections
 import threading
 import time
-from concurrent.futures import Future, ThreadPoolExecutor
+from concurrent.futures import Future
 from concurrent.futures import TimeoutError as FutureTimeout
 from typing import TYPE_CHECKING, Any
 
@@ -40,19 +40,10 @@ from .contract import (
     Transport,
     TransportCapabilities,
 )
-from .delivery import BoundedDelivery, SubscriptionStatistics
+from .delivery import BoundedDelivery, SubscriptionStatistics, TopicStatistics
+from .requests import RequestLanes, check_timeout, serve_with_caller_deadline, with_caller_timeout
 
 __all__ = ["MemoryTransport", "SubscriptionStatistics", "TopicStatistics"]
-
-
-@define
-class TopicStatistics:
-    """Counters for one topic, summed over its subscriptions."""
-
-    published: int = 0
-    delivered: int = 0
-    dropped: int = 0
-    callback_errors: int = 0
 
 
 class _MemoryPublisher:
@@ -117,7 +108,9 @@ class _MemoryPresence:
 class MemoryTransport:
     """In-process transport for tests and single-process robots.
 
-    ``request_workers`` bounds how many service requests run at once.
+    ``request_workers`` bounds how many requests for services without an owner run at once;
+    each component's requests run on a lane of their own (see
+    :mod:`agents_core.transport.requests`).
     """
 
     name = "memory"
@@ -130,9 +123,9 @@ class MemoryTransport:
         self._types: dict[str, str] = {}
         self._latched: dict[str, collections.deque[Any]] = {}
         self._stats: dict[str, TopicStatistics] = {}
-        self._services: dict[str, ServiceHandler] = {}
+        self._services: dict[str, tuple[ServiceHandler, str | None]] = {}
         self._components: dict[str, _MemoryPresence] = {}
-        self._executor = ThreadPoolExecutor(max_workers=request_workers, thread_name_prefix="memory-request")
+        self._lanes = RequestLanes("memory-request", shared_workers=request_workers)
         self._closed = False
 
     # -- pub/sub --------------------------------------------------------------------------
@@ -178,12 +171,14 @@ class MemoryTransport:
         for sub in subs:
             sub._offer(value)
 
-    def _count(self, topic_name: str, *, delivered: int = 0, dropped: int = 0, callback_errors: int = 0) -> None:
+    def _count(self, topic_name: str, *, delivered: int = 0, dropped: int = 0, callback_errors: int = 0,
+               discarded: int = 0) -> None:
         with self._lock:
             stats = self._stats.setdefault(topic_name, TopicStatistics())
             stats.delivered += delivered
             stats.dropped += dropped
             stats.callback_errors += callback_errors
+            stats.discarded += discarded
 
     def _remove_subscription(self, sub: _MemorySubscription) -> None:
         with self._lock:
@@ -192,10 +187,14 @@ class MemoryTransport:
                 subs.remove(sub)
 
     def statistics(self, topic_name: str | None = None) -> dict[str, TopicStatistics]:
-        """Counters per topic (published, delivered, dropped, callback_errors), as a snapshot."""
+        """Counters per topic, summed over its subscriptions, as a snapshot.
+
+        Each value published reaches each subscription once, and there ends delivered, dropped,
+        callback_errors or discarded (or is still queued).
+        """
         with self._lock:
             return {
-                name: TopicStatistics(s.published, s.delivered, s.dropped, s.callback_errors)
+                name: TopicStatistics(s.published, s.delivered, s.dropped, s.callback_errors, s.discarded)
                 for name, s in self._stats.items()
                 if topic_name is None or name == topic_name
             }
@@ -219,7 +218,7 @@ class MemoryTransport:
             self._check_open()
             if name in self._services:
                 raise WiringError(f"service {name!r} is already served on this transport")
-            self._services[name] = handler
+            self._services[name] = (handler, owner)
         return _MemoryService(self, name)
 
     def _remove_service(self, name: str) -> None:
@@ -227,12 +226,16 @@ class MemoryTransport:
             self._services.pop(name, None)
 
     def request(self, name: str, payload: dict[str, Any], *, timeout: float = 5.0) -> dict[str, Any]:
+        timeout = check_timeout(timeout, f"request to {name!r}")
+        request = with_caller_timeout(payload, timeout)
         with self._lock:
             self._check_open()
-            handler = self._services.get(name)
-            if handler is None:
+            served = self._services.get(name)
+            if served is None:
                 raise ServiceUnavailableError(f"no service {name!r} on this memory transport")
-            future: Future[dict[str, Any]] = self._executor.submit(handler, payload)
+            handler, owner = served
+            future: Future[dict[str, Any]] = self._lanes.submit(owner, serve_with_caller_deadline, handler, request,
+                                                                f"request to {name!r}")
         reply: dict[str, Any] = _await_reply(name, future, timeout)
         return reply
 
@@ -261,12 +264,13 @@ class MemoryTransport:
                                       message=p.message)
 
     def request_transition(self, name: str, transition: str, *, timeout: float = 5.0) -> bool:
+        timeout = check_timeout(timeout, f"transition of {name!r}")
         with self._lock:
             self._check_open()
             p = self._components.get(name)
             if p is None:
                 raise ServiceUnavailableError(f"no component {name!r} on this memory transport")
-            future = self._executor.submit(p.on_transition, transition)
+            future = self._lanes.submit(name, p.on_transition, transition)
         return bool(_await_reply(f"{name} lifecycle", future, timeout))
 
     # -- teardown -------------------------------------------------------------------------
@@ -281,7 +285,7 @@ class MemoryTransport:
             self._components.clear()
         for sub in subs:
             sub.close()
-        self._executor.shutdown(wait=False, cancel_futures=True)
+        self._lanes.shutdown()
 
     def __enter__(self) -> MemoryTransport:
         return self

@@ -1,0 +1,145 @@
+"""Serving requests fairly and on time: per-owner request lanes and the caller's deadline.
+
+Two promises every transport keeps for request/reply (component actions, parameter updates,
+lifecycle transitions asked from outside):
+
+- **One component's requests never delay another's.** Requests for a service owned by a
+  component run on that component's own *lane* (a small pool of its own, created on first
+  use); requests for services without an owner share one lane. A component busy for 20 s
+  holds only its own lane.
+- **A request whose caller gave up is not executed later.** The caller's timeout travels with
+  the request (the reserved key :data:`CALLER_TIMEOUT_KEY` in the request map, seconds, added
+  by ``Transport.request``); a request that waited in its lane longer than that is answered
+  with an error instead of running, and a handler that runs can read the remaining time with
+  :func:`request_deadline` (``Component.run_on_worker`` does, so an action queued behind a
+  long step is skipped once its caller has stopped waiting).
+"""
+
+from __future__ import annotations
+
+import contextvars
+import math
+import threading
+import time
+from collections.abc import Callable
+from concurrent.futures import Future, ThreadPoolExecutor
+from typing import Any, TypeVar
+
+from ..errors import ConfigError, RequestTimeoutError
+
+__all__ = [
+    "CALLER_TIMEOUT_KEY",
+    "RequestLanes",
+    "check_timeout",
+    "request_deadline",
+    "serve_with_caller_deadline",
+    "with_caller_timeout",
+]
+
+R = TypeVar("R")
+
+#: Reserved request-map key: how many seconds the caller waits for the reply.
+CALLER_TIMEOUT_KEY = "_timeout_s"
+#: The longest timeout a request may ask for (a day): larger values are almost surely a unit mistake.
+MAX_TIMEOUT_S = 86_400.0
+
+_received_at: contextvars.ContextVar[float | None] = contextvars.ContextVar("request_received_at", default=None)
+_deadline: contextvars.ContextVar[float | None] = contextvars.ContextVar("request_deadline", default=None)
+
+
+def check_timeout(timeout: Any, what: str) -> float:
+    """``timeout`` as a float if it is a finite number of seconds > 0, else :class:`ConfigError`."""
+    if isinstance(timeout, bool) or not isinstance(timeout, int | float) or not math.isfinite(timeout) \
+            or not 0 < timeout <= MAX_TIMEOUT_S:
+        raise ConfigError(f"{what}: timeout must be a finite number of seconds in (0, {MAX_TIMEOUT_S:g}], "
+                          f"got {timeout!r}")
+    return float(timeout)
+
+
+def with_caller_timeout(payload: dict[str, Any], timeout: float) -> dict[str, Any]:
+    """The request map to send: ``payload`` plus the caller's timeout under :data:`CALLER_TIMEOUT_KEY`."""
+    if not isinstance(payload, dict):
+        raise ConfigError(f"a request payload must be a dict, got {type(payload).__name__}")
+    return {**payload, CALLER_TIMEOUT_KEY: timeout}
+
+
+def request_deadline() -> float | None:
+    """The monotonic time by which the caller of the request being served stops waiting, if known."""
+    return _deadline.get()
+
+
+def serve_with_caller_deadline(handler: Callable[[dict[str, Any]], R], request: dict[str, Any], what: str) -> R:
+    """Run ``handler(request)`` unless its caller has already given up (see the module docstring).
+
+    Takes :data:`CALLER_TIMEOUT_KEY` out of ``request``; the time the request was received is
+    the moment its lane accepted it (or now, outside a lane).
+    """
+    timeout = request.pop(CALLER_TIMEOUT_KEY, None)
+    received = _received_at.get()
+    if received is None:
+        received = time.monotonic()
+    deadline = None
+    if timeout is not None:
+        timeout = check_timeout(timeout, what)
+        deadline = received + timeout
+        waited = time.monotonic() - received
+        if waited >= timeout:
+            raise RequestTimeoutError(f"{what}: not run, the caller's timeout of {timeout:g} s expired after "
+                                      f"{waited:.2f} s in the queue")
+    token = _deadline.set(deadline)
+    try:
+        return handler(request)
+    finally:
+        _deadline.reset(token)
+
+
+class RequestLanes:
+    """Thread pools by owner: requests of one owner queue only behind that owner's requests.
+
+    :param name: thread-name prefix.
+    :param shared_workers: threads of the lane for requests without an owner.
+    :param workers_per_owner: threads of each owner's lane (a component serves its requests on
+        its serial worker anyway; two threads let a quick one pass a slow one).
+    """
+
+    def __init__(self, name: str, *, shared_workers: int = 4, workers_per_owner: int = 2) -> None:
+        if shared_workers < 1 or workers_per_owner < 1:
+            raise ConfigError(f"request lanes {name!r}: worker counts must be at least 1")
+        self._name = name
+        self._workers_per_owner = workers_per_owner
+        self._lock = threading.Lock()
+        self._shared = ThreadPoolExecutor(max_workers=shared_workers, thread_name_prefix=f"{name}")
+        self._lanes: dict[str, ThreadPoolExecutor] = {}
+        self._closed = False
+
+    def submit(self, owner: str | None, func: Callable[..., R], *args: Any) -> Future[R]:
+        """Run ``func(*args)`` on ``owner``'s lane; raises RuntimeError once shut down."""
+        received = time.monotonic()
+
+        def run() -> R:
+            token = _received_at.set(received)
+            try:
+                return func(*args)
+            finally:
+                _received_at.reset(token)
+
+        with self._lock:
+            if self._closed:
+                raise RuntimeError(f"request lanes {self._name!r} are shut down")
+            pool = self._shared if owner is None else self._lanes.get(owner)
+            if pool is None:
+                assert owner is not None
+                pool = ThreadPoolExecutor(max_workers=self._workers_per_owner,
+                                          thread_name_prefix=f"{self._name}:{owner}")
+                self._lanes[owner] = pool
+            return pool.submit(run)
+
+    def shutdown(self) -> None:
+        """Stop every lane; requests not started are dropped (their callers time out). Idempotent."""
+        with self._lock:
+            if self._closed:
+                return
+            self._closed = True
+            pools = [self._shared, *self._lanes.values()]
+        for pool in pools:
+            pool.shutdown(wait=False, cancel_futures=True)
