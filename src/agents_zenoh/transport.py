@@ -279,6 +279,10 @@ class ZenohTransport:
             self._session.close()  # type: ignore[no-untyped-call]  # zenoh's stub leaves it unannotated
         except zenoh.ZError as exc:
             logger.debug("closing the zenoh session failed: %s", exc)
+        # Zenoh unlinks its shared-memory segment when the last reference to the session is
+        # dropped; a step still running on a daemon thread at exit keeps this transport alive,
+        # so the reference goes now (every later call fails on the closed check first).
+        del self._session
 
     def __enter__(self) -> ZenohTransport:
         return self

@@ -141,6 +141,33 @@ def test_slow_subscriber_keeps_at_most_depth_and_counts_drops(transport_pair: tu
     sub.close()
 
 
+def test_per_topic_statistics_account_for_every_value(transport_pair: tuple[Transport, Transport]) -> None:
+    a, b = transport_pair
+    topic = Topic(unique("stats"), "Int64", qos_profile=QoSConfig(depth=100))
+    received: list[int] = []
+
+    def receive(value: int) -> None:
+        if value == 3:
+            raise ValueError("counted as a callback error")
+        received.append(value)
+
+    sub = b.create_subscription(topic, receive)
+    pub = a.create_publisher(topic)
+    probes = _wait_matched(pub, b, topic, received, -1)
+    for i in range(10):
+        pub.publish(i)
+    assert wait_for(lambda: len(received) == probes + 9, timeout=10.0)
+    sent = a.statistics()[topic.name]
+    got = b.statistics(topic.name)[topic.name]
+    assert sent.published >= probes + 10
+    assert got.callback_errors == 1
+    assert got.delivered == len(received)
+    # On networked transports the publisher's side counts what it sent, the subscriber's what it received.
+    assert got.delivered + got.dropped + got.callback_errors == probes + 10
+    assert set(b.statistics(topic.name)) == {topic.name}
+    sub.close()
+
+
 def test_callback_error_does_not_kill_subscription(transport_pair: tuple[Transport, Transport]) -> None:
     a, b = transport_pair
     topic = Topic(unique("raising"), "String")

@@ -131,6 +131,31 @@ def test_undecodable_samples_are_counted_logged_once_and_skipped(
     pub.undeclare()
 
 
+def test_per_topic_statistics_are_public(trio: tuple[ZenohTransport, ZenohTransport, Any]) -> None:
+    a, b, raw = trio
+    topic = Topic(_unique("counted"), "Int64", qos_profile=QoSConfig(depth=100))
+    got: list[int] = []
+
+    def receive(value: int) -> None:
+        if value == 3:
+            raise ValueError("a raising callback is counted, not fatal")
+        got.append(value)
+
+    a.create_subscription(topic, receive)
+    pub = b.create_publisher(topic)
+    for i in range(5):
+        pub.publish(i)
+    raw.put(a.key_expr(topic), b"\xc1", encoding="application/msgpack;Int64")
+    assert wait_for(lambda: a.statistics(topic.name)[topic.name].decode_errors == 1 and len(got) == 4), (
+        got, a.statistics())
+    sent = b.statistics()[topic.name]
+    received = a.statistics()[topic.name]
+    assert sent.published == 5
+    assert (received.delivered, received.callback_errors, received.dropped, received.decode_errors) == (4, 1, 0, 1)
+    assert received.published == 0
+    assert set(a.statistics(topic.name)) == {topic.name}
+
+
 def test_transient_local_replays_the_last_depth_values(trio: tuple[ZenohTransport, ZenohTransport, Any]) -> None:
     a, b, _ = trio
     topic = Topic(_unique("latched"), "Int64", qos_profile=QoSConfig(depth=3, durability="transient_local"))

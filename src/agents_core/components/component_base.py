@@ -654,9 +654,12 @@ class Component:
         try:
             return future.result(timeout=max(0.0, deadline - time.monotonic()))
         except TimeoutError:
-            if future.cancel() or not future.done():
+            if future.cancel():
                 raise RequestTimeoutError(f"component {self.component_name!r}: the worker did not get to the "
                                           f"request within {timeout:g} s (busy with a step?)") from None
+            if not future.done():
+                raise RequestTimeoutError(f"component {self.component_name!r}: the request did not finish within "
+                                          f"{timeout:g} s") from None
             raise
 
     # -- triggers and steps -----------------------------------------------------------------
@@ -674,7 +677,11 @@ class Component:
         self._submit_step({"event": event})
 
     def _submit_step(self, kwargs: dict[str, Any], snapshot: tuple[str, Any] | None = None) -> None:
-        if self._state != LifecycleState.ACTIVE or not self._accepting_steps or self._worker is None:
+        if self._worker is None:
+            return
+        if self._state != LifecycleState.ACTIVE or not self._accepting_steps:
+            # Arrived while (de)activating: discarded, and counted as such.
+            self._worker.count_discarded()
             return
         epoch = self._epoch
         self._worker.submit_step(lambda: self._run_step(kwargs, snapshot, epoch))

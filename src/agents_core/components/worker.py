@@ -152,6 +152,12 @@ class StepWorker:
             self._cond.notify()
         return future
 
+    def count_discarded(self) -> None:
+        """Count a step that was discarded before it reached the queue (its component was not active)."""
+        with self._cond:
+            self._stats.submitted += 1
+            self._stats.discarded += 1
+
     def discard_steps(self) -> int:
         """Forget the pending steps (on deactivate); returns how many were discarded."""
         with self._cond:

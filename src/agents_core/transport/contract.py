@@ -13,7 +13,9 @@ adapter only moves values. It implements :class:`Transport`:
    None, lists and dicts) and a timeout that always fires;
 4. component presence: a component declared here is visible to the middleware's users with its
    lifecycle state and health, and may be driven through ``on_transition``;
-5. ``close()``, after which every call raises :class:`~agents_core.errors.TransportClosedError`.
+5. ``close()``, after which every call raises :class:`~agents_core.errors.TransportClosedError`;
+6. per-topic ``statistics()`` (published, delivered, dropped, callback errors, discarded,
+   decode errors), so that no value is ever lost uncounted.
 
 What a transport can do beyond that is data (:class:`TransportCapabilities`), not subclassing.
 """
@@ -28,7 +30,7 @@ from attrs import define
 from ..messages import ComponentStatusMsg
 from ..status import HealthStatus, LifecycleState
 from ..topics import Topic
-from .delivery import SubscriptionStatistics
+from .delivery import SubscriptionStatistics, TopicStatistics
 
 __all__ = [
     "ComponentPresence",
@@ -150,10 +152,22 @@ class Transport(Protocol):
         """Serve requests on ``name`` (a topic-like name) with ``handler``."""
         ...
 
+    def statistics(self, topic_name: str | None = None) -> dict[str, TopicStatistics]:
+        """Per-topic counters of this transport instance (every topic, or ``topic_name`` only).
+
+        ``published`` counts values sent from here; the other counters sum over the local
+        subscriptions of the topic, so that each value received ends in exactly one of
+        delivered, dropped, callback_errors or discarded, and a payload that does not decode is
+        counted in decode_errors.
+        """
+        ...
+
     def request(self, name: str, payload: dict[str, Any], *, timeout: float = 5.0) -> dict[str, Any]:
         """Send ``payload`` to the service ``name`` and wait for its reply.
 
-        Raises :class:`~agents_core.errors.RequestTimeoutError` after ``timeout`` seconds,
+        ``timeout`` must be a finite number of seconds > 0 (else ConfigError); the handler of a
+        request still queued when the caller's timeout expires is never run (see
+        :mod:`agents_core.transport.requests`). Raises :class:`~agents_core.errors.RequestTimeoutError` after ``timeout`` seconds,
         :class:`~agents_core.errors.ServiceUnavailableError` when nobody serves ``name``, and
         :class:`~agents_core.errors.RemoteError` with the handler's message when it raised.
         """

@@ -17,8 +17,7 @@ from __future__ import annotations
 import collections
 import threading
 import time
-from concurrent.futures import Future
-from concurrent.futures import TimeoutError as FutureTimeout
+from concurrent.futures import Future, wait
 from typing import TYPE_CHECKING, Any
 
 from attrs import define
@@ -298,13 +297,16 @@ class MemoryTransport:
 
 
 def _await_reply(name: str, future: Future[Any], timeout: float) -> Any:
-    try:
-        return future.result(timeout=timeout)
-    except FutureTimeout:
+    done, _ = wait([future], timeout=timeout)
+    if not done:
         future.cancel()
-        raise RequestTimeoutError(f"request to {name!r} got no reply within {timeout:g} s") from None
-    except Exception as exc:
+        raise RequestTimeoutError(f"request to {name!r} got no reply within {timeout:g} s")
+    # Checked apart from waiting: a handler may itself raise a TimeoutError subclass, which is
+    # the service's failure, not this request's timeout.
+    exc = future.exception()
+    if exc is not None:
         raise RemoteError(f"{name!r} failed: {type(exc).__name__}: {exc}") from exc
+    return future.result()
 
 
 if TYPE_CHECKING:
