@@ -1,6 +1,6 @@
 """The executor of :class:`~agents_ros2.transport.Ros2Transport`.
 
-rclpy's single-threaded executor, except that marked services are answered on a thread pool.
+rclpy's single-threaded executor, except that marked services are answered on the core's request lanes.
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ from typing import Any
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 
-from agents_core.transport.requests import RequestLanes
+from agents_core.transport.driver import Lane
 
 __all__ = ["OffloadingExecutor"]
 
@@ -20,32 +20,30 @@ logger = logging.getLogger(__name__)
 
 
 class OffloadingExecutor(SingleThreadedExecutor):  # type: ignore[misc]  # rclpy is untyped
-    """rclpy's single-threaded executor, but marked services are answered on a thread pool.
+    """rclpy's single-threaded executor, but marked services are answered on request lanes.
 
     Messages are handled on the executor thread (converting and queueing them is quick). Service
     requests marked with :meth:`offload` (JsonCall handlers, lifecycle ``change_state``) may run
-    for seconds, so the request is taken here and handled, and answered, on the pool.
+    for seconds, so the request is taken here and handled, and answered, on the owner's lane.
 
     Why not rclpy's ``MultiThreadedExecutor``: here (rclpy 7, two cores) it adds ~100 ms to a
     message round trip, against ~0.3 ms for the single-threaded one. Why not async callbacks:
     rclpy re-polls a pending coroutine task in a busy loop.
     """
 
-    def __init__(self, context: Context, threads: int) -> None:
+    def __init__(self, context: Context) -> None:
         super().__init__(context=context)
-        # One lane per owning component, so a component busy for a while never delays another's
-        # requests; services without an owner share a lane of ``threads`` threads.
-        self._lanes = RequestLanes("ros2-service", shared_workers=threads)
-        self._offloaded: weakref.WeakKeyDictionary[Any, str | None] = weakref.WeakKeyDictionary()
+        self._offloaded: weakref.WeakKeyDictionary[Any, Lane] = weakref.WeakKeyDictionary()
 
-    def offload(self, service: Any, lane: str | None = None) -> None:
-        """Answer ``service``'s requests on the lane named ``lane`` (the owning component) from now on."""
+    def offload(self, service: Any, lane: Lane) -> None:
+        """Answer ``service``'s requests on ``lane`` (the owner's request lane, the core's) from now on."""
         self._offloaded[service] = lane
 
     def _take_service(self, srv: Any) -> Any:
         # Overrides the base executor's hook that takes one request and returns the coroutine that
         # serves it; returning None leaves nothing to run on the executor thread.
-        if srv not in self._offloaded:
+        lane = self._offloaded.get(srv)
+        if lane is None:
             return super()._take_service(srv)
         try:
             with srv.handle:
@@ -54,10 +52,7 @@ class OffloadingExecutor(SingleThreadedExecutor):  # type: ignore[misc]  # rclpy
             logger.debug("taking a request of %s: %s", getattr(srv, "srv_name", srv), exc)
             return None
         if header is not None:
-            try:
-                self._lanes.submit(self._offloaded.get(srv), self._serve, srv, request, header)
-            except RuntimeError:  # shutting down: the caller times out
-                logger.debug("dropped a request of %s: the executor is shutting down", getattr(srv, "srv_name", srv))
+            lane(lambda: self._serve(srv, request, header))
         return None
 
     @staticmethod
@@ -69,8 +64,5 @@ class OffloadingExecutor(SingleThreadedExecutor):  # type: ignore[misc]  # rclpy
             logger.exception("serving a request of %s failed", getattr(srv, "srv_name", srv))
 
     def shutdown(self, timeout_sec: float | None = None) -> bool:
-        """Stop the executor and the service pool."""
-        done = bool(super().shutdown(timeout_sec))
-        # Requests not started yet are dropped (their callers time out); running handlers finish.
-        self._lanes.shutdown()
-        return done
+        """Stop the executor (the core shuts the request lanes down)."""
+        return bool(super().shutdown(timeout_sec))

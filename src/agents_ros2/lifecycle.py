@@ -20,8 +20,8 @@ The core's ``errorprocessing`` state has no resting counterpart in the ROS 2 sta
 it is a transition state), so an errored component leaves its node where the failed transition
 left it; the health on ``<component>/status`` then says ``errorprocessing``.
 
-Health: the component's :class:`~agents_interfaces.msg.ComponentStatus` is published (reliable,
-transient local) on ``/<component>/status``.
+Health: the core publishes the component's :class:`~agents_interfaces.msg.ComponentStatus`
+(reliable, transient local) on ``/<component>/status``, through a publisher on this node.
 """
 
 from __future__ import annotations
@@ -29,25 +29,17 @@ from __future__ import annotations
 import logging
 import threading
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import lifecycle_msgs.srv
-from agents_interfaces.msg import ComponentStatus as RosComponentStatus
 from rclpy.context import Context
 from rclpy.lifecycle import LifecycleNodeMixin, TransitionCallbackReturn
 from rclpy.lifecycle.node import LifecycleState as RosLifecycleState
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-from agents_core import messages as m
 from agents_core.status import HealthStatus, LifecycleState
-from agents_core.supported_types import ComponentStatus
 from agents_core.transport.contract import TransitionHandler
-
-from .conversions import conversion_for
-
-if TYPE_CHECKING:
-    from rclpy.publisher import Publisher as RclpyPublisher
 
 __all__ = ["STATUS_QOS", "ComponentLifecycle", "absolute_name", "split_node_name"]
 
@@ -129,12 +121,6 @@ class ComponentLifecycle:
         self._on_transition = on_transition
         self._on_close = on_close
         self.node = _ComponentNode(name, context, self._transition_callback)
-        self.status_topic = absolute_name(f"{name}/status")
-        self._status_conversion = conversion_for(ComponentStatus).to_ros
-        self.status_publisher: RclpyPublisher = self.node.create_publisher(
-            RosComponentStatus, self.status_topic, STATUS_QOS)
-        #: True while the component publishes its own status through this publisher.
-        self.status_adopted = False
         # _machine_lock serialises every use of the node's state machine (outside requests and
         # internal syncs); _state_lock guards the small fields below and is never held while
         # calling out, so update() can never block on a transition in progress.
@@ -151,21 +137,13 @@ class ComponentLifecycle:
     # -- ComponentPresence ------------------------------------------------------------------
 
     def update(self, state: LifecycleState, health: HealthStatus, message: str = "") -> None:
-        """Publish the component's status and bring the lifecycle node to ``state``."""
+        """Bring the lifecycle node to ``state`` (the core publishes the status topic)."""
         with self._state_lock:
             if self._closed:
                 return
             self._pending = state
             if self._external:
                 self._reported_during_external = True
-            adopted = self.status_adopted
-        if not adopted:
-            status = m.ComponentStatusMsg(component=self.name, lifecycle_state=state.value, health=health.name,
-                                          message=message)
-            try:
-                self.status_publisher.publish(self._status_conversion(status))
-            except Exception as exc:  # the node may be going away under a concurrent close()
-                logger.debug("status of %r not published: %s", self.name, exc)
         self._sync()
 
     def close(self) -> None:

@@ -1,24 +1,27 @@
 """The ROS 2 transport: agents_core components as rclpy lifecycle nodes on ROS 2 Jazzy.
 
-``Ros2Transport(**options)`` implements :class:`~agents_core.transport.contract.Transport`:
+``Ros2Transport(**options)`` is the core's :class:`~agents_core.transport.core.DriverTransport`
+around :class:`Ros2Driver`, which maps:
 
 * **nodes**: one plain node per transport (for publishers, subscriptions and services that belong
   to no component, and for observer clients), plus one lifecycle node per declared component
   (see :mod:`agents_ros2.lifecycle`); a publisher, subscription or service created with
   ``owner=<component>`` lives on that component's node;
 * **one executor** per transport, spun on a background thread: rclpy's single-threaded executor,
-  except that service requests (JsonCall handlers, lifecycle ``change_state``) are answered on a
-  small thread pool, because they may take seconds (a component loading a model on configure)
-  and would otherwise stall every subscription of the transport meanwhile;
+  except that service requests (JsonCall handlers, lifecycle ``change_state``) are answered on the
+  owner's request lane (the core's), because they may take seconds (a component loading a model
+  on configure) and would otherwise stall every subscription of the transport meanwhile;
 * **topics**: names as given (relative names are made absolute: ``camera/image`` is
   ``/camera/image``), values converted by :mod:`agents_ros2.conversions`, QoS mapped by
-  :mod:`agents_ros2.qos`. Received values go through the shared
-  :class:`~agents_core.transport.delivery.BoundedDelivery`. A message that cannot be converted is
+  :mod:`agents_ros2.qos`. Received values go to the core's sink from the executor thread (a
+  bounded delivery thread for user callbacks, the component's worker for component inputs). A
+  message that cannot be converted is
   counted (``SubscriptionStatistics.decode_errors``), logged once per subscription with the
   reason, and skipped; the subscription keeps serving;
 * **request/reply**: services of type ``agents_interfaces/srv/JsonCall`` (JSON text in, JSON text
   or the handler's error out);
-* **presence**: lifecycle services of the component's node plus ``/<component>/status``.
+* **presence**: lifecycle services of the component's node; the core publishes
+  ``/<component>/status`` through a publisher on that node.
 
 Options (all keyword): ``domain_id`` (default: ``ROS_DOMAIN_ID``), ``shared_memory`` (the 16 MB
 Fast DDS shared-memory profile; default on, ``AGENTS_ROS2_SHM=0`` turns it off),
@@ -61,20 +64,13 @@ from agents_core.errors import (
     RequestTimeoutError,
     ServiceUnavailableError,
     TransportClosedError,
-    WiringError,
 )
 from agents_core.messages import ComponentStatusMsg
 from agents_core.supported_types import ComponentStatus
-from agents_core.topics import Topic, validate_topic_name
-from agents_core.transport.contract import (
-    ServiceHandler,
-    SubscriptionCallback,
-    TransitionHandler,
-    Transport,
-    TransportCapabilities,
-)
-from agents_core.transport.delivery import BoundedDelivery, SubscriptionStatistics, TopicCounters, TopicStatistics
-from agents_core.transport.requests import check_timeout, serve_with_caller_deadline, with_caller_timeout
+from agents_core.topics import Topic
+from agents_core.transport.contract import ServiceHandler, TransitionHandler, TransportCapabilities
+from agents_core.transport.core import DriverTransport
+from agents_core.transport.driver import Lane, Sink
 
 from .conversions import RosConversion, conversion_for
 from .executor import OffloadingExecutor
@@ -91,7 +87,7 @@ if TYPE_CHECKING:
     from rclpy.client import Client
     from rclpy.task import Future
 
-__all__ = ["Ros2Transport"]
+__all__ = ["Ros2Driver", "Ros2Transport"]
 
 logger = logging.getLogger(__name__)
 
@@ -106,22 +102,20 @@ UNKNOWN_HEALTH = "UNKNOWN"
 class _Ros2Publisher:
     """Publishes one topic's values as ROS messages."""
 
-    def __init__(self, transport: Ros2Transport, topic: Topic, node: Node, conversion: RosConversion,
-                 publisher: Any, on_close: Any = None, first_publish_wait: float = 0.0) -> None:
+    def __init__(self, topic: Topic, node: Node, conversion: RosConversion, publisher: Any,
+                 first_publish_wait: float = 0.0) -> None:
         self.topic = topic
         self._first_publish_wait = first_publish_wait
-        self._transport = transport
         self._node = node
         self._conversion = conversion
         self._publisher = publisher
-        self._on_close = on_close
         self._closed = False
 
-    def publish(self, value: Any) -> None:
-        """Validate, convert and send ``value``."""
-        if self._closed or self._transport.closed:
+    def send(self, value: Any) -> None:
+        """Convert and send ``value`` (validated by the core)."""
+        if self._closed:
             raise TransportClosedError(f"publisher on {self.topic.name!r} is closed")
-        message = self._conversion.to_ros(self.topic.msg_type.validate(value))
+        message = self._conversion.to_ros(value)
         if self._first_publish_wait > 0:
             self._wait_for_match()
         try:
@@ -129,7 +123,6 @@ class _Ros2Publisher:
         except InvalidHandle as exc:
             # Its node was destroyed (transport closed, or the owning component withdrawn).
             raise TransportClosedError(f"publisher on {self.topic.name!r} is closed") from exc
-        self._transport._counters.count(self.topic.name, published=1)
 
     def _wait_for_match(self) -> None:
         # DDS matches a new writer with existing readers asynchronously, and a reliable writer
@@ -145,9 +138,6 @@ class _Ros2Publisher:
         if self._closed:
             return
         self._closed = True
-        if self._on_close is not None:
-            self._on_close()
-            return
         try:
             self._node.destroy_publisher(self._publisher)
         except Exception as exc:  # the node is already gone
@@ -155,26 +145,18 @@ class _Ros2Publisher:
 
 
 class _Ros2Subscription:
-    """Converts received ROS messages and hands them to a BoundedDelivery."""
+    """Converts received ROS messages on the executor thread and hands them to the core's sink."""
 
-    def __init__(self, transport: Ros2Transport, topic: Topic, callback: SubscriptionCallback, node: Node,
-                 depth_floor: int) -> None:
+    def __init__(self, topic: Topic, sink: Sink, node: Node, depth_floor: int) -> None:
         self.topic = topic
-        self._transport = transport
         self._node = node
         self._conversion = conversion_for(topic.msg_type)
-        counters = transport._counters
-        counters.track(topic.name)
-        self._delivery = BoundedDelivery(topic, callback, lambda **counts: counters.count(topic.name, **counts))
+        self._delivery = sink
         self._lock = threading.Lock()
         self._closed = False
-        try:
-            self._subscription = node.create_subscription(
-                self._conversion.ros_type, absolute_name(topic.name), self._on_message,
-                subscription_qos(topic.qos_profile, depth_floor))
-        except BaseException:
-            self._delivery.close()
-            raise
+        self._subscription = node.create_subscription(
+            self._conversion.ros_type, absolute_name(topic.name), self._on_message,
+            subscription_qos(topic.qos_profile, depth_floor))
 
     def _on_message(self, message: Any) -> None:
         try:
@@ -184,44 +166,35 @@ class _Ros2Subscription:
             return
         self._delivery.offer(value)
 
-    def statistics(self) -> SubscriptionStatistics:
-        """Delivered / dropped / callback-error / decode-error counts."""
-        return self._delivery.statistics()
-
     def close(self) -> None:
-        """Stop receiving; no callback starts after this returns. Idempotent."""
+        """Stop receiving. Idempotent."""
         with self._lock:
             if self._closed:
                 return
             self._closed = True
-        self._transport._forget_subscription(self)
         try:
             self._node.destroy_subscription(self._subscription)
         except Exception as exc:  # the node is already gone
             logger.debug("destroying the subscription on %r: %s", self.topic.name, exc)
-        self._delivery.close()
 
 
 class _Ros2Service:
     """Serves ``JsonCall`` requests on one name with a JSON-dict handler."""
 
-    def __init__(self, transport: Ros2Transport, name: str, handler: ServiceHandler, node: Node,
-                 owner: str | None = None) -> None:
+    def __init__(self, transport: Ros2Driver, name: str, handler: ServiceHandler, node: Node, lane: Lane) -> None:
         self.name = name
-        self._transport = transport
         self._handler = handler
         self._node = node
         self._closed = False
         self._service = node.create_service(JsonCall, absolute_name(name), self._serve)
-        transport._offload(self._service, owner)
+        transport._offload(self._service, lane)
 
     def _serve(self, request: Any, response: Any) -> Any:
         try:
             payload = json.loads(request.request_json or "{}")
             if not isinstance(payload, dict):
                 raise ConfigError(f"a request must be a JSON object, got {type(payload).__name__}")
-            response.response_json = json.dumps(serve_with_caller_deadline(self._handler, payload,
-                                                                           f"request to {self.name!r}"))
+            response.response_json = json.dumps(self._handler(payload))
             response.success = True
         except Exception as exc:
             response.success = False
@@ -233,43 +206,22 @@ class _Ros2Service:
         if self._closed:
             return
         self._closed = True
-        self._transport._forget_service(self.name)
         try:
             self._node.destroy_service(self._service)
         except Exception as exc:  # the node is already gone
             logger.debug("destroying the service %r: %s", self.name, exc)
 
 
-class Ros2Transport:
-    """A transport on ROS 2 (rclpy, Fast DDS). See the module docstring for what maps to what.
-
-    :param domain_id: ROS domain id; None reads ``ROS_DOMAIN_ID`` (default 0).
-    :param shared_memory: use the 16 MB Fast DDS shared-memory profile for large messages between
-        processes on one host; None reads ``AGENTS_ROS2_SHM`` (default on). Fast DDS reads its
-        profile once per process, so the first transport of a process decides.
-    :param executor: ``"single"`` (default: rclpy's single-threaded executor, service requests
-        answered on a pool) or ``"events"`` (rclpy's experimental EventsExecutor: lower latency,
-        but service handlers and lifecycle transitions run on its one thread, so a slow one
-        stalls message handling meanwhile).
-    :param executor_threads: size of the pool that answers service requests (how many slow
-        handlers or transitions may run at once).
-    :param reader_depth_floor: smallest DDS history of a subscription (see :mod:`agents_ros2.qos`).
-    :param first_publish_wait: on its first publish, a publisher that has matched no subscription
-        yet waits up to this many seconds for discovery (0 turns it off), so a value published
-        right after the publisher is created reaches subscriptions that already exist.
-    :param node_name: name of the transport's own node (default ``agents_<pid>_<n>``).
-    """
+class Ros2Driver:
+    """The rclpy primitives under :class:`Ros2Transport` (options: see :class:`Ros2Transport`)."""
 
     name = "ros2"
 
     def __init__(self, *, domain_id: int | None = None, shared_memory: bool | None = None,
-                 executor: ExecutorKind = "single", executor_threads: int = 4,
-                 reader_depth_floor: int = READER_DEPTH_FLOOR, first_publish_wait: float = 0.5,
-                 node_name: str | None = None) -> None:
+                 executor: ExecutorKind = "single", reader_depth_floor: int = READER_DEPTH_FLOOR,
+                 first_publish_wait: float = 0.5, node_name: str | None = None) -> None:
         if executor not in ("single", "events"):
             raise ConfigError(f"executor must be 'single' or 'events', got {executor!r}")
-        if executor_threads < 1:
-            raise ConfigError(f"executor_threads must be at least 1, got {executor_threads}")
         uses_shm = shared_memory_wanted(shared_memory) and enable_shared_memory_profile()
         self.capabilities = TransportCapabilities(cross_process=True, services=True, actions=False,
                                                   shared_memory=uses_shm, zero_copy=False,
@@ -278,11 +230,7 @@ class Ros2Transport:
         self._first_publish_wait = first_publish_wait
         self._lock = threading.RLock()
         self._closed = False
-        self._publishers: list[_Ros2Publisher] = []
-        self._subscriptions: list[_Ros2Subscription] = []
-        self._services: dict[str, _Ros2Service] = {}
         self._components: dict[str, ComponentLifecycle] = {}
-        self._counters = TopicCounters()
         self._clients: dict[tuple[str, str], Client] = {}
         self._status_watches: dict[str, Any] = {}
         self._latest_status: dict[str, ComponentStatusMsg] = {}
@@ -290,34 +238,22 @@ class Ros2Transport:
         # Signals belong to the application (the Launcher handles SIGINT / SIGTERM), not to rclpy.
         rclpy.init(context=self._context, domain_id=domain_id, signal_handler_options=SignalHandlerOptions.NO)
         try:
-            self._node = Node(node_name or f"agents_{os.getpid()}_{next(_transport_ids)}", context=self._context,
-                              enable_rosout=False, start_parameter_services=False)
-            self._executor = self._make_executor(executor, executor_threads)
-            self._executor.add_node(self._node)
+            self.node = Node(node_name or f"agents_{os.getpid()}_{next(_transport_ids)}", context=self._context,
+                             enable_rosout=False, start_parameter_services=False)
+            self._executor: Executor = (OffloadingExecutor(self._context) if executor == "single"
+                                        else EventsExecutor(context=self._context))
+            self._executor.add_node(self.node)
         except BaseException:
             self._context.try_shutdown()
             raise
         self._stop = threading.Event()
-        self._spin_thread = threading.Thread(target=self._spin, name=f"ros2-executor:{self._node.get_name()}",
+        self._spin_thread = threading.Thread(target=self._spin, name=f"ros2-executor:{self.node.get_name()}",
                                              daemon=True)
         self._spin_thread.start()
 
-    def _make_executor(self, kind: ExecutorKind, threads: int) -> Executor:
-        if kind == "single":
-            return OffloadingExecutor(self._context, threads)
-        return EventsExecutor(context=self._context)
-
-    def _offload(self, service: Any, lane: str | None = None) -> None:
+    def _offload(self, service: Any, lane: Lane) -> None:
         if isinstance(self._executor, OffloadingExecutor):
             self._executor.offload(service, lane)
-
-    def statistics(self, topic_name: str | None = None) -> dict[str, TopicStatistics]:
-        """Counters per topic of this transport's publishers and subscriptions, as a snapshot.
-
-        ``published`` counts values this process sent; ``delivered`` / ``dropped`` /
-        ``callback_errors`` / ``discarded`` / ``decode_errors`` sum over its subscriptions.
-        """
-        return self._counters.snapshot(topic_name)
 
     def _spin(self) -> None:
         while not self._stop.is_set():
@@ -333,11 +269,6 @@ class Ros2Transport:
 
     # -- helpers ----------------------------------------------------------------------------
 
-    @property
-    def closed(self) -> bool:
-        """Whether :meth:`close` ran."""
-        return self._closed
-
     def _check_open(self) -> None:
         if self._closed:
             raise TransportClosedError("the ros2 transport is closed")
@@ -347,7 +278,7 @@ class Ros2Transport:
             presence = self._components.get(owner)
             if presence is not None:
                 return presence.node
-        return self._node
+        return self.node
 
     def _client(self, srv_type: Any, name: str) -> Client:
         key = (srv_type.__name__, name)
@@ -355,7 +286,7 @@ class Ros2Transport:
             client = self._clients.get(key)
             if client is None:
                 # Clients are kept: a new one has to be discovered by its server before it works.
-                client = self._node.create_client(srv_type, name)
+                client = self.node.create_client(srv_type, name)
                 self._clients[key] = client
             return client
 
@@ -375,73 +306,30 @@ class Ros2Transport:
             raise RequestTimeoutError(f"{what} got no reply in time")
         return future.result()
 
-    # -- pub/sub ----------------------------------------------------------------------------
+    # -- primitives -------------------------------------------------------------------------
 
-    def create_publisher(self, topic: Topic, *, owner: str | None = None) -> _Ros2Publisher:
+    def open_publisher(self, topic: Topic, owner: str | None) -> _Ros2Publisher:
         """A publisher for ``topic`` on the owner's node (or the transport's)."""
         with self._lock:
-            self._check_open()
             conversion = conversion_for(topic.msg_type)
-            presence = self._components.get(owner) if owner is not None else None
-            if (presence is not None and absolute_name(topic.name) == presence.status_topic
-                    and issubclass(topic.msg_type, ComponentStatus)):
-                return self._adopt_status_publisher(topic, presence, conversion)
             node = self._node_for(owner)
             rclpy_publisher = node.create_publisher(conversion.ros_type, absolute_name(topic.name),
                                                     publisher_qos(topic.qos_profile))
-            publisher = _Ros2Publisher(self, topic, node, conversion, rclpy_publisher,
-                                       first_publish_wait=self._first_publish_wait)
-            self._publishers.append(publisher)
-            return publisher
+            return _Ros2Publisher(topic, node, conversion, rclpy_publisher, first_publish_wait=self._first_publish_wait)
 
-    def _adopt_status_publisher(self, topic: Topic, presence: ComponentLifecycle,
-                                conversion: RosConversion) -> _Ros2Publisher:
-        # The component publishes its own status: share the presence's publisher so observers see
-        # one writer and one stream on <component>/status, not two copies of every status.
-        presence.status_adopted = True
-
-        def release() -> None:
-            presence.status_adopted = False
-
-        return _Ros2Publisher(self, topic, presence.node, conversion, presence.status_publisher, on_close=release)
-
-    def create_subscription(self, topic: Topic, callback: SubscriptionCallback, *,
-                            owner: str | None = None) -> _Ros2Subscription:
-        """Deliver ``topic``'s values to ``callback`` through a BoundedDelivery."""
+    def open_subscriber(self, topic: Topic, sink: Sink, owner: str | None) -> _Ros2Subscription:
+        """Convert ``topic``'s messages on the executor thread into ``sink``."""
         with self._lock:
-            self._check_open()
-            subscription = _Ros2Subscription(self, topic, callback, self._node_for(owner),
-                                             self._reader_depth_floor)
-            self._subscriptions.append(subscription)
-            return subscription
+            return _Ros2Subscription(topic, sink, self._node_for(owner), self._reader_depth_floor)
 
-    def _forget_subscription(self, subscription: _Ros2Subscription) -> None:
+    def serve(self, name: str, handler: ServiceHandler, owner: str | None, lane: Lane) -> _Ros2Service:
+        """Serve ``JsonCall`` requests on ``name`` with ``handler``, on ``lane``."""
         with self._lock:
-            if subscription in self._subscriptions:
-                self._subscriptions.remove(subscription)
+            return _Ros2Service(self, name, handler, self._node_for(owner), lane)
 
-    # -- request / reply --------------------------------------------------------------------
-
-    def create_service(self, name: str, handler: ServiceHandler, *, owner: str | None = None) -> _Ros2Service:
-        """Serve ``JsonCall`` requests on ``name`` with ``handler``."""
-        validate_topic_name(name, "service")
-        with self._lock:
-            self._check_open()
-            if name in self._services:
-                raise WiringError(f"service {name!r} is already served on this transport")
-            service = _Ros2Service(self, name, handler, self._node_for(owner), owner)
-            self._services[name] = service
-            return service
-
-    def _forget_service(self, name: str) -> None:
-        with self._lock:
-            self._services.pop(name, None)
-
-    def request(self, name: str, payload: dict[str, Any], *, timeout: float = 5.0) -> dict[str, Any]:
+    def call(self, name: str, payload: dict[str, Any], timeout: float) -> dict[str, Any]:
         """Send ``payload`` to the service ``name`` and return its reply (see the contract for errors)."""
-        timeout = check_timeout(timeout, f"request to {name!r}")
-        self._check_open()
-        body = json.dumps(with_caller_timeout(payload, timeout))
+        body = json.dumps(payload)
         deadline = time.monotonic() + timeout
         client = self._client(JsonCall, absolute_name(name))
         if not self._wait_for_server(client, deadline):
@@ -458,18 +346,12 @@ class Ros2Transport:
             raise RemoteError(f"{name!r} replied with a {type(reply).__name__}, not a JSON object")
         return reply
 
-    # -- presence ---------------------------------------------------------------------------
-
-    def declare_component(self, name: str, *, on_transition: TransitionHandler) -> ComponentLifecycle:
-        """Create the component's lifecycle node; outside change_state requests call ``on_transition``."""
-        validate_topic_name(name, "component")
+    def declare_presence(self, name: str, on_transition: TransitionHandler, lane: Lane) -> ComponentLifecycle:
+        """Create the component's lifecycle node; outside change_state requests run ``on_transition`` on ``lane``."""
         with self._lock:
-            self._check_open()
-            if name in self._components:
-                raise WiringError(f"a component named {name!r} is already declared on this transport")
             presence = ComponentLifecycle(name, self._context, on_transition, self._forget_component)
             self._components[name] = presence
-            self._offload(presence.node._service_change_state, name)
+            self._offload(presence.node._service_change_state, lane)
             self._executor.add_node(presence.node)
             return presence
 
@@ -494,13 +376,13 @@ class Ros2Transport:
                 with self._lock:
                     self._latest_status[name] = value
 
-            self._status_watches[name] = self._node.create_subscription(
+            self._status_watches[name] = self.node.create_subscription(
                 conversion.ros_type, absolute_name(f"{name}/status"), on_status, STATUS_QOS)
 
-    def get_component_state(self, name: str, *, timeout: float = 2.0) -> ComponentStatusMsg | None:
-        """The component's lifecycle state (``get_state``) and health (``<name>/status``); None if absent."""
-        timeout = check_timeout(timeout, f"state of {name!r}")
-        self._check_open()
+    def observe(self, name: str, transition: str | None, timeout: float) -> ComponentStatusMsg | bool | None:
+        """State via ``get_state`` and ``<name>/status``; a transition via ``change_state``."""
+        if transition is not None:
+            return self._request_transition(name, transition, timeout)
         deadline = time.monotonic() + timeout
         self._watch_status(name)
         client = self._client(GetState, absolute_name(f"{name}/get_state"))
@@ -521,10 +403,7 @@ class Ros2Transport:
         return ComponentStatusMsg(component=name, lifecycle_state=state, health=status.health,
                                   message=status.message, header=status.header)
 
-    def request_transition(self, name: str, transition: str, *, timeout: float = 5.0) -> bool:
-        """Ask the component's lifecycle node for ``transition`` through ``change_state``."""
-        timeout = check_timeout(timeout, f"transition of {name!r}")
-        self._check_open()
+    def _request_transition(self, name: str, transition: str, timeout: float) -> bool:
         deadline = time.monotonic() + timeout
         client = self._client(ChangeState, absolute_name(f"{name}/change_state"))
         if not self._wait_for_server(client, deadline):
@@ -538,38 +417,74 @@ class Ros2Transport:
             raise RequestTimeoutError(f"{transition} of {name!r} got no reply within {timeout:g} s") from None
         return bool(response.success)
 
-    # -- teardown ---------------------------------------------------------------------------
-
     def close(self) -> None:
-        """Release every publisher, subscription, service, component node and the ROS context."""
+        """Destroy the remaining component nodes, stop the executor, release the ROS context."""
         with self._lock:
             if self._closed:
                 return
             self._closed = True
-            subscriptions = list(self._subscriptions)
             components = list(self._components.values())
-        for subscription in subscriptions:
-            subscription.close()
         for presence in components:
             presence.close()
         self._stop.set()
         self._executor.shutdown(timeout_sec=2.0)
         self._spin_thread.join(timeout=5.0)
         try:
-            self._node.destroy_node()
+            self.node.destroy_node()
         finally:
             self._context.try_shutdown()
+
+    def __repr__(self) -> str:
+        return f"<Ros2Driver node={self.node.get_name()!r}>"
+
+
+class Ros2Transport(DriverTransport):
+    """A transport on ROS 2 (rclpy, Fast DDS). See the module docstring for what maps to what.
+
+    :param domain_id: ROS domain id; None reads ``ROS_DOMAIN_ID`` (default 0).
+    :param shared_memory: use the 16 MB Fast DDS shared-memory profile for large messages between
+        processes on one host; None reads ``AGENTS_ROS2_SHM`` (default on). Fast DDS reads its
+        profile once per process, so the first transport of a process decides.
+    :param executor: ``"single"`` (default: rclpy's single-threaded executor, service requests
+        answered on the owner's request lane) or ``"events"`` (rclpy's experimental
+        EventsExecutor: lower latency, but service handlers and lifecycle transitions run on its
+        one thread, so a slow one stalls message handling meanwhile).
+    :param executor_threads: threads answering requests to services that belong to no component
+        (each component's requests have a lane of their own).
+    :param reader_depth_floor: smallest DDS history of a subscription (see :mod:`agents_ros2.qos`).
+    :param first_publish_wait: on its first publish, a publisher that has matched no subscription
+        yet waits up to this many seconds for discovery (0 turns it off), so a value published
+        right after the publisher is created reaches subscriptions that already exist.
+    :param node_name: name of the transport's own node (default ``agents_<pid>_<n>``).
+    """
+
+    def __init__(self, *, domain_id: int | None = None, shared_memory: bool | None = None,
+                 executor: ExecutorKind = "single", executor_threads: int = 4,
+                 reader_depth_floor: int = READER_DEPTH_FLOOR, first_publish_wait: float = 0.5,
+                 node_name: str | None = None) -> None:
+        if isinstance(executor_threads, bool) or not isinstance(executor_threads, int) or executor_threads < 1:
+            raise ConfigError(f"executor_threads must be an int of at least 1, got {executor_threads!r}")
+        self._ros = Ros2Driver(domain_id=domain_id, shared_memory=shared_memory, executor=executor,
+                               reader_depth_floor=reader_depth_floor, first_publish_wait=first_publish_wait,
+                               node_name=node_name)
+        super().__init__(self._ros, request_workers=executor_threads)
+
+    @property
+    def _node(self) -> Node:
+        """The transport's own node (publishers, subscriptions and services of no component)."""
+        return self._ros.node
 
     def __enter__(self) -> Ros2Transport:
         return self
 
-    def __exit__(self, *exc: object) -> None:
-        self.close()
-
     def __repr__(self) -> str:
-        return f"<Ros2Transport node={self._node.get_name()!r} closed={self._closed}>"
+        return f"<Ros2Transport node={self._ros.node.get_name()!r} closed={self._closed}>"
 
 
 if TYPE_CHECKING:
-    # mypy checks here that Ros2Transport satisfies the Transport protocol.
+    from agents_core.transport.contract import Transport
+    from agents_core.transport.driver import TransportDriver
+
+    # mypy checks here that the classes satisfy their protocols.
+    _driver: TransportDriver = Ros2Driver()
     _conforms: Transport = Ros2Transport()

@@ -1,4 +1,4 @@
-"""Publishers and subscriptions of the Zenoh transport: QoS mapping, encoding, decode-error accounting."""
+"""Publishers and subscribers of the Zenoh driver: QoS mapping, encoding, decoding into the core's sink."""
 
 from __future__ import annotations
 
@@ -11,13 +11,12 @@ import zenoh
 
 from agents_core.errors import TransportClosedError, TransportError
 from agents_core.topics import Topic
-from agents_core.transport.contract import SubscriptionCallback
-from agents_core.transport.delivery import BoundedDelivery, SubscriptionStatistics
+from agents_core.transport.driver import Sink
 
 from .codecs import MSGPACK, CodecError, decode_value, encode_value, pack
 
 if TYPE_CHECKING:
-    from .transport import ZenohTransport
+    from .transport import ZenohDriver
 
 __all__ = ["ZenohPublisher", "ZenohSubscription", "undeclare"]
 
@@ -27,7 +26,7 @@ logger = logging.getLogger(__name__)
 class ZenohPublisher:
     """Puts one topic's values on ``<namespace>/<topic>`` (see :mod:`agents_zenoh.transport`)."""
 
-    def __init__(self, transport: ZenohTransport, topic: Topic) -> None:
+    def __init__(self, transport: ZenohDriver, topic: Topic) -> None:
         self.topic = topic
         self._transport = transport
         self._lock = threading.Lock()
@@ -54,12 +53,10 @@ class ZenohPublisher:
             self._pub = transport._session.declare_publisher(key, **options)
             self._match_deadline = time.monotonic() + transport.config.match_timeout
 
-    def publish(self, value: Any) -> None:
-        """Validate, encode and put ``value`` (TypeValidationError / TransportClosedError as the contract says)."""
+    def send(self, value: Any) -> None:
+        """Encode and put ``value`` (validated by the core)."""
         if self._closed:
             raise TransportClosedError(f"publisher on {self.topic.name!r} is closed")
-        self._transport._check_open(f"publish on {self.topic.name!r}")
-        value = self.topic.msg_type.validate(value)
         self._wait_for_match()
         with self._lock:
             # Under the lock: the reusable buffer is shared, and sequence numbers follow put order.
@@ -91,31 +88,26 @@ class ZenohPublisher:
             if self._closed:
                 return
             self._closed = True
-        self._transport._forget(self)
         undeclare(self._pub)
 
 
 class ZenohSubscription:
-    """Decodes one topic's samples into a BoundedDelivery (see :mod:`agents_zenoh.transport`)."""
+    """Decodes one topic's samples into the core's sink, on Zenoh's thread (see :mod:`agents_zenoh.transport`)."""
 
-    def __init__(self, transport: ZenohTransport, topic: Topic, callback: SubscriptionCallback) -> None:
+    def __init__(self, transport: ZenohDriver, topic: Topic, sink: Sink) -> None:
         self.topic = topic
         self._transport = transport
         self._closed = False
         self._schema = topic.type_name
-        self._delivery = BoundedDelivery(topic, callback)
+        self._delivery = sink
         key = transport._key(topic.name)
         self._sub: zenoh.Subscriber[None] | zenoh.ext.AdvancedSubscriber[None]
-        try:
-            if topic.qos_profile.durability == "transient_local":
-                history = zenoh.ext.HistoryConfig(detect_late_publishers=True, max_samples=topic.qos_profile.depth)
-                self._sub = zenoh.ext.declare_advanced_subscriber(transport._session, key, self._on_sample,
-                                                                  history=history)
-            else:
-                self._sub = transport._session.declare_subscriber(key, self._on_sample)
-        except BaseException:
-            self._delivery.close()
-            raise
+        if topic.qos_profile.durability == "transient_local":
+            history = zenoh.ext.HistoryConfig(detect_late_publishers=True, max_samples=topic.qos_profile.depth)
+            self._sub = zenoh.ext.declare_advanced_subscriber(transport._session, key, self._on_sample,
+                                                              history=history)
+        else:
+            self._sub = transport._session.declare_subscriber(key, self._on_sample)
 
     def _on_sample(self, sample: zenoh.Sample) -> None:
         # Runs on a Zenoh thread: it must never raise, and never block for long.
@@ -137,18 +129,12 @@ class ZenohSubscription:
         if schema and schema != self._schema:
             raise CodecError(f"cannot decode the sample as {self._schema}: it carries type {schema!r}")
 
-    def statistics(self) -> SubscriptionStatistics:
-        """Delivered / dropped / callback-error / decode-error counts."""
-        return self._delivery.statistics()
-
     def close(self) -> None:
-        """Undeclare the subscriber, then stop delivering; idempotent."""
+        """Undeclare the subscriber; idempotent."""
         if self._closed:
             return
         self._closed = True
-        self._transport._forget(self)
         undeclare(self._sub)
-        self._delivery.close()
 
 
 def undeclare(entity: Any) -> None:

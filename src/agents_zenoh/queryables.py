@@ -1,9 +1,9 @@
-"""Request/reply and component presence of the Zenoh transport, on queryables and liveliness tokens.
+"""Request/reply and component presence of the Zenoh driver, on queryables and liveliness tokens.
 
-A handler never runs on a Zenoh thread: queries for services and transitions go to the
-transport's request pool, and each query is finalised (dropped) when answered, so the caller
-never waits for more than the reply. Only the state query, which just reads a snapshot, is
-answered on Zenoh's thread.
+A handler never runs on a Zenoh thread: queries for services and transitions go to the owner's
+request lane (given by the core), and each query is finalised (dropped) when answered, so the
+caller never waits for more than the reply. Only the state query, which just reads a snapshot,
+is answered on Zenoh's thread.
 """
 
 from __future__ import annotations
@@ -20,6 +20,7 @@ from agents_core.messages import ComponentStatusMsg
 from agents_core.status import HealthStatus, LifecycleState
 from agents_core.supported_types import ComponentStatus
 from agents_core.transport.contract import ServiceHandler, TransitionHandler
+from agents_core.transport.driver import Lane
 from agents_core.transport.requests import serve_with_caller_deadline
 
 from .codecs import MSGPACK, CodecError, codec_for, encode_value, pack, unpack
@@ -27,7 +28,7 @@ from .keys import liveliness_key, state_key, transition_key
 from .pubsub import undeclare
 
 if TYPE_CHECKING:
-    from .transport import ZenohTransport
+    from .transport import ZenohDriver
 
 __all__ = ["ERROR_ENCODING", "ZenohPresence", "ZenohService", "read_reply"]
 
@@ -71,27 +72,25 @@ def _reply_error(query: zenoh.Query, exc: BaseException, as_json: bool) -> None:
 
 
 class ZenohService:
-    """A queryable on ``<namespace>/<service>`` whose queries run ``handler`` on the request pool."""
+    """A queryable on ``<namespace>/<service>`` whose queries run ``handler`` on the owner's lane."""
 
-    def __init__(self, transport: ZenohTransport, name: str, handler: ServiceHandler,
-                 owner: str | None = None) -> None:
+    def __init__(self, transport: ZenohDriver, name: str, handler: ServiceHandler, lane: Lane) -> None:
         self.name = name
-        self._transport = transport
         self._handler = handler
-        self._owner = owner
+        self._lane = lane
         self._key = transport._key(name, "service")
         self._queryable = transport._session.declare_queryable(self._key, self._on_query)
 
     def _on_query(self, query: zenoh.Query) -> None:
         # Zenoh's thread must not run user code that may block: hand the query to its owner's lane.
-        self._transport._submit(self._owner, self._serve, query)
+        self._lane(lambda: self._serve(query))
 
     def _serve(self, query: zenoh.Query) -> None:
         with query:  # dropping the query finalises it, so the caller stops waiting
             as_json = False
             try:
                 request, as_json = _read_request(query)
-                result = serve_with_caller_deadline(self._handler, request, f"request to {self.name!r}")
+                result = self._handler(request)
                 if not isinstance(result, dict):
                     raise TypeError(f"the handler returned {type(result).__name__}, not a dict")
                 _reply(query, self._key, result, as_json)
@@ -100,17 +99,16 @@ class ZenohService:
                 _reply_error(query, exc, as_json)
 
     def close(self) -> None:
-        """Undeclare the queryable; idempotent."""
-        self._transport._forget(self)
+        """Undeclare the queryable."""
         undeclare(self._queryable)
 
 
 class ZenohPresence:
     """A component as Zenoh users see it: a liveliness token and the state / transition queryables."""
 
-    def __init__(self, transport: ZenohTransport, name: str, on_transition: TransitionHandler) -> None:
+    def __init__(self, transport: ZenohDriver, name: str, on_transition: TransitionHandler, lane: Lane) -> None:
         self.name = name
-        self._transport = transport
+        self._lane = lane
         self._on_transition = on_transition
         self._lock = threading.Lock()
         self._state = LifecycleState.UNCONFIGURED
@@ -128,7 +126,7 @@ class ZenohPresence:
             session.liveliness().declare_token(liveliness_key(ns, name)),
         ]
 
-    def update(self, state: LifecycleState, health: HealthStatus, message: str = "") -> None:
+    def update(self, state: LifecycleState, health: HealthStatus, message: str) -> None:
         """Set what the state queryable answers from now on."""
         with self._lock:
             self._state, self._health, self._message = state, health, message
@@ -154,7 +152,7 @@ class ZenohPresence:
                 logger.warning("component %r: state query failed: %s", self.name, exc)
 
     def _on_transition_query(self, query: zenoh.Query) -> None:
-        self._transport._submit(self.name, self._serve_transition, query)
+        self._lane(lambda: self._serve_transition(query))
 
     def _serve_transition(self, query: zenoh.Query) -> None:
         with query:
@@ -164,6 +162,8 @@ class ZenohPresence:
                 transition = request.get("transition")
                 if not isinstance(transition, str):
                     raise CodecError("a transition request is {'transition': '<name>'}")
+                # The caller's timeout travels in the request map: a transition whose caller
+                # gave up while it waited in the lane is not run.
                 ok = serve_with_caller_deadline(lambda _: self._on_transition(transition), request,
                                                 f"transition {transition!r} of {self.name!r}")
                 _reply(query, self._transition_key, {"ok": bool(ok)}, as_json)
@@ -176,7 +176,6 @@ class ZenohPresence:
             if self._closed:
                 return
             self._closed = True
-        self._transport._forget(self)
         for entity in reversed(self._entities):
             undeclare(entity)
 

@@ -181,10 +181,10 @@ def test_qos_maps_to_zenoh_reliability_congestion_and_priority() -> None:
     with ZenohTransport(listen=[f"tcp/127.0.0.1:{port}"], priorities={"cmd_vel": "real_time"}) as t:
         reliable = t.create_publisher(Topic("cmd_vel", "Twist"))
         lossy = t.create_publisher(Topic("camera", "Image", qos_profile=QoSConfig(reliability="best_effort")))
-        assert reliable._pub.congestion_control == zenoh.CongestionControl.BLOCK
-        assert reliable._pub.priority == zenoh.Priority.REAL_TIME
-        assert lossy._pub.congestion_control == zenoh.CongestionControl.DROP
-        assert lossy._pub.priority == zenoh.Priority.DATA
+        assert reliable._sender._pub.congestion_control == zenoh.CongestionControl.BLOCK
+        assert reliable._sender._pub.priority == zenoh.Priority.REAL_TIME
+        assert lossy._sender._pub.congestion_control == zenoh.CongestionControl.DROP
+        assert lossy._sender._pub.priority == zenoh.Priority.DATA
         got: list[Any] = []
         sub = t.create_subscription(lossy.topic, got.append)
         lossy.publish(np.zeros((2, 2, 3), np.uint8))

@@ -39,13 +39,13 @@ from ..errors import (
     WiringError,
 )
 from ..events import Event
-from ..messages import ComponentStatusMsg
 from ..status import TRANSITIONS, HealthStatus, LifecycleState
-from ..supported_types import ComponentStatus, SupportedType
-from ..topics import FixedInput, QoSConfig, Topic, validate_topic_name
-from .run_type import ComponentRunType
+from ..supported_types import SupportedType
+from ..topics import FixedInput, Topic, validate_topic_name
+from ..transport.core import status_topic
 from ..transport.delivery import SubscriptionStatistics
 from ..transport.requests import check_timeout, request_deadline
+from .run_type import ComponentRunType
 from .worker import MAX_TIMER_RATE_HZ, PeriodicTimer, StepWorker, WorkerStatistics
 
 if TYPE_CHECKING:
@@ -160,8 +160,7 @@ class Component:
             self.trig_callbacks[t.name] = self.callbacks.pop(t.name)
         self.publishers_dict: dict[str, ComponentPublisher] = {t.name: ComponentPublisher(t, self)
                                                                for t in self.outputs}
-        self.status_topic = Topic(f"{self.component_name}/status", ComponentStatus,
-                                  qos_profile=QoSConfig(depth=5, durability="transient_local"))
+        self.status_topic = status_topic(self.component_name)
 
         self.events_actions: dict[Event, list[Action]] = {}
         self._fallbacks: dict[str, Fallback] = {}
@@ -176,7 +175,6 @@ class Component:
         self._presence: ComponentPresence | None = None
         self._services: list[ServiceServer] = []
         self._subscriptions: list[Subscription] = []
-        self._status_publisher: Publisher | None = None
         self._timers: list[PeriodicTimer] = []
         self._status_timer: PeriodicTimer | None = None
         self._worker: StepWorker | None = None
@@ -467,7 +465,10 @@ class Component:
             if isinstance(t, FixedInput):
                 continue
             cb = self.callbacks.get(t.name) or self.trig_callbacks[t.name]
-            self._subscriptions.append(transport.create_subscription(t, cb._receive, owner=self.component_name))
+            # Inline: the middleware's thread stores the value and enqueues the step on this
+            # component's worker, whose bounded queue is then the only queue of the hop.
+            self._subscriptions.append(transport.create_subscription(t, cb._receive, owner=self.component_name,
+                                                                     inline=True))
         if self.run_type == ComponentRunType.TIMED:
             assert isinstance(self.trigger, int | float)
             self._timers.append(PeriodicTimer(float(self.trigger), self._submit_timed_step,
@@ -518,9 +519,6 @@ class Component:
         for srv in self._services:
             srv.close()
         self._services.clear()
-        if self._status_publisher is not None:
-            self._status_publisher.close()
-            self._status_publisher = None
         if self._presence is not None:
             self._presence.close()
             self._presence = None
@@ -550,8 +548,9 @@ class Component:
         self._transport = transport
         self._worker = StepWorker(self.component_name, self.config.execution_queue_depth,
                                   self.config.queue_full_policy)
-        self._presence = transport.declare_component(self.component_name, on_transition=self._external_transition)
-        self._status_publisher = transport.create_publisher(self.status_topic, owner=self.component_name)
+        # The presence publishes the status topic too: one path for the component's state.
+        self._presence = transport.declare_component(self.component_name, on_transition=self._external_transition,
+                                                     pending=lambda: self.worker_statistics().pending)
         prefix = self.component_name
         self._services.append(transport.create_service(f"{prefix}/execute_method", self._serve_execute_method,
                                                        owner=self.component_name))
@@ -772,16 +771,13 @@ class Component:
             self._report_status()
 
     def _report_status(self) -> None:
-        msg = ComponentStatusMsg(component=self.component_name, lifecycle_state=self._state.value,
-                                 health=self._health.name, message=self._health_message)
-        if self._presence is not None:
-            self._presence.update(self._state, self._health, self._health_message)
-        pub = self._status_publisher
-        if pub is not None:
-            try:
-                pub.publish(msg)
-            except TransportError as exc:
-                self._logger.debug("status not published: %s", exc)
+        presence = self._presence
+        if presence is None:
+            return
+        try:
+            presence.update(self._state, self._health, self._health_message)
+        except TransportError as exc:
+            self._logger.debug("status not published: %s", exc)
 
     def __repr__(self) -> str:
         return f"<{type(self).__name__} {self.component_name!r} {self._state.value}>"

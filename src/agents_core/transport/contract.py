@@ -1,7 +1,9 @@
-"""The transport contract: what a middleware adapter must provide, and nothing more.
+"""The transport contract: what every transport offers its users (components, recipes, tests).
 
-Triggers, scheduling, events, fallbacks, validation and retries live once in the core; an
-adapter only moves values. It implements :class:`Transport`:
+Triggers, scheduling, events, fallbacks, validation and retries live once in the core. A
+middleware adapter implements only the small driver contract in
+:mod:`agents_core.transport.driver`; :class:`~agents_core.transport.core.DriverTransport` turns
+any driver into a :class:`Transport`, which promises:
 
 1. publishers for a :class:`~agents_core.topics.Topic` (values validated with the topic's type,
    then encoded with the adapter's conversion for that type);
@@ -122,7 +124,7 @@ class ComponentPresence(Protocol):
     name: str
 
     def update(self, state: LifecycleState, health: HealthStatus, message: str = "") -> None:
-        """Publish the component's current lifecycle state and health."""
+        """Show the component's current lifecycle state and health, and publish it on ``<name>/status``."""
         ...
 
     def close(self) -> None:
@@ -143,9 +145,14 @@ class Transport(Protocol):
         ...
 
     def create_subscription(
-        self, topic: Topic, callback: SubscriptionCallback, *, owner: str | None = None
+        self, topic: Topic, callback: SubscriptionCallback, *, owner: str | None = None, inline: bool = False
     ) -> Subscription:
-        """Call ``callback(value)`` for each value received on ``topic``, off the publisher's thread."""
+        """Call ``callback(value)`` for each value received on ``topic``.
+
+        By default off the publisher's and the middleware's threads, on a bounded delivery
+        thread; ``inline=True`` calls it on the middleware's thread, for callbacks that return
+        at once (the core's component inputs, which only enqueue a step).
+        """
         ...
 
     def create_service(self, name: str, handler: ServiceHandler, *, owner: str | None = None) -> ServiceServer:
@@ -167,14 +174,20 @@ class Transport(Protocol):
 
         ``timeout`` must be a finite number of seconds > 0 (else ConfigError); the handler of a
         request still queued when the caller's timeout expires is never run (see
-        :mod:`agents_core.transport.requests`). Raises :class:`~agents_core.errors.RequestTimeoutError` after ``timeout`` seconds,
+        :mod:`agents_core.transport.requests`). Raises
+        :class:`~agents_core.errors.RequestTimeoutError` after ``timeout`` seconds,
         :class:`~agents_core.errors.ServiceUnavailableError` when nobody serves ``name``, and
         :class:`~agents_core.errors.RemoteError` with the handler's message when it raised.
         """
         ...
 
-    def declare_component(self, name: str, *, on_transition: TransitionHandler) -> ComponentPresence:
-        """Make the component ``name`` visible; ``on_transition`` runs transitions asked from outside."""
+    def declare_component(self, name: str, *, on_transition: TransitionHandler,
+                          pending: Callable[[], int] | None = None) -> ComponentPresence:
+        """Make the component ``name`` visible; ``on_transition`` runs transitions asked from outside.
+
+        Its status topic ``<name>/status`` is the transport's: :meth:`ComponentPresence.update`
+        publishes there. ``pending`` reports the component's queued and running work.
+        """
         ...
 
     def get_component_state(self, name: str, *, timeout: float = 2.0) -> ComponentStatusMsg | None:

@@ -1,9 +1,19 @@
-"""Bounded, drop-oldest delivery of received values to a callback on a thread of its own.
+"""The two ways a received value reaches its callback, and the counters of every subscription.
 
-Every transport hands received values to a :class:`BoundedDelivery`, so that all transports share
-one queue policy: a subscription keeps at most ``topic.qos_profile.depth`` values waiting; when
-full, the oldest waiting value is dropped and counted; the callback runs on the delivery's own
-thread, so neither a slow callback nor a raising one can stall the middleware's threads.
+A transport driver hands each received value to a *sink* (see
+:mod:`agents_core.transport.driver`); the core picks the sink when the subscription is opened:
+
+- :class:`BoundedDelivery`, for user callbacks (``create_subscription``): a queue of
+  ``topic.qos_profile.depth`` values drained by a thread of its own. When full, the oldest
+  waiting value is dropped and counted; neither a slow callback nor a raising one can stall the
+  middleware's threads.
+- :class:`InlineDelivery`, for component inputs: the callback runs at once on the middleware's
+  thread. The core's callback only stores the value and enqueues a step on the component's
+  worker (never blocking), so the worker's bounded step queue is the only queue of the hop,
+  and a raising callback is counted, never propagated.
+
+Both count every value: each one offered ends delivered, dropped, callback_errors or discarded
+(or is still queued), and payloads that do not decode are counted in decode_errors.
 """
 
 from __future__ import annotations
@@ -18,7 +28,7 @@ from attrs import define
 
 from ..topics import Topic
 
-__all__ = ["BoundedDelivery", "SubscriptionStatistics", "TopicCounters", "TopicStatistics"]
+__all__ = ["BoundedDelivery", "InlineDelivery", "SubscriptionStatistics", "TopicCounters", "TopicStatistics"]
 
 logger = logging.getLogger(__name__)
 
@@ -178,3 +188,61 @@ class BoundedDelivery:
             self._on_count(discarded=discarded)
         if threading.current_thread() is not self._thread:
             self._thread.join(timeout=5.0)
+
+
+class InlineDelivery:
+    """Calls ``callback(value)`` on the thread that offers the value (see the module docstring).
+
+    Same interface and counters as :class:`BoundedDelivery`, without a queue or a thread: the
+    callback must return at once.
+    """
+
+    def __init__(self, topic: Topic, callback: Callable[[Any], None],
+                 on_count: Callable[..., None] | None = None) -> None:
+        self.topic = topic
+        self._callback = callback
+        self._on_count = on_count
+        self._lock = threading.Lock()
+        self._closed = False
+        self._stats = SubscriptionStatistics()
+
+    def offer(self, value: Any) -> None:
+        """Run the callback with ``value`` now; count the outcome; never raises."""
+        if self._closed:
+            return
+        try:
+            self._callback(value)
+        except Exception:
+            with self._lock:
+                self._stats.callback_errors += 1
+                first = self._stats.callback_errors == 1
+            (logger.exception if first else logger.debug)(
+                "callback on topic %r raised; the subscription keeps running", self.topic.name)
+            if self._on_count is not None:
+                self._on_count(callback_errors=1)
+            return
+        with self._lock:
+            self._stats.delivered += 1
+        if self._on_count is not None:
+            self._on_count(delivered=1)
+
+    def reject(self, reason: object) -> None:
+        """Count a payload that does not decode (logged once, as :meth:`BoundedDelivery.reject`)."""
+        with self._lock:
+            self._stats.decode_errors += 1
+            first = self._stats.decode_errors == 1
+        if self._on_count is not None:
+            self._on_count(decode_errors=1)
+        log = logger.warning if first else logger.debug
+        log("topic %r: skipped a payload that does not decode as %s: %s%s", self.topic.name, self.topic.type_name,
+            reason, " (further ones are counted in statistics().decode_errors)" if first else "")
+
+    def statistics(self) -> SubscriptionStatistics:
+        """A snapshot of the counters (``queued`` is always 0)."""
+        with self._lock:
+            s = self._stats
+            return SubscriptionStatistics(s.delivered, s.dropped, s.callback_errors, 0, s.decode_errors, s.discarded)
+
+    def close(self) -> None:
+        """Stop calling back; idempotent."""
+        self._closed = True

@@ -1,0 +1,414 @@
+"""``DriverTransport``: the public transport surface on top of any driver, with the bookkeeping once.
+
+Every transport (memory, Zenoh, ROS 2, a third party's) is a :class:`DriverTransport` around a
+:class:`~agents_core.transport.driver.TransportDriver`. What lives here and nowhere else:
+
+- the closed state (every call after :meth:`~DriverTransport.close` raises
+  :class:`~agents_core.errors.TransportClosedError`), names checked, duplicate services and
+  components refused, and **one type per topic** within a transport instance;
+- values validated against the topic's type before a driver sends them;
+- per-topic statistics (:class:`~agents_core.transport.delivery.TopicStatistics`);
+- how a received value reaches its callback: a bounded delivery thread for user callbacks, or
+  ``inline=True`` for component inputs, where the value goes straight to the component's worker
+  from the middleware's thread (one hand-off per hop);
+- the request lanes (one per component) and the caller's deadline
+  (:mod:`agents_core.transport.requests`), for services and for transitions asked from outside;
+- each component's status topic ``<name>/status``: :meth:`ComponentPresence.update` is the one
+  path by which a component's state reaches the driver and the topic.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections.abc import Callable
+from typing import Any
+
+from ..errors import TransportClosedError, WiringError
+from ..messages import ComponentStatusMsg
+from ..status import HealthStatus, LifecycleState
+from ..supported_types import ComponentStatus
+from ..topics import QoSConfig, Topic, validate_topic_name
+from .contract import ServiceHandler, SubscriptionCallback, TransitionHandler
+from .delivery import BoundedDelivery, InlineDelivery, SubscriptionStatistics, TopicCounters, TopicStatistics
+from .driver import Closable, DriverPresence, DriverPublisher, Lane, TransportDriver
+from .requests import RequestLanes, check_timeout, serve_with_caller_deadline, with_caller_timeout
+
+__all__ = [
+    "CorePresence",
+    "CorePublisher",
+    "CoreService",
+    "CoreSubscription",
+    "DriverTransport",
+    "status_topic",
+]
+
+logger = logging.getLogger(__name__)
+
+#: QoS of every ``<component>/status`` topic: a late observer gets the current status at once.
+STATUS_QOS = QoSConfig(depth=5, durability="transient_local")
+
+
+def status_topic(component: str) -> Topic:
+    """The topic on which component ``component`` publishes its lifecycle state and health."""
+    return Topic(f"{component}/status", ComponentStatus, qos_profile=STATUS_QOS)
+
+
+class CorePublisher:
+    """Validates values against the topic's type, counts them, and has the driver send them."""
+
+    def __init__(self, transport: DriverTransport, topic: Topic, sender: DriverPublisher) -> None:
+        self.topic = topic
+        self._transport = transport
+        self._sender = sender
+        self._closed = False
+        self._validate = topic.msg_type.validate
+        self._count = transport._counters.count
+
+    def publish(self, value: Any) -> None:
+        """Validate ``value`` and send it; TypeValidationError / TransportClosedError as the contract says."""
+        if self._closed or self._transport._closed:
+            raise TransportClosedError(f"publisher on {self.topic.name!r} is closed")
+        self._sender.send(self._validate(value))
+        self._count(self.topic.name, published=1)
+
+    def close(self) -> None:
+        """Stop publishing; idempotent."""
+        if self._closed:
+            return
+        self._closed = True
+        self._transport._forget(self)
+        _close_quietly(self._sender, f"publisher on {self.topic.name!r}")
+
+
+class CoreSubscription:
+    """A driver's subscriber feeding a delivery (bounded thread or inline)."""
+
+    def __init__(self, transport: DriverTransport, topic: Topic, delivery: BoundedDelivery | InlineDelivery) -> None:
+        self.topic = topic
+        self._transport = transport
+        self._delivery = delivery
+        self._handle: Closable | None = None
+        self._closed = False
+
+    def statistics(self) -> SubscriptionStatistics:
+        """Delivered / dropped / callback-error / decode-error / discarded counts."""
+        return self._delivery.statistics()
+
+    def close(self) -> None:
+        """Stop receiving, then stop delivering (waiting values are discarded, counted); idempotent."""
+        if self._closed:
+            return
+        self._closed = True
+        self._transport._forget(self)
+        if self._handle is not None:
+            _close_quietly(self._handle, f"subscription on {self.topic.name!r}")
+        self._delivery.close()
+
+
+class CoreService:
+    """A service name served by the driver, its requests run on the owner's lane."""
+
+    def __init__(self, transport: DriverTransport, name: str) -> None:
+        self.name = name
+        self._transport = transport
+        self._handle: Closable | None = None
+        self._closed = False
+
+    def close(self) -> None:
+        """Stop serving; idempotent."""
+        if self._closed:
+            return
+        self._closed = True
+        self._transport._forget(self)
+        if self._handle is not None:
+            _close_quietly(self._handle, f"service {self.name!r}")
+
+
+class CorePresence:
+    """A declared component: the driver's presence plus the component's status topic."""
+
+    def __init__(self, transport: DriverTransport, name: str, pending: Callable[[], int] | None) -> None:
+        self.name = name
+        self._transport = transport
+        self.pending = pending
+        self._driver_presence: DriverPresence | None = None
+        self._status: CorePublisher | None = None
+        self._lock = threading.Lock()
+        self._closed = False
+
+    def update(self, state: LifecycleState, health: HealthStatus, message: str = "") -> None:
+        """Show the component's state to observers and publish it on ``<name>/status``."""
+        with self._lock:
+            if self._closed:
+                return
+            presence, status = self._driver_presence, self._status
+        if presence is not None:
+            presence.update(state, health, message)
+        if status is not None:
+            msg = ComponentStatusMsg(component=self.name, lifecycle_state=state.value, health=health.name,
+                                     message=message)
+            try:
+                status.publish(msg)
+            except TransportClosedError as exc:
+                logger.debug("status of %r not published: %s", self.name, exc)
+
+    def close(self) -> None:
+        """Withdraw the component (its status topic first); idempotent."""
+        with self._lock:
+            if self._closed:
+                return
+            self._closed = True
+            presence, status = self._driver_presence, self._status
+        self._transport._forget(self)
+        if status is not None:
+            status.close()
+        if presence is not None:
+            _close_quietly(presence, f"component {self.name!r}")
+
+
+class _SharedSender:
+    """Another user of a driver publisher that stays open when this user closes."""
+
+    def __init__(self, sender: DriverPublisher) -> None:
+        self._sender = sender
+
+    def send(self, value: Any) -> None:
+        self._sender.send(value)
+
+    def close(self) -> None:
+        """The owner of the shared publisher closes it."""
+
+
+def _close_quietly(handle: Closable, what: str) -> None:
+    try:
+        handle.close()
+    except Exception as exc:  # closing twice, or after the middleware went away
+        logger.debug("closing %s: %s", what, exc)
+
+
+class DriverTransport:
+    """The :class:`~agents_core.transport.contract.Transport` surface on a driver (module docstring).
+
+    :param driver: the middleware driver.
+    :param request_workers: threads for requests to services that belong to no component (each
+        component's requests have a lane of their own).
+    """
+
+    def __init__(self, driver: TransportDriver, *, request_workers: int = 4) -> None:
+        self.name = driver.name
+        self.capabilities = driver.capabilities
+        self._driver = driver
+        self._lock = threading.RLock()
+        self._closed = False
+        self._types: dict[str, str] = {}
+        self._counters = TopicCounters()
+        self._lanes = RequestLanes(f"{driver.name}-request", shared_workers=request_workers)
+        self._open: dict[int, CorePublisher | CoreSubscription | CoreService | CorePresence] = {}
+        self._services: dict[str, CoreService] = {}
+        self._components: dict[str, CorePresence] = {}
+
+    # -- bookkeeping --------------------------------------------------------------------------
+
+    @property
+    def closed(self) -> bool:
+        """Whether :meth:`close` ran."""
+        return self._closed
+
+    def _check_open(self, what: str) -> None:
+        if self._closed:
+            raise TransportClosedError(f"{what}: the {self.name} transport is closed")
+
+    def _check_type(self, topic: Topic) -> None:
+        known = self._types.setdefault(topic.name, topic.type_name)
+        if known != topic.type_name:
+            raise WiringError(f"topic {topic.name!r} already carries {known}; cannot also use it for {topic.type_name}")
+
+    def _forget(self, entity: CorePublisher | CoreSubscription | CoreService | CorePresence) -> None:
+        with self._lock:
+            self._open.pop(id(entity), None)
+            if isinstance(entity, CoreService) and self._services.get(entity.name) is entity:
+                del self._services[entity.name]
+            if isinstance(entity, CorePresence) and self._components.get(entity.name) is entity:
+                del self._components[entity.name]
+
+    def _lane(self, owner: str | None) -> Lane:
+        def submit(job: Any) -> None:
+            try:
+                self._lanes.submit(owner, job)
+            except RuntimeError:  # closing: the request is dropped and its caller times out
+                logger.debug("a request for %r arrived while closing; dropped", owner)
+
+        return submit
+
+    # -- pub / sub ----------------------------------------------------------------------------
+
+    def create_publisher(self, topic: Topic, *, owner: str | None = None) -> CorePublisher:
+        """A publisher for ``topic``. ``owner`` names a declared component it belongs to, if any."""
+        with self._lock:
+            self._check_open(f"create a publisher on {topic.name!r}")
+            self._check_type(topic)
+            presence = self._components.get(owner) if owner is not None else None
+            if presence is not None and presence._status is not None and topic.name == presence._status.topic.name:
+                # A component publishing its own status shares the presence's writer: observers
+                # see one writer and one stream on <name>/status, on every middleware.
+                sender: DriverPublisher = _SharedSender(presence._status._sender)
+            else:
+                sender = self._driver.open_publisher(topic, owner)
+            publisher = CorePublisher(self, topic, sender)
+            self._counters.track(topic.name)
+            self._open[id(publisher)] = publisher
+        return publisher
+
+    def create_subscription(self, topic: Topic, callback: SubscriptionCallback, *, owner: str | None = None,
+                            inline: bool = False) -> CoreSubscription:
+        """Call ``callback(value)`` for each value received on ``topic``.
+
+        By default on a delivery thread of the subscription's own, behind a queue of
+        ``topic.qos_profile.depth`` values (drop oldest, counted). With ``inline=True`` the
+        callback runs on the middleware's thread and must return at once (component inputs).
+        """
+        if not callable(callback):
+            raise WiringError(f"subscription on {topic.name!r}: callback must be callable, got {callback!r}")
+        counters = self._counters
+
+        def on_count(**counts: int) -> None:
+            counters.count(topic.name, **counts)
+
+        with self._lock:
+            self._check_open(f"subscribe to {topic.name!r}")
+            self._check_type(topic)
+            delivery = (InlineDelivery if inline else BoundedDelivery)(topic, callback, on_count)
+            subscription = CoreSubscription(self, topic, delivery)
+            try:
+                subscription._handle = self._driver.open_subscriber(topic, delivery, owner)
+            except BaseException:
+                delivery.close()
+                raise
+            counters.track(topic.name)
+            self._open[id(subscription)] = subscription
+        return subscription
+
+    def statistics(self, topic_name: str | None = None) -> dict[str, TopicStatistics]:
+        """Per-topic counters (see :class:`~agents_core.transport.delivery.TopicStatistics`), as a snapshot."""
+        return self._counters.snapshot(topic_name)
+
+    def _busy(self) -> bool:
+        with self._lock:
+            entities = list(self._open.values())
+        for entity in entities:
+            if isinstance(entity, CoreSubscription) and entity.statistics().queued:
+                return True
+            if isinstance(entity, CorePresence) and entity.pending is not None and entity.pending():
+                return True
+        return False
+
+    def wait_for_idle(self, timeout: float = 5.0) -> bool:
+        """Block until no value waits in a subscription queue and no local component has work pending.
+
+        For tests: True once that held twice in a row (a step may publish as it ends), False if
+        ``timeout`` passed first. Values still on the wire of a networked middleware are not seen.
+        """
+        deadline = time.monotonic() + timeout
+        quiet = 0
+        while time.monotonic() < deadline:
+            quiet = 0 if self._busy() else quiet + 1
+            if quiet >= 2:
+                return True
+            time.sleep(0.005)
+        return False
+
+    # -- request / reply ----------------------------------------------------------------------
+
+    def create_service(self, name: str, handler: ServiceHandler, *, owner: str | None = None) -> CoreService:
+        """Serve requests on ``name`` with ``handler``, on ``owner``'s request lane."""
+        validate_topic_name(name, "service")
+        what = f"request to {name!r}"
+
+        def serve(request: dict[str, Any]) -> dict[str, Any]:
+            return serve_with_caller_deadline(handler, request, what)
+
+        with self._lock:
+            self._check_open(f"serve {name!r}")
+            if name in self._services:
+                raise WiringError(f"service {name!r} is already served on this transport")
+            service = CoreService(self, name)
+            service._handle = self._driver.serve(name, serve, owner, self._lane(owner))
+            self._services[name] = service
+            self._open[id(service)] = service
+        return service
+
+    def request(self, name: str, payload: dict[str, Any], *, timeout: float = 5.0) -> dict[str, Any]:
+        """Send ``payload`` to the service ``name`` and wait for its reply (errors: see the contract)."""
+        timeout = check_timeout(timeout, f"request to {name!r}")
+        self._check_open(f"request {name!r}")
+        reply = self._driver.call(name, with_caller_timeout(payload, timeout), timeout)
+        self._check_open(f"request {name!r}")
+        return reply
+
+    # -- presence -----------------------------------------------------------------------------
+
+    def declare_component(self, name: str, *, on_transition: TransitionHandler,
+                          pending: Callable[[], int] | None = None) -> CorePresence:
+        """Make the component ``name`` visible, with its status topic; outside transitions run on its lane.
+
+        ``pending`` tells how much work the component has queued or running (for ``wait_for_idle``).
+        """
+        validate_topic_name(name, "component")
+        with self._lock:
+            self._check_open(f"declare component {name!r}")
+            if name in self._components:
+                raise WiringError(f"a component named {name!r} is already declared on this transport")
+            presence = CorePresence(self, name, pending)
+            presence._driver_presence = self._driver.declare_presence(name, on_transition, self._lane(name))
+            self._components[name] = presence
+            self._open[id(presence)] = presence
+        try:
+            # The status topic is opened once the driver knows the component (owner=name puts it
+            # on the component's node where the middleware has one).
+            presence._status = self.create_publisher(status_topic(name), owner=name)
+        except BaseException:
+            presence.close()
+            raise
+        return presence
+
+    def get_component_state(self, name: str, *, timeout: float = 2.0) -> ComponentStatusMsg | None:
+        """Read a component's lifecycle state and health as an observer would; None if not present."""
+        timeout = check_timeout(timeout, f"state of {name!r}")
+        self._check_open(f"read the state of {name!r}")
+        state = self._driver.observe(name, None, timeout)
+        return state if isinstance(state, ComponentStatusMsg) else None
+
+    def request_transition(self, name: str, transition: str, *, timeout: float = 5.0) -> bool:
+        """Ask the component ``name`` to run a lifecycle transition, as an outside tool would."""
+        timeout = check_timeout(timeout, f"transition of {name!r}")
+        self._check_open(f"request a transition of {name!r}")
+        return bool(self._driver.observe(name, transition, timeout))
+
+    # -- teardown -----------------------------------------------------------------------------
+
+    def close(self) -> None:
+        """Withdraw every component, then subscriptions, services, publishers; then the driver. Idempotent."""
+        with self._lock:
+            if self._closed:
+                return
+            self._closed = True
+            # Components first, so observers see them go before their topics fall silent.
+            entities = sorted(self._open.values(), key=lambda e: not isinstance(e, CorePresence))
+        for entity in entities:
+            try:
+                entity.close()
+            except Exception as exc:
+                logger.debug("closing %r failed: %s", entity, exc)
+        self._lanes.shutdown()
+        self._driver.close()
+
+    def __enter__(self) -> DriverTransport:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def __repr__(self) -> str:
+        return f"<{type(self).__name__} driver={self._driver!r} closed={self._closed}>"
