@@ -373,3 +373,29 @@ def test_input_statistics_are_public() -> None:
             pub.publish(str(i))
         assert wait_for(lambda: gate.input_statistics()["gate_in"].delivered == 5)
         assert gate.input_statistics()["gate_in"].dropped == 0
+
+
+# -- capabilities decide, not names ----------------------------------------------------------------
+
+
+def test_multiprocessing_is_refused_on_a_transport_that_lives_in_one_process() -> None:
+    relay = Relay(inputs=[Topic("words", "String")], trigger=Topic("words", "String"), component_name="relay")
+    launcher = Launcher(transport="memory")
+    launcher.add_pkg(components=[relay], multiprocessing=True)
+    with pytest.raises(ConfigError, match=r"multiprocessing=True needs a transport that reaches across processes "
+                                          r"\(zenoh or ros2\); 'memory' lives in one process"):
+        launcher.start()
+
+
+def test_an_action_server_needs_a_transport_with_actions() -> None:
+    class Server(Component):
+        @classmethod
+        def _server_capable(cls) -> bool:
+            return True
+
+    server = Server(trigger=None, run_type="ActionServer", component_name="mover")
+    launcher = Launcher(transport="memory")
+    launcher.add_pkg(components=[server])
+    with pytest.raises(WiringError, match=r"'mover' runs as an action server, but the 'memory' transport has no "
+                                          r"long-running goals"):
+        launcher.start()

@@ -69,6 +69,7 @@ class Launcher:
         self._stop_requested = threading.Event()
         self._hurry = threading.Event()
         self._process_fail_retries: int | None = None
+        self._multiprocessing = False
 
     # -- recipe -------------------------------------------------------------------------------
 
@@ -82,14 +83,12 @@ class Launcher:
     ) -> None:
         """Add components (and event -> action wiring) to launch.
 
-        ``multiprocessing=True`` (one process per component) needs a cross-process transport;
-        it is refused with the memory transport, which lives in one process.
+        ``multiprocessing=True`` (one process per component) needs a transport whose capabilities
+        say ``cross_process``; the memory transport, which lives in one process, is refused at start.
         """
         if self._started:
             raise ConfigError("add_pkg() must be called before the launcher starts")
-        if multiprocessing:
-            raise ConfigError("multiprocessing=True is not available yet: components run in this process "
-                              "(and the memory transport is in-process only)")
+        self._multiprocessing = self._multiprocessing or bool(multiprocessing)
         for c in components:
             if not isinstance(c, Component):
                 raise WiringError(f"add_pkg() takes components, got {type(c).__name__}")
@@ -126,6 +125,16 @@ class Launcher:
             raise ConfigError("nothing to launch: call add_pkg(components=[...]) first")
         self._transport = resolve_transport(self._transport_spec, **self._transport_options)
         self._owns_transport = isinstance(self._transport_spec, str) or self._transport_spec is None
+        if self._multiprocessing:
+            transport = self._transport
+            if self._owns_transport:
+                transport.close()
+            self._transport = None
+            if not transport.capabilities.cross_process:
+                raise ConfigError(f"multiprocessing=True needs a transport that reaches across processes "
+                                  f"(zenoh or ros2); {transport.name!r} lives in one process")
+            raise ConfigError(f"multiprocessing=True is not available yet on {transport.name!r}: run the components "
+                              "in this process (multiprocessing=False)")
         self._started = True
         try:
             self._action_worker = StepWorker("launcher-actions", 1, "drop_newest")

@@ -222,10 +222,9 @@ class Ros2Driver:
                  first_publish_wait: float = 0.5, node_name: str | None = None) -> None:
         if executor not in ("single", "events"):
             raise ConfigError(f"executor must be 'single' or 'events', got {executor!r}")
-        uses_shm = shared_memory_wanted(shared_memory) and enable_shared_memory_profile()
-        self.capabilities = TransportCapabilities(cross_process=True, services=True, actions=False,
-                                                  shared_memory=uses_shm, zero_copy=False,
-                                                  lifecycle_services=True)
+        #: Whether large messages between processes on this host go through shared memory.
+        self.shared_memory = shared_memory_wanted(shared_memory) and enable_shared_memory_profile()
+        self.capabilities = TransportCapabilities(cross_process=True, actions=False)
         self._reader_depth_floor = reader_depth_floor
         self._first_publish_wait = first_publish_wait
         self._lock = threading.RLock()

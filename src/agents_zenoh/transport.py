@@ -74,8 +74,7 @@ class ZenohDriver:
     """The Zenoh primitives under :class:`ZenohTransport` (see the module docstring)."""
 
     name = "zenoh"
-    capabilities = TransportCapabilities(cross_process=True, services=True, actions=False,
-                                         shared_memory=True, zero_copy=False, lifecycle_services=True)
+    capabilities = TransportCapabilities(cross_process=True, actions=False)
 
     def __init__(self, config: ZenohConfig) -> None:
         self.config = config

@@ -396,7 +396,7 @@ def test_resolved_by_name_with_options() -> None:
     transport = resolve_transport("zenoh", listen=[f"tcp/127.0.0.1:{port}"], namespace="ns")
     try:
         assert isinstance(transport, ZenohTransport)
-        assert transport.capabilities.cross_process and transport.capabilities.shared_memory
+        assert transport.capabilities.cross_process
         assert transport.name == "zenoh"
     finally:
         transport.close()

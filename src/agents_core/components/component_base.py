@@ -545,6 +545,9 @@ class Component:
         """Attach to ``transport``: declare presence, services and status publisher, start the worker."""
         if self._transport is not None:
             raise ComponentError(f"component {self.component_name!r} is already launched")
+        if self.run_type == ComponentRunType.ACTION_SERVER and not transport.capabilities.actions:
+            raise WiringError(f"component {self.component_name!r} runs as an action server, but the "
+                              f"{transport.name!r} transport has no long-running goals (actions)")
         self._transport = transport
         self._worker = StepWorker(self.component_name, self.config.execution_queue_depth,
                                   self.config.queue_full_policy)

@@ -56,20 +56,12 @@ TransitionHandler = Callable[[str], bool]
 
 @define(frozen=True, kw_only=True)
 class TransportCapabilities:
-    """What a transport offers, as data the core and tests can branch on."""
+    """What a transport offers beyond the contract, as data the core decides on (never its name)."""
 
-    #: Components and clients may live in different processes.
+    #: Components may live in different processes (read by the Launcher for ``multiprocessing``).
     cross_process: bool
-    #: Request/reply is supported (component actions, parameter updates).
-    services: bool = True
-    #: Long-running goals with feedback (ROS 2 actions).
+    #: Long-running goals with feedback (read by components that run as action servers).
     actions: bool = False
-    #: Large payloads go through shared memory between processes on one host.
-    shared_memory: bool = False
-    #: Subscribers receive the publisher's very object (no copy, no encoding).
-    zero_copy: bool = False
-    #: Outside tools can read and drive component lifecycles (lifecycle services, queryables).
-    lifecycle_services: bool = True
 
 
 @runtime_checkable

@@ -120,8 +120,7 @@ class MemoryDriver:
     """The memory transport's driver: subscribers, services and components in dictionaries."""
 
     name = "memory"
-    capabilities = TransportCapabilities(cross_process=False, services=True, actions=False,
-                                         shared_memory=False, zero_copy=True, lifecycle_services=True)
+    capabilities = TransportCapabilities(cross_process=False, actions=False)
 
     def __init__(self) -> None:
         self._lock = threading.Lock()
