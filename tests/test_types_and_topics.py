@@ -7,7 +7,16 @@ import pytest
 
 from agents_core import get_type, registered_types
 from agents_core.errors import ConfigError, TopicNameError, TypeValidationError, UnknownTypeError
-from agents_core.messages import DetectionsMsg, Header, ImageMsg, StreamingStringMsg, TrackingsMsg, values_equal
+from agents_core.messages import (
+    AudioMsg,
+    DetectionsMsg,
+    Header,
+    ImageMsg,
+    OccupancyGridMsg,
+    StreamingStringMsg,
+    TrackingsMsg,
+    values_equal,
+)
 from agents_core.ros import (
     Audio,
     Bool,
@@ -167,3 +176,39 @@ def test_fixed_input_validates_its_value() -> None:
 def test_topics_are_hashable_and_compare_by_value() -> None:
     assert Topic("a", "String") == Topic("a", String)
     assert len({Topic("a", "String"), Topic("a", String)}) == 1
+
+
+# -- arrays whose shape claims more than their data holds, absurd dimensions ---------------------
+
+
+def test_an_image_view_that_claims_more_pixels_than_it_holds_is_refused() -> None:
+    one_pixel = np.zeros((1, 1, 3), np.uint8)
+    with pytest.raises(TypeValidationError, match=r"field 'data': shape .* claims more elements than its data holds"):
+        ImageMsg(data=np.broadcast_to(one_pixel, (4096, 4096, 3)))
+    overlapping = np.lib.stride_tricks.as_strided(np.zeros(16, np.uint8), shape=(8, 8, 3), strides=(1, 1, 1))
+    with pytest.raises(TypeValidationError, match="claims more elements"):
+        ImageMsg(data=overlapping)
+    # Views that do own their elements stay accepted, without a copy.
+    pixels = np.zeros((8, 10, 3), np.uint8)
+    for view in (pixels[::2, ::-1], pixels[:, :, ::-1], pixels.transpose(1, 0, 2)):
+        assert ImageMsg(data=view).data.base is not None
+
+
+@pytest.mark.parametrize("shape", [(0, 2**40, 3), (2**21, 0, 3), (0, 2**21)])
+def test_absurd_image_dimensions_are_refused_even_when_empty(shape: tuple[int, ...]) -> None:
+    with pytest.raises(TypeValidationError, match=r"field 'data': .* exceeds MAX_IMAGE_SIDE"):
+        ImageMsg(data=np.zeros(shape, np.uint8), encoding="mono8" if len(shape) == 2 else "rgb8")
+    assert ImageMsg(data=np.zeros((0, 640, 3), np.uint8)).width == 640  # empty but plausible: fine
+
+
+def test_array_fields_refuse_absurd_dimensions_and_fake_lengths() -> None:
+    with pytest.raises(TypeValidationError, match=r"field 'data': shape .* has a dimension above"):
+        OccupancyGridMsg(data=np.zeros((0, 2**33), np.int8))
+    with pytest.raises(TypeValidationError, match=r"field 'data': shape .* claims more elements"):
+        AudioMsg(data=np.broadcast_to(np.zeros(1, np.int16), (10**9,)))
+    with pytest.raises(TypeValidationError, match=r"field 'ranges': shape .* claims more elements"):
+        get_type("LaserScan").value_class(ranges=np.broadcast_to(np.float32(1.0), (10**9,)))
+    with pytest.raises(TypeValidationError, match="field 'channels': expected an int from 1 to 65535"):
+        AudioMsg(data=np.zeros(0, np.int16), channels=2**40)
+    with pytest.raises(TypeValidationError, match="field 'sample_rate'"):
+        AudioMsg(data=np.zeros(4, np.int16), sample_rate=2**33)

@@ -24,6 +24,8 @@ from .errors import TypeValidationError
 
 __all__ = [
     "IMAGE_ENCODINGS",
+    "MAX_ARRAY_DIM",
+    "MAX_IMAGE_SIDE",
     "AudioMsg",
     "ComponentStatusMsg",
     "CompressedImageMsg",
@@ -58,6 +60,12 @@ IMAGE_ENCODINGS: dict[str, tuple[type[np.generic], int]] = {
     "16UC1": (np.uint16, 1),
 }
 
+#: The largest height or width an :class:`ImageMsg` may have (pixels). Far beyond any sensor or
+#: stitched panorama, and small enough that a row of it fits ROS 2's uint32 ``step``.
+MAX_IMAGE_SIDE = 1 << 20
+#: The largest dimension of any array field: ROS 2 sizes are uint32, and no array in one message is longer.
+MAX_ARRAY_DIM = 2**32 - 1
+
 
 def values_equal(a: Any, b: Any) -> bool:
     """Deep equality for message values (numpy arrays compared by dtype, shape and content)."""
@@ -90,16 +98,40 @@ class _Message:
 # -- field converters -------------------------------------------------------------------------
 
 
+def _check_holds(arr: npt.NDArray[Any], name: str) -> None:
+    """Refuse an array whose shape claims more elements than its memory holds, or absurd dimensions.
+
+    A broadcast or overlapping view (zero or too-small strides) of a few bytes can claim terabytes:
+    any code that copies it (a transport, ``np.ascontiguousarray``) would then allocate them all.
+    """
+    if any(d > MAX_ARRAY_DIM for d in arr.shape):
+        raise TypeValidationError(f"field {name!r}: shape {arr.shape} has a dimension above {MAX_ARRAY_DIM}")
+    if arr.flags.c_contiguous or arr.flags.f_contiguous or arr.size == 0:
+        return  # the common case, checked by numpy's flags: each element has memory of its own
+    # Sorted by stride, each dimension must step over everything the smaller ones span.
+    span = arr.itemsize
+    for stride, size in sorted((abs(st), n) for st, n in zip(arr.strides, arr.shape, strict=True) if n > 1):
+        if stride < span:
+            raise TypeValidationError(
+                f"field {name!r}: shape {arr.shape} claims more elements than its data holds (a broadcast "
+                "or overlapping view); pass a copy, e.g. np.ascontiguousarray(...)"
+            )
+        span = stride * size
+
+
 def _to_array(value: Any, dtype: type[np.generic], shape: tuple[int | None, ...], name: str) -> npt.NDArray[Any]:
     """``value`` as a numpy array of ``dtype`` whose shape matches ``shape`` (None = any size)."""
     try:
         arr = np.asarray(value)
+        _check_holds(arr, name)  # before an empty array is reshaped: its claimed dimensions count too
         if arr.size == 0:
             arr = arr.reshape(tuple(0 if d is None else d for d in shape))
         if arr.dtype != dtype:
             if arr.dtype.kind not in "biuf":
                 raise TypeError(f"dtype {arr.dtype} is not numeric")
             arr = arr.astype(dtype)
+    except TypeValidationError:
+        raise
     except (TypeError, ValueError) as exc:
         raise TypeValidationError(f"field {name!r}: cannot make a {dtype.__name__} array: {exc}") from exc
     if arr.ndim != len(shape) or any(d is not None and d != s for d, s in zip(shape, arr.shape, strict=True)):
@@ -276,6 +308,12 @@ def _image_data(value: Any) -> npt.NDArray[Any]:
     array: npt.NDArray[Any] = value[:, :, np.newaxis] if value.ndim == 2 else value
     if array.ndim != 3:
         raise TypeValidationError(f"field 'data': expected an HxWxC array, got shape {array.shape}")
+    height, width = array.shape[:2]
+    if height > MAX_IMAGE_SIDE or width > MAX_IMAGE_SIDE:
+        raise TypeValidationError(
+            f"field 'data': a {height}x{width} image exceeds MAX_IMAGE_SIDE ({MAX_IMAGE_SIDE} pixels a side)"
+        )
+    _check_holds(array, "data")
     return array
 
 
@@ -349,6 +387,7 @@ def _pcm(value: Any) -> npt.NDArray[Any]:
         raise TypeValidationError("field 'data': expected PCM as a numpy int16 or float32 array (or int16 bytes)")
     if value.ndim != 1:
         raise TypeValidationError(f"field 'data': expected interleaved 1-D samples, got shape {value.shape}")
+    _check_holds(value, "data")
     return value
 
 
@@ -362,10 +401,11 @@ class AudioMsg(_Message):
     header: Header = _header_field()
 
     def __attrs_post_init__(self) -> None:
-        for name in ("sample_rate", "channels"):
+        # The bounds are ROS 2's field types (uint32 sample_rate, uint16 channels in agents_interfaces/Audio).
+        for name, most in (("sample_rate", 2**32 - 1), ("channels", 2**16 - 1)):
             value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int) or value <= 0:
-                raise TypeValidationError(f"field {name!r}: expected a positive int, got {value!r}")
+            if isinstance(value, bool) or not isinstance(value, int) or not 0 < value <= most:
+                raise TypeValidationError(f"field {name!r}: expected an int from 1 to {most}, got {value!r}")
         if self.data.size % self.channels:
             raise TypeValidationError(
                 f"field 'data': {self.data.size} samples do not divide into {self.channels} channels"

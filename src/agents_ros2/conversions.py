@@ -27,6 +27,7 @@ import warnings
 from collections.abc import Callable, Sequence
 from typing import Any
 
+import attrs
 import numpy as np
 import numpy.typing as npt
 from attrs import define
@@ -87,6 +88,8 @@ __all__ = [
 _NS_PER_S = 1_000_000_000
 _INT32_MAX = 2**31 - 1
 _NATIVE_BIG_ENDIAN = sys.byteorder == "big"
+# Numpy refuses more than 64 dimensions; the Zenoh codec accepts 32, and so does this side.
+_MAX_NDIM = 32
 
 
 @define(frozen=True)
@@ -169,6 +172,8 @@ def _header_to_ros(header: m.Header, out: RosHeader) -> RosHeader:
 def _header_from_ros(header: RosHeader) -> m.Header:
     if header.stamp.sec < 0:
         raise TypeValidationError(f"header stamp has negative seconds ({header.stamp.sec})")
+    if header.stamp.nanosec >= _NS_PER_S:
+        raise TypeValidationError(f"header stamp has {header.stamp.nanosec} nanoseconds (must be below 1e9)")
     return m.Header(stamp_ns=header.stamp.sec * _NS_PER_S + header.stamp.nanosec, frame_id=header.frame_id)
 
 
@@ -234,11 +239,18 @@ def _multi_array(ros_type: type[Any], typecode: str, dtype: type[np.generic]) ->
 
     def back(msg: Any) -> npt.NDArray[Any]:
         flat = _np(msg.data, dtype)[msg.layout.data_offset:]
+        if len(msg.layout.dim) > _MAX_NDIM:
+            raise TypeValidationError(f"{ros_type.__name__}: layout has {len(msg.layout.dim)} dimensions; "
+                                      f"at most {_MAX_NDIM} are accepted")
         shape = tuple(int(d.size) for d in msg.layout.dim) or (flat.size,)
+        # Exact Python ints: dimensions that multiply past 2**64 never wrap round to the data's size.
         if math.prod(shape) != flat.size:
             raise TypeValidationError(
                 f"{ros_type.__name__}: layout {shape} needs {math.prod(shape)} values, the message has {flat.size}"
             )
+        if math.prod(d for d in shape if d) * flat.itemsize >= 2**63:
+            # An empty array may not claim dimensions numpy cannot even describe (0 x 2**32 x 2**32).
+            raise TypeValidationError(f"{ros_type.__name__}: layout {shape} claims absurd dimensions")
         return flat.reshape(shape)
 
     return RosConversion(ros_type, to, back)
@@ -268,6 +280,10 @@ def _image_from_ros(msg: RosImage) -> m.ImageMsg:
     dtype, channels = spec
     itemsize = np.dtype(dtype).itemsize
     height, width, step = int(msg.height), int(msg.width), int(msg.step)
+    if height > m.MAX_IMAGE_SIDE or width > m.MAX_IMAGE_SIDE:
+        # Refused before anything is sized from them (an empty image may claim any width).
+        raise TypeValidationError(f"image of {width}x{height} exceeds MAX_IMAGE_SIDE ({m.MAX_IMAGE_SIDE} pixels "
+                                  "a side)")
     row = width * channels * itemsize
     if step < row:
         raise TypeValidationError(f"image step {step} is smaller than width {width} x {channels} channel(s) "
@@ -670,7 +686,20 @@ def _register_builtin() -> None:
         "ComponentStatus": RosConversion(ai.ComponentStatus, _status_to_ros, _status_from_ros),
     }
     with _lock:
-        _conversions.update(table)
+        _conversions.update({name: attrs.evolve(c, from_ros=_overflow_to_inf(c.from_ros)) for name, c in table.items()})
+
+
+def _overflow_to_inf(from_ros: Callable[[Any], Any]) -> Callable[[Any], Any]:
+    """``from_ros`` where a float beyond float32's range becomes inf, as a C cast would, without a warning.
+
+    rclpy accepts such a value in a float32 field of a message built in Python (its range check is
+    looser than float32's), and numpy warns when casting it: that must not fail the conversion.
+    """
+    def convert(message: Any) -> Any:
+        with np.errstate(over="ignore"):
+            return from_ros(message)
+
+    return convert
 
 
 _register_builtin()
