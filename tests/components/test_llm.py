@@ -9,16 +9,19 @@ from typing import Any
 import pytest
 
 from agents_core import Launcher, Topic
-from agents_core.clients import DBClient
+from agents_core.actions import Action
+from agents_core.clients import DBClient, GenericHTTPClient
 from agents_core.components import LLM
 from agents_core.components.llm import ThinkStripper
 from agents_core.config import LLMConfig
 from agents_core.errors import ConfigError, WiringError
 from agents_core.messages import DetectionsMsg
+from agents_core.models import GenericLLM
 from agents_core.status import HealthStatus
 from agents_core.vectordbs import DB
 
 from ..conftest import wait_for
+from ..servers.faults import FaultServer
 from .scripted_client import ScriptedChatClient, tool_call
 
 
@@ -288,3 +291,31 @@ def test_client_failure_sets_component_failure() -> None:
     with running(llm) as launcher:
         launcher.transport.create_publisher(QUESTION).publish("hi")
         assert wait_for(lambda: llm.health_status == HealthStatus.COMPONENT_FAILURE)
+
+
+def test_stalled_stream_ends_with_done_fails_health_and_falls_back() -> None:
+    # A real server that sends the first piece of the answer and then nothing; the backup answers.
+    stream_out = Topic("answer_stream", "StreamingString")
+    with FaultServer(mode="first_chunk_then_stall") as stalled, FaultServer(mode="ok") as working:
+        broken = GenericHTTPClient(GenericLLM(name="m", checkpoint="m"), port=stalled.port, inference_timeout=10,
+                                   stream_chunk_timeout=0.5)
+        backup = GenericHTTPClient(GenericLLM(name="m", checkpoint="m"), port=working.port, inference_timeout=10)
+        llm = _llm(broken, LLMConfig(stream=True), outputs=[stream_out],
+                   additional_model_clients={"backup": backup})
+        llm.on_component_fail(Action(llm.change_model_client, args=("backup",)), max_retries=1)
+        with running(llm) as launcher:
+            streamed, statuses = _collect(launcher, stream_out), _collect(launcher, llm.status_topic)
+            pub = launcher.transport.create_publisher(QUESTION)
+            pub.publish("hi")
+            # Listeners get their closing message although the answer never finished.
+            assert wait_for(lambda: any(m.done for m in streamed), timeout=5)
+            assert [(m.data, m.done) for m in streamed] == [("Hello ", False), ("", True)]
+            assert wait_for(lambda: any(s.health == "COMPONENT_FAILURE" for s in statuses))
+            failure = next(s for s in statuses if s.health == "COMPONENT_FAILURE")
+            assert "InferenceTimeoutError" in failure.message and "stream_chunk_timeout" in failure.message
+            assert wait_for(lambda: llm.model_client is backup), "the fallback switched to the backup"
+            streamed.clear()
+            pub.publish("again")
+            assert wait_for(lambda: any(m.done for m in streamed), timeout=5)
+            assert "".join(m.data for m in streamed) == working.reply
+            assert wait_for(lambda: llm.health_status == HealthStatus.HEALTHY)

@@ -271,9 +271,9 @@ class ProtocolServer:
                     return fault
         return None
 
-    def wait_or_stop(self, seconds: float) -> None:
-        """Sleep up to ``seconds``, returning early when the server stops."""
-        self._stopping.wait(seconds)
+    def wait_or_stop(self, seconds: float) -> bool:
+        """Sleep up to ``seconds``, returning early when the server stops; returns whether it stops."""
+        return self._stopping.wait(seconds)
 
     # -- what subclasses implement ------------------------------------------------------------------
 

@@ -56,6 +56,13 @@ Routes used, under ``/api/v2``: ``GET /heartbeat``, ``GET /pre-flight-checks`` (
 ``GET|DELETE /collections/{name}``, ``POST /collections/{id}/add|upsert|update|get|query``.
 Writes larger than the server's ``max_batch_size`` are sent in several requests.
 
+Authentication: a Chroma server started with token auth (or a proxy in front of it) wants a token
+with every request. Give it as ``api_key``; ``auth_header`` says how it is sent:
+``"Authorization"`` (default) sends ``Authorization: Bearer <token>``, ``"X-Chroma-Token"`` (or any
+other header name a proxy expects) sends the bare token in that header, matching the server's
+``chroma_auth_token_transport_header`` setting. The token is part of :meth:`ChromaClient.serialize`
+and never appears in ``repr()``, logs, errors or status messages.
+
 Errors: an HTTP error status raises :class:`~agents_core.errors.HTTPStatusError` carrying
 Chroma's own message, an unreachable server :class:`~agents_core.errors.ClientConnectionError`,
 a slow one :class:`~agents_core.errors.InferenceTimeoutError`, a malformed ``db_input``
@@ -65,6 +72,7 @@ a slow one :class:`~agents_core.errors.InferenceTimeoutError`, a malformed ``db_
 from __future__ import annotations
 
 import math
+import re
 import time
 from collections.abc import Callable, Sequence
 from typing import Any, TypeVar
@@ -72,10 +80,11 @@ from urllib.parse import quote
 
 import httpx
 
-from ..errors import ConfigError, HTTPStatusError, ProtocolError
+from ..errors import ConfigError, HTTPStatusError, InferenceTimeoutError, ProtocolError
 from ..vectordbs import DB, ChromaDB, db_types
 from .client_base import client_from_spec
 from .db_base import DBClient
+from .deadline import BoundedHTTP
 from .model_base import ModelClient
 
 __all__ = ["ChromaClient"]
@@ -94,6 +103,8 @@ _ADD_KEYS = frozenset({"ids", "documents", "metadatas", "embeddings", "collectio
                        "mode", "reset_collection"})
 _CONDITIONAL_ADD_KEYS = frozenset({"ids", "documents", "metadatas", "embeddings", "collection_name",
                                    "distance_func", "update_metadatas"})
+# An HTTP header name (RFC 9110 token characters that proxies accept in practice).
+_HEADER_NAME = re.compile(r"^[A-Za-z0-9!#$%&'*+.^_`|~-]+$")
 _QUERY_KEYS = frozenset({"query", "embedding", "n_results", "where", "collection_name"})
 _METADATA_QUERY_KEYS = frozenset({"where", "metadatas", "limit", "collection_name"})
 
@@ -111,7 +122,7 @@ class ChromaClient(DBClient):
     :param db: the :class:`~agents_core.vectordbs.ChromaDB`, or its serialized dict.
     :param host: the Chroma server's host.
     :param port: its port (``chroma run`` defaults to 8000).
-    :param response_timeout: seconds one HTTP request may take.
+    :param response_timeout: seconds one HTTP request may take, connect to last byte.
     :param embedding_client: the :class:`~agents_core.clients.model_base.ModelClient` (or its
         serialized dict) computing embeddings; may be None when every ``db_input`` carries its
         vectors.
@@ -119,6 +130,12 @@ class ChromaClient(DBClient):
         heartbeat of a server that cannot be reached or answers 5xx (0 to 10).
     :param init_on_activation: call ``initialize()`` during configure.
     :param logging_level: ``"debug"``, ``"info"``, ...
+    :param api_key: the token of a Chroma server with token auth (or of a proxy); None (default):
+        no authentication header.
+    :param auth_header: how ``api_key`` is sent: ``"Authorization"`` (default) as
+        ``Authorization: Bearer <token>``; ``"X-Chroma-Token"`` or any other header name as the
+        bare token in that header.
+    :param use_https: talk HTTPS (a TLS proxy in front of Chroma, a hosted Chroma).
     """
 
     def __init__(
@@ -131,6 +148,9 @@ class ChromaClient(DBClient):
         connection_retries: int = 2,
         init_on_activation: bool = True,
         logging_level: str = "info",
+        api_key: str | None = None,
+        auth_header: str = "Authorization",
+        use_https: bool = False,
         **kwargs: Any,
     ) -> None:
         super().__init__(db=db, host=host, port=port, response_timeout=response_timeout,
@@ -158,25 +178,47 @@ class ChromaClient(DBClient):
             raise ConfigError(f"{name}: connection_retries must be an int in 0..{_MAX_RETRIES}, "
                               f"got {connection_retries!r}")
         self.connection_retries = connection_retries
+        if api_key is not None and (not isinstance(api_key, str) or not api_key):
+            raise ConfigError(f"{name}: api_key must be a non-empty str or None")
+        if not isinstance(auth_header, str) or not _HEADER_NAME.match(auth_header):
+            raise ConfigError(f"{name}: auth_header must be an HTTP header name such as 'Authorization' or "
+                              f"'X-Chroma-Token', got {auth_header!r}")
+        self.api_key = api_key
+        self.auth_header = auth_header
+        self.use_https = bool(use_https)
         # Brackets keep an IPv6 literal apart from the port in the URL.
         netloc_host = f"[{self.host}]" if self.host and ":" in self.host and not self.host.startswith("[") \
             else self.host
-        self.base_url = f"http://{netloc_host}:{self.port}{_API_PREFIX}"
-        self._http: httpx.Client | None = None
+        self.base_url = f"{'https' if self.use_https else 'http'}://{netloc_host}:{self.port}{_API_PREFIX}"
+        self._http: BoundedHTTP | None = None
         self._collection_ids: dict[str, str] = {}
         self._database_ready = False
         self._max_batch: int | None = None
 
     # -- HTTP plumbing --------------------------------------------------------------------------
 
-    def _client(self) -> httpx.Client:
+    def _headers(self) -> dict[str, str]:
+        if not self.api_key:
+            return {}
+        if self.auth_header.lower() == "authorization":
+            return {"Authorization": f"Bearer {self.api_key}"}
+        return {self.auth_header: self.api_key}
+
+    def _secrets(self) -> tuple[str, ...]:
+        """The token, and the embedding client's secrets (its errors can pass through here)."""
+        own = super()._secrets()
+        return own + (self.embedding_client._secrets() if self.embedding_client is not None else ())
+
+    def _client(self) -> BoundedHTTP:
         if self._http is None:
-            self._http = httpx.Client(base_url=self.base_url, timeout=self.response_timeout)
+            self._http = BoundedHTTP(self.base_url, headers=self._headers())
         return self._http
 
     def _request(self, method: str, path: str, body: dict[str, Any] | None = None,
-                 http: httpx.Client | None = None) -> Any:
-        response = (http or self._client()).request(method, path, json=body)
+                 http: BoundedHTTP | None = None) -> Any:
+        response = (http or self._client()).request(method, path, seconds=float(self.response_timeout),
+                                                    label=f"{self._label()}: {method} {_API_PREFIX}{path}",
+                                                    what="response_timeout", json=body)
         if response.is_error:
             raise self._status_error(method, path, response)
         if not response.content:
@@ -210,12 +252,15 @@ class ChromaClient(DBClient):
         for attempt in range(attempts):
             try:
                 # A short-lived client: a connection check must leave nothing open behind it.
-                with httpx.Client(base_url=self.base_url, timeout=self.response_timeout) as http:
+                http = BoundedHTTP(self.base_url, headers=self._headers())
+                try:
                     body = self._request("GET", "/heartbeat", http=http)
+                finally:
+                    http.close()
                 break
-            except (httpx.TransportError, HTTPStatusError) as exc:
+            except (httpx.TransportError, HTTPStatusError, InferenceTimeoutError) as exc:
                 # Refused, timed out or 5xx may be a server still starting; 4xx will not change.
-                retriable = isinstance(exc, httpx.TransportError) or exc.status >= 500
+                retriable = not isinstance(exc, HTTPStatusError) or exc.status >= 500
                 if not retriable or attempt == attempts - 1:
                     raise
                 self.logger.debug("heartbeat attempt %d/%d failed (%s); retrying", attempt + 1, attempts, exc)
@@ -488,12 +533,16 @@ class ChromaClient(DBClient):
         spec = super().serialize()
         spec["embedding_client"] = self.embedding_client.serialize() if self.embedding_client is not None else None
         spec["connection_retries"] = self.connection_retries
+        spec["api_key"] = self.api_key
+        spec["auth_header"] = self.auth_header
+        spec["use_https"] = self.use_https
         return spec
 
     def __repr__(self) -> str:
         # The embedding client's spec may hold its API key: show its repr, which hides secrets.
         return (f"{type(self).__name__}(db={self.db_name!r}, host={self.host!r}, port={self.port!r}, "
-                f"collection={self.settings.collection_name!r}, embedding_client={self.embedding_client!r})")
+                f"collection={self.settings.collection_name!r}, api_key={'***' if self.api_key else None}, "
+                f"embedding_client={self.embedding_client!r})")
 
 
 def _segment(name: str) -> str:

@@ -5,13 +5,25 @@ Clients never do I/O in their constructor; the component's configure phase calls
 so :func:`client_from_spec` rebuilds an equal client from :meth:`BaseClient.serialize` (the way
 a component is rebuilt in another process). A spec may hold secrets (an API key): it travels
 in memory or over a pipe, never on a command line, and ``repr()`` and logs never show it.
+
+Servers echo what they were sent: an error body may hold the API key, or the whole
+``Authorization: Bearer <key>`` header. Every error a client raises goes through
+:meth:`BaseClient._guard` (or a :class:`~agents_core.clients.payloads.ChunkStream`), which
+replaces each configured secret (every attribute named in ``secret_fields``, plus any bearer
+token) with ``***`` in the message and in the exceptions chained to it (:func:`scrub_exception`);
+the clients' loggers scrub their records the same way. What reaches ``<name>/status``, the state
+queries and the logs is therefore free of them.
 """
 
 from __future__ import annotations
 
+import json
 import logging
-from collections.abc import Callable
+import re
+import weakref
+from collections.abc import Callable, Iterable
 from typing import Any, ClassVar, TypeVar
+from urllib.parse import quote, quote_plus
 
 import httpx
 
@@ -24,13 +36,105 @@ from ..errors import (
     ModelClientError,
 )
 
-__all__ = ["BaseClient", "client_from_spec", "client_types", "map_client_exception"]
+__all__ = [
+    "SECRET_MASK",
+    "BaseClient",
+    "client_from_spec",
+    "client_types",
+    "map_client_exception",
+    "scrub_exception",
+    "scrub_text",
+]
 
 R = TypeVar("R")
+E = TypeVar("E", bound=BaseException)
 
 _client_types: dict[str, type[BaseClient]] = {}
 
 _LEVELS = {"debug", "info", "warning", "error", "critical"}
+
+#: What a secret is replaced with.
+SECRET_MASK = "***"
+
+# Any bearer token, known or not (a proxy may add its own): "Bearer abc" -> "Bearer ***".
+_BEARER = re.compile(r"(?i)\b(bearer\s+)(?!\*\*\*)[^\s\"',;}\]]+")
+
+
+def _forms(secret: str) -> set[str]:
+    # The secret as a server may echo it: raw, JSON-escaped, URL-encoded.
+    return {secret, json.dumps(secret)[1:-1], quote(secret, safe=""), quote_plus(secret)}
+
+
+def scrub_text(text: str, secrets: Iterable[str]) -> str:
+    """``text`` with every secret (and every bearer token) replaced by ``***``."""
+    forms = {form for secret in secrets if secret for form in _forms(secret) if form}
+    # Longest first, so a secret that contains another is masked whole.
+    for form in sorted(forms, key=len, reverse=True):
+        if form in text:
+            text = text.replace(form, SECRET_MASK)
+    return _BEARER.sub(lambda m: m.group(1) + SECRET_MASK, text)
+
+
+def _shows(exc: BaseException, secrets: Iterable[str]) -> bool:
+    try:
+        text = str(exc)
+    except Exception:
+        return False
+    return scrub_text(text, secrets) != text
+
+
+def scrub_exception(exc: E, secrets: Iterable[str]) -> E:
+    """Scrub the secrets from ``exc`` and the exceptions chained to it, in place; returns ``exc``.
+
+    The str arguments of each exception in the ``__cause__`` / ``__context__`` chain are
+    rewritten. An exception whose text still shows a secret afterwards (one that builds its
+    message from other attributes) is cut from the chain, so no traceback prints it.
+    """
+    secrets = tuple(s for s in secrets if s)
+    seen: set[int] = set()
+    current: BaseException | None = exc
+    parent: BaseException | None = None
+    while current is not None and id(current) not in seen:
+        seen.add(id(current))
+        if any(isinstance(a, str) for a in current.args):
+            current.args = tuple(scrub_text(a, secrets) if isinstance(a, str) else a for a in current.args)
+        if parent is not None and _shows(current, secrets):
+            parent.__cause__ = None
+            parent.__context__ = None
+            parent.__suppress_context__ = True
+            break
+        parent, current = current, current.__cause__ or current.__context__
+    return exc
+
+
+class _ScrubFilter(logging.Filter):
+    """Masks the secrets of every live client in the records of the clients' loggers."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self._clients: weakref.WeakValueDictionary[int, BaseClient] = weakref.WeakValueDictionary()
+
+    def add(self, client: BaseClient) -> None:
+        self._clients[id(client)] = client
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        secrets: set[str] = set()
+        for client in list(self._clients.values()):
+            secrets.update(client._secrets())
+        try:
+            message = record.getMessage()
+        except Exception:  # a malformed record is the logging module's to report
+            return True
+        clean = scrub_text(message, secrets)
+        if clean != message:
+            record.msg, record.args = clean, None
+        if record.exc_info and record.exc_info[1] is not None:
+            scrub_exception(record.exc_info[1], secrets)
+            record.exc_text = None
+        return True
+
+
+_SCRUB_FILTER = _ScrubFilter()
 
 
 def map_client_exception(context: str, exc: BaseException) -> ModelClientError:
@@ -111,16 +215,36 @@ class BaseClient:
         self.logging_level = str(logging_level).lower()
         self.logger = logging.getLogger(f"agents_core.clients.{type(self).__name__}")
         self.logger.setLevel(self.logging_level.upper())
+        _SCRUB_FILTER.add(self)
+        if _SCRUB_FILTER not in self.logger.filters:
+            self.logger.addFilter(_SCRUB_FILTER)
+
+    def _secrets(self) -> tuple[str, ...]:
+        """The secret values this client sends (each set attribute named in ``secret_fields``)."""
+        values = (getattr(self, name, None) for name in self.secret_fields)
+        return tuple(v for v in values if isinstance(v, str) and v)
+
+    def _scrub(self, exc: E) -> E:
+        """``exc`` (and its chain) with this client's secrets masked."""
+        return scrub_exception(exc, self._secrets())
 
     def _guard(self, what: str, func: Callable[[], R]) -> R:
-        """Run ``func`` and turn whatever it raises into a typed :class:`ModelClientError`."""
+        """Run ``func`` and turn whatever it raises into a typed :class:`ModelClientError`, secrets masked."""
         try:
             return func()
-        except (ModelClientError, ConfigError):
-            # A bad argument is the caller's error, not the server's: keep it as it is.
-            raise
         except Exception as exc:
-            raise map_client_exception(f"{self._label()}: {what}", exc) from exc
+            error = self._typed_error(what, exc)
+        # Raised outside the handler, so the original exception is not attached again as context.
+        raise error
+
+    def _typed_error(self, what: str, exc: Exception) -> Exception:
+        if isinstance(exc, ModelClientError | ConfigError):
+            # Already typed; a bad argument is the caller's error, not the server's: kept as it is.
+            return self._scrub(exc)
+        error = map_client_exception(f"{self._label()}: {what}", exc)
+        error.__cause__ = exc
+        error.__suppress_context__ = True
+        return self._scrub(error)
 
     def _label(self) -> str:
         where = f" at {self.host}:{self.port}" if self.host else ""

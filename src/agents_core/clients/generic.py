@@ -34,6 +34,7 @@ import numpy as np
 
 from ..errors import ConfigError, HTTPStatusError, InferenceError, ProtocolError
 from ..models import OPENAI_CHAT_OPTIONS, GenericSTT, GenericTTS, Model, model_types
+from .deadline import BoundedHTTP
 from .model_base import ModelClient
 from .payloads import ChunkStream, checked_messages, image_to_data_uri, make_tool_call, message_text
 
@@ -197,8 +198,9 @@ class GenericHTTPClient(ModelClient):
         ``GenericSTT`` (or its serialized dict); its ``checkpoint`` is the ``model`` id sent.
     :param host: server host name or address.
     :param port: server port.
-    :param inference_timeout: seconds to wait for the server's answer (for streams: for each
-        piece of it).
+    :param inference_timeout: seconds a whole call may take, connect to last byte (a streamed
+        answer included); see :class:`~agents_core.clients.model_base.ModelClient` for
+        ``stream_first_chunk_timeout`` and ``stream_chunk_timeout``, also accepted here.
     :param api_key: sent as a Bearer token; None reads ``OPENAI_API_KEY`` at request time (and an
         empty or unset variable sends no ``Authorization`` header, as local servers expect).
     :param base_path: the path the API lives under (``"/v1"`` for OpenAI and most servers).
@@ -232,7 +234,7 @@ class GenericHTTPClient(ModelClient):
         self.checkpoint = str(self.model_init_params.get("checkpoint") or self.model_name)
         #: The ``usage`` object of the last answer that had one (token counts).
         self.last_usage: dict[str, Any] | None = None
-        self._client: httpx.Client | None = None
+        self._client: BoundedHTTP | None = None
 
     # -- settings -------------------------------------------------------------------------------------
 
@@ -263,14 +265,20 @@ class GenericHTTPClient(ModelClient):
         key = self.api_key if self.api_key is not None else os.environ.get(API_KEY_ENV) or None
         return {"Authorization": f"Bearer {key}"} if key else {}
 
-    def _timeout(self) -> httpx.Timeout:
-        return httpx.Timeout(float(self.inference_timeout), connect=min(float(self.inference_timeout), 10.0))
+    def _secrets(self) -> tuple[str, ...]:
+        """The key sent: the explicit one, else the environment's."""
+        key = self.api_key if self.api_key is not None else os.environ.get(API_KEY_ENV) or None
+        return (key,) if key else ()
 
-    def _http(self) -> httpx.Client:
+    def _http(self) -> BoundedHTTP:
         # Created lazily too: with init_on_activation=False inference must still work.
         if self._client is None:
-            self._client = httpx.Client(base_url=self.base_url, timeout=self._timeout(), headers=self._headers())
+            self._client = BoundedHTTP(self.base_url, headers=self._headers())
         return self._client
+
+    def _request(self, method: str, path: str, context: str, **kwargs: Any) -> httpx.Response:
+        """One request, its whole answer read within ``inference_timeout``."""
+        return self._http().request(method, path, seconds=float(self.inference_timeout), label=context, **kwargs)
 
     def _context(self, what: str) -> str:
         return f"{self._label()}: {what}"
@@ -279,10 +287,14 @@ class GenericHTTPClient(ModelClient):
 
     def _check_connection(self) -> None:
         """``GET {base_path}/models``; warns when the model id is not among those listed."""
-        with httpx.Client(base_url=self.base_url, timeout=self._timeout(), headers=self._headers()) as http:
-            response = http.get("/models")
+        http = BoundedHTTP(self.base_url, headers=self._headers())
+        try:
+            response = http.request("GET", "/models", seconds=float(self.inference_timeout),
+                                    label=self._context("listing models"))
             check_response(response, self._context("listing models"))
             body = response_json(response, self._context("listing models"))
+        finally:
+            http.close()
         data = body.get("data") if isinstance(body, dict) else None
         if not isinstance(data, list):
             raise ProtocolError(f"{self._context('listing models')}: expected {{'data': [...]}}, got {str(body)[:200]}")
@@ -321,7 +333,7 @@ class GenericHTTPClient(ModelClient):
     def _embed(self, texts: list[str]) -> list[list[float]]:
         """``POST {base_path}/embeddings``; one vector per text, in input order."""
         context = self._context("embeddings")
-        response = self._http().post("/embeddings", json={"model": self.checkpoint, "input": texts})
+        response = self._request("POST", "/embeddings", context, json={"model": self.checkpoint, "input": texts})
         check_response(response, context)
         body = response_json(response, context)
         data = body.get("data") if isinstance(body, dict) else None
@@ -407,7 +419,7 @@ class GenericHTTPClient(ModelClient):
             body["stream"] = True
             return {"output": self._chat_stream(body)}
         context = self._context("chat")
-        response = self._http().post("/chat/completions", json=body)
+        response = self._request("POST", "/chat/completions", context, json=body)
         check_response(response, context)
         answer = response_json(response, context)
         choices = answer.get("choices") if isinstance(answer, dict) else None
@@ -429,17 +441,31 @@ class GenericHTTPClient(ModelClient):
 
     def _chat_stream(self, body: dict[str, Any]) -> ChunkStream[str]:
         context = self._context("chat stream")
-        http = self._http()
-        response = http.send(http.build_request("POST", "/chat/completions", json=body), stream=True)
+        watch = self._watch("chat stream", stream=True)
+        try:
+            response = self._http().open("POST", "/chat/completions", watch, json=body)
+        except BaseException:
+            watch.close()
+            raise
         try:
             check_response(response, context)
-        except BaseException:
+        except Exception as exc:
+            watch.close()
             response.close()
+            if watch.fired is not None:
+                raise watch.error() from exc
             raise
+
+        def lines() -> Iterator[str]:
+            # Keep-alive comments and blank lines arrive here too: the deadline is checked on
+            # every line, so they cannot keep the call alive.
+            for line in response.iter_lines():
+                watch.check()
+                yield line
 
         def chunks() -> Iterator[str]:
             finished = False
-            for data in iter_sse_data(response.iter_lines()):
+            for data in iter_sse_data(lines()):
                 if data == "[DONE]":
                     return
                 try:
@@ -466,7 +492,7 @@ class GenericHTTPClient(ModelClient):
                 # The body ended cleanly but the answer did not: a proxy or server cut it short.
                 raise ProtocolError(f"{context}: the stream ended before the answer finished (no [DONE])")
 
-        return ChunkStream(chunks(), on_close=response.close, label=context)
+        return self._chunk_stream(chunks(), watch, context, on_close=response.close)
 
     # -- speech -------------------------------------------------------------------------------------
 
@@ -483,7 +509,7 @@ class GenericHTTPClient(ModelClient):
             "speed": inference_input.get("speed") or params.get("speed", 1.0),
         }
         context = self._context("speech")
-        response = self._http().post("/audio/speech", json=body)
+        response = self._request("POST", "/audio/speech", context, json=body)
         check_response(response, context)
         if not response.content:
             raise InferenceError(f"{context}: the server returned no audio")
@@ -503,7 +529,8 @@ class GenericHTTPClient(ModelClient):
         if inference_input.get("prompt"):
             form["prompt"] = str(inference_input["prompt"])
         context = self._context("transcription")
-        response = self._http().post("/audio/transcriptions", data=form, files={"file": (filename, data, mime)})
+        response = self._request("POST", "/audio/transcriptions", context, data=form,
+                                 files={"file": (filename, data, mime)})
         check_response(response, context)
         body = response_json(response, context)
         if not isinstance(body, dict) or not isinstance(body.get("text"), str):

@@ -4,22 +4,36 @@ Implement ``_check_connection``, ``_initialize``, ``_inference`` and ``_deinitia
 public methods of the same names without the underscore are what components call: they turn
 any failure into a typed :class:`~agents_core.errors.ModelClientError` and check the result,
 so a failed inference is never a silent ``None``.
+
+Deadlines: ``inference_timeout`` bounds the whole inference, from connecting to the last byte of
+the answer (for a stream: to its last chunk), whatever the server does meanwhile (keep-alive
+comments, one byte per second). Streams also have a time to the first chunk
+(``stream_first_chunk_timeout``) and between chunks (``stream_chunk_timeout``). Clients build a
+:class:`~agents_core.clients.deadline.CallWatch` per call with :meth:`ModelClient._watch` and
+hand streams out through :meth:`ModelClient._chunk_stream`.
 """
 
 from __future__ import annotations
 
 import time
 from abc import abstractmethod
-from collections.abc import MutableMapping, Sequence
-from typing import Any
+from collections.abc import Callable, Iterator, MutableMapping, Sequence
+from typing import Any, TypeVar
 
 from ..errors import ConfigError, InferenceError, ProtocolError
 from ..models import Model
 from .client_base import BaseClient
+from .deadline import CallWatch, check_seconds
+from .payloads import ChunkStream
 
 __all__ = ["ModelClient"]
 
 _MODEL_SPEC_KEYS = {"model_name", "model_type", "init_timeout", "model_init_params"}
+
+#: Default seconds a stream may go without a chunk once it has started.
+DEFAULT_STREAM_CHUNK_TIMEOUT = 10.0
+
+T = TypeVar("T")
 
 
 class ModelClient(BaseClient):
@@ -28,9 +42,18 @@ class ModelClient(BaseClient):
     :param model: the :class:`~agents_core.models.Model`, or its serialized dict.
     :param host: server host name or address.
     :param port: server port.
-    :param inference_timeout: seconds an inference may take before it fails.
+    :param inference_timeout: seconds a whole inference may take, connect to last byte (for a
+        stream: to its last chunk); then it fails with
+        :class:`~agents_core.errors.InferenceTimeoutError`. Raise it for long streamed answers.
+    :param stream_first_chunk_timeout: seconds from the start of a streamed inference to its first
+        chunk (a model loading, a long prompt); None (default): only ``inference_timeout`` bounds it.
+    :param stream_chunk_timeout: seconds a stream may go without a chunk after the first one
+        (default 10; None: only ``inference_timeout``). Keep-alive comments do not count as chunks.
     :param init_on_activation: call ``_initialize()`` during configure.
     :param logging_level: ``"debug"``, ``"info"``, ...
+
+    Every timeout is a finite number of seconds > 0 (not a bool); each is capped by the time left
+    before ``inference_timeout``.
     """
 
     def __init__(
@@ -41,6 +64,8 @@ class ModelClient(BaseClient):
         inference_timeout: int | float = 30,
         init_on_activation: bool = True,
         logging_level: str = "info",
+        stream_first_chunk_timeout: int | float | None = None,
+        stream_chunk_timeout: int | float | None = DEFAULT_STREAM_CHUNK_TIMEOUT,
         **kwargs: Any,
     ) -> None:
         if kwargs:
@@ -61,12 +86,30 @@ class ModelClient(BaseClient):
             self.model_init_params = dict(model["model_init_params"])
         else:
             raise ConfigError(f"{type(self).__name__}: model must be a Model or its dict, got {type(model).__name__}")
-        if isinstance(inference_timeout, bool) or not isinstance(inference_timeout, int | float) \
-                or inference_timeout <= 0:
-            raise ConfigError(f"{type(self).__name__}: inference_timeout must be > 0 s, got {inference_timeout!r}")
+        owner = type(self).__name__
+        check_seconds(owner, "inference_timeout", inference_timeout)
         self.inference_timeout = inference_timeout
+        self.stream_first_chunk_timeout = check_seconds(owner, "stream_first_chunk_timeout",
+                                                        stream_first_chunk_timeout, optional=True)
+        self.stream_chunk_timeout = check_seconds(owner, "stream_chunk_timeout", stream_chunk_timeout,
+                                                  optional=True)
         self.initialized = False
         self.last_inference_seconds: float | None = None
+
+    # -- deadlines, for subclasses ----------------------------------------------------------------
+
+    def _watch(self, what: str, *, stream: bool = False, seconds: float | None = None,
+               setting: str = "inference_timeout") -> CallWatch:
+        """The limits of one call named ``what``: ``seconds`` (default ``inference_timeout``) for
+        the whole call, plus the chunk timers when ``stream``. ``setting`` names ``seconds`` in errors."""
+        return CallWatch(float(self.inference_timeout if seconds is None else seconds), f"{self._label()}: {what}",
+                         first_chunk=self.stream_first_chunk_timeout if stream else None,
+                         between_chunks=self.stream_chunk_timeout if stream else None, what=setting)
+
+    def _chunk_stream(self, chunks: Iterator[T], watch: CallWatch | None, label: str,
+                      on_close: Callable[[], None] | None = None) -> ChunkStream[T]:
+        """A :class:`ChunkStream` timed by ``watch`` whose errors never show this client's secrets."""
+        return ChunkStream(chunks, on_close=on_close, label=label, watch=watch, secrets=self._secrets())
 
     # -- what subclasses implement ------------------------------------------------------------
 
@@ -144,4 +187,6 @@ class ModelClient(BaseClient):
             "model_init_params": self.model_init_params,
         }
         spec["inference_timeout"] = self.inference_timeout
+        spec["stream_first_chunk_timeout"] = self.stream_first_chunk_timeout
+        spec["stream_chunk_timeout"] = self.stream_chunk_timeout
         return spec

@@ -5,12 +5,16 @@ model there?), ``POST /api/pull`` (download it, progress streamed as NDJSON), ``
 /api/generate`` (load / unload / plain generation), ``POST /api/chat`` and ``POST /api/embed``.
 Streamed answers are NDJSON: one JSON object per line, the last one with ``"done": true``; a
 failure after the 200 status arrives as a ``{"error": "..."}`` line and raises a typed error.
+
+Ollama itself has no authentication, but it is often reached through an authenticating proxy
+(or a hosted Ollama): ``api_key`` is then sent as ``Authorization: Bearer <key>`` with every
+request. Like GenericHTTPClient's key it is part of :meth:`OllamaClient.serialize` (specs travel
+in memory or over a pipe) and never appears in ``repr()``, logs, errors or status messages.
 """
 
 from __future__ import annotations
 
 import json
-import time
 from collections.abc import Callable, Iterator, MutableMapping
 from typing import Any
 
@@ -18,6 +22,7 @@ import httpx
 
 from ..errors import ConfigError, InferenceError, ProtocolError
 from ..models import OLLAMA_OPTIONS, Model, OllamaModel
+from .deadline import BoundedHTTP, CallWatch, check_seconds
 from .generic import check_response, response_json
 from .model_base import ModelClient
 from .payloads import ChunkStream, checked_messages, image_to_base64_png, make_tool_call, message_text
@@ -43,8 +48,14 @@ class OllamaClient(ModelClient):
         ``checkpoint`` is the Ollama tag, its ``options`` and ``keep_alive`` go with every request.
     :param host: Ollama's host.
     :param port: Ollama's port (None: the model's ``port``, else 11434).
-    :param inference_timeout: seconds to wait for an answer (for streams: for each piece of it).
-    :param pull_timeout: seconds a missing model may take to download during initialize.
+    :param inference_timeout: seconds a whole call may take, connect to last byte (a streamed
+        answer included); see :class:`~agents_core.clients.model_base.ModelClient` for
+        ``stream_first_chunk_timeout`` and ``stream_chunk_timeout``, also accepted here.
+    :param pull_timeout: seconds a missing model may take to download during initialize (a
+        download that sends no progress for ``max(inference_timeout, 60)`` s fails sooner).
+    :param api_key: a token sent as ``Authorization: Bearer <key>`` (a proxy in front of Ollama,
+        a hosted Ollama); None (default) sends no ``Authorization`` header.
+    :param use_https: talk HTTPS (a TLS proxy in front of Ollama).
     :param init_on_activation: check, pull and load the model during configure.
     :param logging_level: ``"debug"``, ``"info"``, ...
     """
@@ -58,28 +69,33 @@ class OllamaClient(ModelClient):
         pull_timeout: int | float = 3600,
         init_on_activation: bool = True,
         logging_level: str = "info",
+        api_key: str | None = None,
+        use_https: bool = False,
         **kwargs: Any,
     ) -> None:
         if port is None:
             port = model.port if isinstance(model, OllamaModel) and model.port is not None else _DEFAULT_PORT
         super().__init__(model=model, host=host, port=port, inference_timeout=inference_timeout,
                          init_on_activation=init_on_activation, logging_level=logging_level, **kwargs)
-        if isinstance(pull_timeout, bool) or not isinstance(pull_timeout, int | float) or pull_timeout <= 0:
-            raise ConfigError(f"{type(self).__name__}: pull_timeout must be > 0 s, got {pull_timeout!r}")
+        check_seconds(type(self).__name__, "pull_timeout", pull_timeout)
+        if api_key is not None and (not isinstance(api_key, str) or not api_key):
+            raise ConfigError(f"{type(self).__name__}: api_key must be a non-empty str or None")
         self.pull_timeout = pull_timeout
+        self.api_key = api_key
+        self.use_https = bool(use_https)
         self.checkpoint = str(self.model_init_params.get("checkpoint") or self.model_name)
         #: The Ollama version seen by the last connection check.
         self.server_version: str | None = None
         #: Timing and token counts of the last finished answer (``eval_count``, ``eval_duration``...).
         self.last_stats: dict[str, Any] | None = None
-        self._client: httpx.Client | None = None
+        self._client: BoundedHTTP | None = None
 
     # -- settings -------------------------------------------------------------------------------------
 
     @property
     def base_url(self) -> str:
-        """``http://host:port``."""
-        return f"http://{self.host}:{self.port}"
+        """``http(s)://host:port``."""
+        return f"{'https' if self.use_https else 'http'}://{self.host}:{self.port}"
 
     @property
     def supports_tool_calls(self) -> bool:
@@ -91,15 +107,20 @@ class OllamaClient(ModelClient):
         """How long Ollama keeps the model loaded after a request (the model's setting)."""
         return self.model_init_params.get("keep_alive")
 
-    def _timeout(self, read: float | None = None) -> httpx.Timeout:
-        seconds = float(self.inference_timeout if read is None else read)
-        return httpx.Timeout(seconds, connect=min(float(self.inference_timeout), 10.0))
+    def _headers(self) -> dict[str, str]:
+        return {"Authorization": f"Bearer {self.api_key}"} if self.api_key else {}
 
-    def _http(self) -> httpx.Client:
+    def _http(self) -> BoundedHTTP:
         # Created lazily too: with init_on_activation=False inference must still work.
         if self._client is None:
-            self._client = httpx.Client(base_url=self.base_url, timeout=self._timeout())
+            self._client = BoundedHTTP(self.base_url, headers=self._headers())
         return self._client
+
+    def _request(self, method: str, path: str, context: str, *, seconds: float | None = None,
+                 setting: str = "inference_timeout", **kwargs: Any) -> httpx.Response:
+        """One request, its whole answer read within ``seconds`` (default ``inference_timeout``)."""
+        return self._http().request(method, path, seconds=float(self.inference_timeout if seconds is None else seconds),
+                                    label=context, what=setting, **kwargs)
 
     def _context(self, what: str) -> str:
         return f"{self._label()}: {what}"
@@ -137,10 +158,14 @@ class OllamaClient(ModelClient):
 
     def _check_connection(self) -> None:
         """``GET /api/version``."""
-        with httpx.Client(base_url=self.base_url, timeout=self._timeout()) as http:
-            response = http.get("/api/version")
+        http = BoundedHTTP(self.base_url, headers=self._headers())
+        try:
+            response = http.request("GET", "/api/version", seconds=float(self.inference_timeout),
+                                    label=self._context("version"))
             check_response(response, self._context("version"))
             body = response_json(response, self._context("version"))
+        finally:
+            http.close()
         if not isinstance(body, dict) or not isinstance(body.get("version"), str):
             raise ProtocolError(f"{self._context('version')}: expected {{'version': ...}}, got {str(body)[:200]}")
         self.server_version = body["version"]
@@ -148,8 +173,7 @@ class OllamaClient(ModelClient):
 
     def _initialize(self) -> None:
         """Pull the model if Ollama does not have it, then load it (so the first answer is fast)."""
-        http = self._http()
-        response = http.post("/api/show", json={"model": self.checkpoint})
+        response = self._request("POST", "/api/show", self._context("show"), json={"model": self.checkpoint})
         if response.status_code == httpx.codes.NOT_FOUND:
             self.logger.info("%s: model %r not present, pulling it", self._label(), self.checkpoint)
             self.pull()
@@ -183,7 +207,7 @@ class OllamaClient(ModelClient):
         if stream:
             return {"output": self._stream("/api/chat", body, "chat stream", _message_text)}
         context = self._context("chat")
-        response = self._http().post("/api/chat", json=body)
+        response = self._request("POST", "/api/chat", context, json=body)
         check_response(response, context)
         answer = self._final_object(response, context)
         message = answer.get("message")
@@ -201,7 +225,7 @@ class OllamaClient(ModelClient):
         """``POST /api/embed`` with every text at once."""
         context = self._context("embed")
         body = self._request_body({}, input=texts)
-        response = self._http().post("/api/embed", json=body)
+        response = self._request("POST", "/api/embed", context, json=body)
         check_response(response, context)
         answer = response_json(response, context)
         vectors = answer.get("embeddings") if isinstance(answer, dict) else None
@@ -211,9 +235,11 @@ class OllamaClient(ModelClient):
         return [[float(x) for x in vector] for vector in vectors]
 
     def serialize(self) -> dict[str, Any]:
-        """The base spec plus ``pull_timeout``."""
+        """The base spec plus ``pull_timeout``, ``api_key`` and ``use_https`` (keep it off argv and logs)."""
         spec = super().serialize()
         spec["pull_timeout"] = self.pull_timeout
+        spec["api_key"] = self.api_key
+        spec["use_https"] = self.use_https
         return spec
 
     # -- Ollama-specific operations -----------------------------------------------------------------
@@ -253,24 +279,29 @@ class OllamaClient(ModelClient):
         if stream:
             return self._stream("/api/generate", body, "generate stream", _response_text)
         context = self._context("generate")
-        response = self._http().post("/api/generate", json=body)
+        response = self._request("POST", "/api/generate", context, json=body)
         check_response(response, context)
         answer = self._final_object(response, context)
         return str(answer.get("response") or "")
 
     def _pull(self) -> None:
         context = self._context(f"pull {self.checkpoint}")
-        http = self._http()
-        deadline = time.monotonic() + float(self.pull_timeout)
-        request = http.build_request("POST", "/api/pull", json={"model": self.checkpoint, "stream": True},
-                                     timeout=self._timeout(max(float(self.inference_timeout), 60.0)))
-        response = http.send(request, stream=True)
+        # The whole download within pull_timeout, and some progress line at least every
+        # max(inference_timeout, 60) s: a stalled download fails long before the hour is up.
+        stall = max(float(self.inference_timeout), 60.0)
+        watch = CallWatch(float(self.pull_timeout), context, first_chunk=stall, between_chunks=stall,
+                          what="pull_timeout")
+        try:
+            response = self._http().open("POST", "/api/pull", watch, json={"model": self.checkpoint, "stream": True})
+        except BaseException:
+            watch.close()
+            raise
         try:
             check_response(response, context)
             last_status, last_decile = "", -1
-            for count, line in enumerate(response.iter_lines()):
-                if count >= _MAX_PULL_LINES or time.monotonic() > deadline:
-                    raise InferenceError(f"{context}: not finished after {self.pull_timeout} s")
+            for count, line in enumerate(_timed_lines(response, watch)):
+                if count >= _MAX_PULL_LINES:
+                    raise InferenceError(f"{context}: not finished after {_MAX_PULL_LINES} progress lines")
                 if not line.strip():
                     continue
                 progress = _json_line(line, context)
@@ -291,7 +322,12 @@ class OllamaClient(ModelClient):
                 elif status != last_status:
                     self.logger.info("%s: %s", self._label(), status)
                 last_status = status
+        except Exception as exc:
+            if watch.fired is not None:
+                raise watch.error() from exc
+            raise
         finally:
+            watch.close()
             response.close()
         raise ProtocolError(f"{context}: the progress stream ended without 'success'")
 
@@ -299,15 +335,16 @@ class OllamaClient(ModelClient):
         context = self._context("load")
         load_timeout = float(self.init_timeout or _DEFAULT_LOAD_TIMEOUT)
         body = self._request_body({}, stream=False)
-        response = self._http().post("/api/generate", json=body, timeout=self._timeout(load_timeout))
+        response = self._request("POST", "/api/generate", context, seconds=load_timeout, setting="init_timeout",
+                                 json=body)
         check_response(response, context)
         self._final_object(response, context)
         self.logger.info("%s: model %r loaded", self._label(), self.checkpoint)
 
     def _unload(self) -> None:
         context = self._context("unload")
-        response = self._http().post("/api/generate", json={"model": self.checkpoint, "keep_alive": 0,
-                                                            "stream": False})
+        response = self._request("POST", "/api/generate", context, json={"model": self.checkpoint, "keep_alive": 0,
+                                                                         "stream": False})
         check_response(response, context)
         self._final_object(response, context)
         self.logger.info("%s: model %r unloaded", self._label(), self.checkpoint)
@@ -348,16 +385,25 @@ class OllamaClient(ModelClient):
     def _stream(self, path: str, body: dict[str, Any], what: str,
                 text_of: Callable[[dict[str, Any]], str]) -> ChunkStream[str]:
         context = self._context(what)
-        http = self._http()
-        response = http.send(http.build_request("POST", path, json=body), stream=True)
+        watch = self._watch(what, stream=True)
+        try:
+            response = self._http().open("POST", path, watch, json=body)
+        except BaseException:
+            watch.close()
+            raise
         try:
             check_response(response, context)
-        except BaseException:
+        except Exception as exc:
+            watch.close()
             response.close()
+            if watch.fired is not None:
+                raise watch.error() from exc
             raise
 
         def chunks() -> Iterator[str]:
+            # Blank lines (and anything else that is not an answer piece) do not reset the timers.
             for line in response.iter_lines():
+                watch.check()
                 if not line.strip():
                     continue
                 obj = _json_line(line, context)
@@ -372,7 +418,20 @@ class OllamaClient(ModelClient):
             # A clean end of body without "done": true means the answer was cut short.
             raise ProtocolError(f"{context}: the stream ended before the answer was done")
 
-        return ChunkStream(chunks(), on_close=response.close, label=context)
+        return self._chunk_stream(chunks(), watch, context, on_close=response.close)
+
+
+def _timed_lines(response: httpx.Response, watch: CallWatch) -> Iterator[str]:
+    """The lines of a streamed body, each one a "chunk" of ``watch`` (a progress stream)."""
+    lines = response.iter_lines()
+    while True:
+        watch.before_chunk()
+        try:
+            line = next(lines)
+        except StopIteration:
+            return
+        watch.after_chunk()
+        yield line
 
 
 def _json_line(line: str, context: str) -> dict[str, Any]:

@@ -33,7 +33,11 @@ audio file, WAV unless the server says otherwise); transcription ``{"query": byt
 
 Streaming: ``output`` is a :class:`ChunkStream`, an iterator of chunks that turns any failure
 while reading into a typed error and releases the connection when closed early (a component
-cancelling a stream calls ``close()``).
+cancelling a stream calls ``close()``). A stream runs under its client's limits
+(:class:`~agents_core.clients.deadline.CallWatch`): the whole stream within ``inference_timeout``,
+the first chunk within ``stream_first_chunk_timeout`` and each later one within
+``stream_chunk_timeout``; passing one raises :class:`~agents_core.errors.InferenceTimeoutError`
+from ``next()``. Error messages never show the client's secrets.
 """
 
 from __future__ import annotations
@@ -43,13 +47,15 @@ import contextlib
 import json
 import struct
 import zlib
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from typing import Any, Generic, TypeVar
 
+import httpx
 import numpy as np
 
 from ..errors import InferenceError, ModelClientError, ProtocolError
-from .client_base import map_client_exception
+from .client_base import map_client_exception, scrub_exception
+from .deadline import CallWatch
 
 __all__ = [
     "CHAT_ROLES",
@@ -76,13 +82,21 @@ class ChunkStream(Generic[T]):
     :param on_close: called once when the stream ends, fails or is closed early (releases the
         connection).
     :param label: names the client and operation in error messages.
+    :param watch: the call's limits (whole-call deadline, first-chunk and between-chunk timers);
+        None: the stream is not timed here.
+    :param secrets: values masked with ``***`` in the errors raised (the client's API key...).
+
+    Each item the iterator yields is a chunk: the chunk timers run while the consumer waits in
+    ``next()``, and only a yielded chunk stops them.
     """
 
     def __init__(self, chunks: Iterator[T], on_close: Callable[[], None] | None = None,
-                 label: str = "stream") -> None:
+                 label: str = "stream", watch: CallWatch | None = None, secrets: Iterable[str] = ()) -> None:
         self._chunks = chunks
         self._on_close = on_close
         self._label = label
+        self._watch = watch
+        self._secrets = tuple(secrets)
         self._closed = False
         self.chunk_count = 0
 
@@ -92,25 +106,48 @@ class ChunkStream(Generic[T]):
     def __next__(self) -> T:
         if self._closed:
             raise StopIteration
+        watch = self._watch
         try:
+            if watch is not None:
+                watch.before_chunk()
             chunk = next(self._chunks)
         except StopIteration:
             self.close()
             raise
-        except ModelClientError:
-            self.close()
-            raise
         except Exception as exc:
             self.close()
-            raise map_client_exception(f"{self._label}: reading the stream", exc) from exc
+            error = self._error(exc)
+            if error is exc:
+                raise
+            raise error from exc
+        if watch is not None:
+            watch.after_chunk()
         self.chunk_count += 1
         return chunk
+
+    def _error(self, exc: Exception) -> ModelClientError:
+        watch = self._watch
+        if watch is not None and (watch.fired is not None or (isinstance(exc, TimeoutError | httpx.TimeoutException)
+                                                            and watch.passed())):
+            # The watchdog cut the connection (the read then fails in any way), or a read timed
+            # out at the limit: say which limit, not what the cut looked like.
+            error: ModelClientError = watch.error()
+        elif isinstance(exc, ModelClientError):
+            error = exc
+        else:
+            error = map_client_exception(f"{self._label}: reading the stream", exc)
+        if error is not exc:
+            error.__cause__ = exc
+        return scrub_exception(error, self._secrets)
 
     def close(self) -> None:
         """Stop reading and release the connection (idempotent)."""
         if self._closed:
             return
         self._closed = True
+        if self._watch is not None:
+            # First: a limit passing now must not cut a connection being handed back.
+            self._watch.close()
         close = getattr(self._chunks, "close", None)
         try:
             if callable(close):

@@ -55,7 +55,7 @@ import json
 import logging
 import re
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from typing import TYPE_CHECKING, Any, ClassVar, Final, TypeVar
 
 import msgpack  # type: ignore[import-untyped]  # msgpack ships no type information
@@ -342,12 +342,13 @@ def normalize_result(node_model: str, result: Any, label: str) -> dict[str, Any]
     return result
 
 
-def single_chunk_stream(text: Any, label: str, on_close: Callable[[], None] | None = None) -> ChunkStream[Any]:
+def single_chunk_stream(text: Any, label: str, on_close: Callable[[], None] | None = None,
+                        secrets: Iterable[str] = ()) -> ChunkStream[Any]:
     """A stream of one chunk, for a transport that cannot stream when the caller asked it to."""
     def chunks() -> Iterator[Any]:
         yield text
 
-    return ChunkStream(chunks(), on_close=on_close, label=label)
+    return ChunkStream(chunks(), on_close=on_close, label=label, secrets=secrets)
 
 
 def error_detail(body: Any) -> str:

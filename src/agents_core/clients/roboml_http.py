@@ -12,6 +12,7 @@ from typing import Any, ClassVar
 import httpx
 
 from ..errors import HTTPStatusError, ProtocolError
+from .deadline import BoundedHTTP
 from .payloads import ChunkStream
 from .roboml import (
     RoboMLNodeClient,
@@ -39,8 +40,10 @@ class RoboMLHTTPClient(RoboMLNodeClient):
         ``name`` names the node, so it may hold letters, digits, ``_`` and ``-`` only.
     :param host: RoboML's host.
     :param port: RoboML's HTTP port (8000 by default, as ``roboml`` starts).
-    :param inference_timeout: seconds an inference may wait for the server (for a stream: for
-        each chunk).
+    :param inference_timeout: seconds a whole inference may take, connect to last byte (a
+        streamed answer included; ``stream_first_chunk_timeout`` and ``stream_chunk_timeout``
+        bound its chunks, see :class:`~agents_core.clients.model_base.ModelClient`). Loading the
+        model is bounded by the model's ``init_timeout`` instead.
     :param init_on_activation: create and load the node during configure.
     :param logging_level: ``"debug"``, ``"info"``, ...
     """
@@ -49,7 +52,7 @@ class RoboMLHTTPClient(RoboMLNodeClient):
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
-        self._http: httpx.Client | None = None
+        self._http: BoundedHTTP | None = None
         self._http_lock = threading.Lock()
 
     @property
@@ -57,13 +60,20 @@ class RoboMLHTTPClient(RoboMLNodeClient):
         """RoboML's base HTTP URL."""
         return f"http://{self.host}:{self.port}"
 
-    def _client(self) -> httpx.Client:
+    def _client(self) -> BoundedHTTP:
         # Created on first use, never in the constructor (a client is built in processes that may
         # never use it, and must not touch the network there).
         with self._http_lock:
             if self._http is None or self._http.is_closed:
-                self._http = httpx.Client(base_url=self.url, timeout=httpx.Timeout(self.inference_timeout))
+                self._http = BoundedHTTP(self.url)
             return self._http
+
+    def _request(self, method: str, path: str, what: str, *, seconds: float | None = None,
+                 setting: str = "inference_timeout", **kwargs: Any) -> httpx.Response:
+        """One request, its whole answer read within ``seconds`` (default ``inference_timeout``)."""
+        budget = float(self.inference_timeout if seconds is None else seconds)
+        return self._client().request(method, path, seconds=budget, label=f"{self._label()}: {what}", what=setting,
+                                      **kwargs)
 
     def _raise_for_status(self, response: httpx.Response, what: str) -> None:
         if not response.is_error:
@@ -91,7 +101,7 @@ class RoboMLHTTPClient(RoboMLNodeClient):
 
     def _check_connection(self) -> None:
         def ping() -> None:
-            response = self._client().get("/", timeout=min(float(self.inference_timeout), 10.0))
+            response = self._request("GET", "/", "connection check", seconds=min(float(self.inference_timeout), 10.0))
             self._raise_for_status(response, "connection check")
 
         retry_connect(ping, attempts=self.connect_attempts, delay=self.connect_retry_delay,
@@ -99,16 +109,16 @@ class RoboMLHTTPClient(RoboMLNodeClient):
                       what=f"{self._label()}: connection check")
 
     def _initialize(self) -> None:
-        client = self._client()
-        response = client.post("/add_node", params={"node_name": self.node_name, "node_model": self.node_model})
+        response = self._request("POST", "/add_node", "add_node",
+                                 params={"node_name": self.node_name, "node_model": self.node_model})
         self._raise_for_status(response, f"add_node {self.node_name!r} ({self.node_model})")
         answer = self._json(response, "add_node")
         if isinstance(answer, dict) and "warning" in answer:
             # The node exists (another client, or a previous run): RoboML keeps the loaded model
             # and answers initialize at once if it is ready.
             self.logger.warning("RoboML: %s", answer["warning"])
-        response = client.post(f"/{self.node_name}/initialize", json=self.model_init_params,
-                               timeout=self._init_seconds)
+        response = self._request("POST", f"/{self.node_name}/initialize", "initialize", seconds=self._init_seconds,
+                                 setting="init_timeout", json=self.model_init_params)
         self._raise_for_status(response, f"initialize node {self.node_name!r}")
         self.logger.info("RoboML node %r (%s) is ready", self.node_name, self.node_model)
 
@@ -117,31 +127,39 @@ class RoboMLHTTPClient(RoboMLNodeClient):
         path = f"/{self.node_name}/inference"
         if stream:
             return {"output": self._stream_http(path, payload)}
-        response = self._client().post(path, json=payload)
+        response = self._request("POST", path, "inference", json=payload)
         self._raise_for_status(response, "inference")
         return normalize_result(self.node_model, self._json(response, "inference"), self._label())
 
     def _stream_http(self, path: str, payload: dict[str, Any]) -> ChunkStream[str]:
-        client = self._client()
-        response = client.send(client.build_request("POST", path, json=payload), stream=True)
+        watch = self._watch("inference", stream=True)
+        try:
+            response = self._client().open("POST", path, watch, json=payload)
+        except BaseException:
+            watch.close()
+            raise
         try:
             self._raise_for_status(response, "inference")
-        except BaseException:
+        except Exception as exc:
+            watch.close()
             response.close()
+            if watch.fired is not None:
+                raise watch.error() from exc
             raise
 
         def chunks() -> Iterator[str]:
             # RoboML streams tokens as plain text with no framing; httpx's decoder keeps
             # characters split across network reads whole.
             for text in response.iter_text():
+                watch.check()
                 if text:
                     yield text
 
-        return ChunkStream(chunks(), on_close=response.close, label=f"{self._label()}: inference")
+        return self._chunk_stream(chunks(), watch, f"{self._label()}: inference", on_close=response.close)
 
     def _deinitialize(self) -> None:
         try:
-            response = self._client().post("/remove_node", params={"node_name": self.node_name})
+            response = self._request("POST", "/remove_node", "remove_node", params={"node_name": self.node_name})
             self._raise_for_status(response, f"remove_node {self.node_name!r}")
         finally:
             self.close()
@@ -151,7 +169,7 @@ class RoboMLHTTPClient(RoboMLNodeClient):
     def node_status(self) -> str:
         """The node's status: ``"LOADED"``, ``"INITIALIZING"``, ``"READY"`` or ``"INITIALIZATION_ERROR"``."""
         def get() -> str:
-            response = self._client().get(f"/{self.node_name}/get_status")
+            response = self._request("GET", f"/{self.node_name}/get_status", "get_status")
             self._raise_for_status(response, "get_status")
             return str(self._json(response, "get_status"))
 

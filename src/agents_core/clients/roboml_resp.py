@@ -21,6 +21,7 @@ from ..errors import (
     ModelClientError,
     ProtocolError,
 )
+from .deadline import CallWatch
 from .roboml import (
     RoboMLNodeClient,
     build_roboml_input,
@@ -81,17 +82,29 @@ class RoboMLRESPClient(RoboMLNodeClient):
                 self._admin = rd.Redis(socket_timeout=self._init_seconds, **common)
             return self._redis, self._admin
 
-    def _call(self, connection: Any, what: str, command: str, arguments: dict[str, Any] | None = None) -> Any:
-        """Run one command; returns the decoded reply (None for ``+OK``); raises typed errors."""
+    def _call(self, connection: Any, what: str, command: str, arguments: dict[str, Any] | None = None, *,
+              seconds: float | None = None, setting: str = "inference_timeout") -> Any:
+        """Run one command within ``seconds`` (default ``inference_timeout``), connect to last byte.
+
+        Returns the decoded reply (None for ``+OK``); raises typed errors.
+        """
         # An empty map would never be answered (RoboML skips the reply for an empty argument map).
         args = (packb(arguments),) if arguments else ()
         label = f"{self._label()}: {what}"
+        # redis-py's socket timeout bounds each read; a reply trickling in is cut by the watchdog,
+        # which drops the pool's connections (shut down, so the blocked read returns at once).
+        watch = CallWatch(float(self.inference_timeout if seconds is None else seconds), label, what=setting)
+        watch.set_abort(connection.connection_pool.disconnect)
         try:
             raw = connection.execute_command(command, *args)
         except ModelClientError:
             raise
         except Exception as exc:
+            if watch.fired is not None:
+                raise watch.error() from exc
             raise self._redis_error(exc, label) from exc
+        finally:
+            watch.close()
         if raw is None or raw == b"OK" or raw is True:
             return None
         if not isinstance(raw, bytes):
@@ -129,12 +142,13 @@ class RoboMLRESPClient(RoboMLNodeClient):
     def _initialize(self) -> None:
         _, admin = self._connections()
         answer = self._call(admin, f"add_node {self.node_name!r}", "add_node",
-                            {"node_name": self.node_name, "node_model": self.node_model})
+                            {"node_name": self.node_name, "node_model": self.node_model},
+                            seconds=self._init_seconds, setting="init_timeout")
         if isinstance(answer, str):
             # A str is RoboML's name-duplication warning: the node exists and keeps its model.
             self.logger.warning("RoboML: %s", answer)
         self._call(admin, f"initialize node {self.node_name!r}", f"{self.node_name}.initialize",
-                   self.model_init_params)
+                   self.model_init_params, seconds=self._init_seconds, setting="init_timeout")
         self.logger.info("RoboML node %r (%s) is ready", self.node_name, self.node_model)
 
     def _inference(self, inference_input: dict[str, Any]) -> MutableMapping[str, Any] | None:
@@ -146,13 +160,15 @@ class RoboMLRESPClient(RoboMLNodeClient):
         result = normalize_result(self.node_model, self._call(redis, "inference", f"{self.node_name}.inference",
                                                               payload), self._label())
         if stream:
-            result["output"] = single_chunk_stream(result["output"], f"{self._label()}: inference")
+            result["output"] = single_chunk_stream(result["output"], f"{self._label()}: inference",
+                                                   secrets=self._secrets())
         return result
 
     def _deinitialize(self) -> None:
         try:
             _, admin = self._connections()
-            self._call(admin, f"remove_node {self.node_name!r}", "remove_node", {"node_name": self.node_name})
+            self._call(admin, f"remove_node {self.node_name!r}", "remove_node", {"node_name": self.node_name},
+                       seconds=self._init_seconds, setting="init_timeout")
         finally:
             self.close()
 

@@ -27,6 +27,7 @@ from ..errors import (
     ModelClientError,
     ProtocolError,
 )
+from .deadline import CallWatch, shutdown_socket
 from .payloads import ChunkStream
 from .roboml import RESPONSE_ENDED, WS_CHUNK_SIZE, build_roboml_input, normalize_result, packb, retry_connect, unpackb
 from .roboml_http import RoboMLHTTPClient
@@ -98,7 +99,7 @@ class RoboMLWSClient(RoboMLHTTPClient):
             return ProtocolError(f"{label}: {type(exc).__name__}: {exc}")
         return InferenceError(f"{label}: {type(exc).__name__}: {exc}")
 
-    def _open_ws(self) -> ClientConnection:
+    def _open_ws(self, watch: CallWatch | None = None) -> ClientConnection:
         with self._ws_lock:
             ws = self._ws
             if ws is not None and ws.protocol.state is State.OPEN:
@@ -109,7 +110,8 @@ class RoboMLWSClient(RoboMLHTTPClient):
 
         def attempt() -> ClientConnection:
             try:
-                connecting = connect(self.ws_url, open_timeout=min(float(self.inference_timeout), 10.0),
+                budget = float(self.inference_timeout) if watch is None else max(watch.wait_seconds(), 0.001)
+                connecting = connect(self.ws_url, open_timeout=min(budget, 10.0),
                                      close_timeout=1.0, max_size=self.max_frame_size,
                                      compression=None)  # images and audio do not compress; save the CPU
                 # Entering the context is how every websockets version (12 to 17 and the coming
@@ -143,31 +145,43 @@ class RoboMLWSClient(RoboMLHTTPClient):
     def _inference(self, inference_input: dict[str, Any]) -> MutableMapping[str, Any] | None:
         payload, stream = build_roboml_input(self.node_model, inference_input, binary=True)
         frame = packb(payload)
-        if not self._request_lock.acquire(timeout=float(self.inference_timeout)):
-            raise InferenceTimeoutError(f"{self._label()}: inference: another request kept the connection "
-                                        f"for more than {self.inference_timeout} s")
+        # The whole inference, waiting for the connection included, within inference_timeout.
+        watch = self._watch("inference", stream=stream)
+        if not self._request_lock.acquire(timeout=max(watch.wait_seconds(), 0.0)):
+            watch.close()
+            raise InferenceTimeoutError(f"{self._label()}: inference timed out: another request kept the "
+                                        f"connection for more than {self.inference_timeout} s")
         handed_to_stream = False
         ws: ClientConnection | None = None
         try:
-            ws = self._open_ws()
+            ws = self._open_ws(watch)
+            opened = ws
+            # Reads time out by themselves; the watchdog cuts a send the server does not read.
+            watch.set_abort(lambda: shutdown_socket(opened.socket))
             try:
                 ws.send(frame)
             except (ConnectionClosed, OSError, WebSocketException) as exc:
                 raise self._ws_error(exc, "sending the request") from exc
             if stream:
-                chunks = self._stream_ws(ws)
+                chunks = self._stream_ws(ws, watch)
                 handed_to_stream = True
                 return {"output": chunks}
-            return normalize_result(self.node_model, {"output": self._read_reply(ws)}, self._label())
+            return normalize_result(self.node_model, {"output": self._read_reply(ws, watch)}, self._label())
+        except Exception as exc:
+            self._discard_ws(ws)
+            if watch.fired is not None or (isinstance(exc, TimeoutError) and watch.passed()):
+                raise watch.error() from exc
+            raise
         except BaseException:
             self._discard_ws(ws)
             raise
         finally:
             if not handed_to_stream:
+                watch.close()
                 self._request_lock.release()
 
-    def _read_reply(self, ws: ClientConnection) -> Any:
-        deadline = time.monotonic() + float(self.inference_timeout)
+    def _read_reply(self, ws: ClientConnection, watch: CallWatch) -> Any:
+        deadline = time.monotonic() + watch.wait_seconds()
         parts = [self._recv(ws, deadline - time.monotonic())]
         # A frame of exactly WS_CHUNK_SIZE may be the first piece of a split reply.
         while len(parts[-1]) == WS_CHUNK_SIZE:
@@ -187,12 +201,13 @@ class RoboMLWSClient(RoboMLHTTPClient):
         # Bytes outputs (speech audio) come raw; every other non-text output is msgpack.
         return data if self.node_model == "TransformersTTS" else unpackb(data)
 
-    def _stream_ws(self, ws: ClientConnection) -> ChunkStream[str]:
+    def _stream_ws(self, ws: ClientConnection, watch: CallWatch) -> ChunkStream[str]:
         ended = threading.Event()
 
         def chunks() -> Iterator[str]:
             while True:
-                message = self._recv(ws, float(self.inference_timeout))
+                # Until the current limit: the first chunk's, the next chunk's or the deadline.
+                message = self._recv(ws, watch.wait_seconds())
                 if not isinstance(message, str):
                     raise ProtocolError(f"{self._label()}: inference: a binary frame inside a token stream")
                 if message == RESPONSE_ENDED:
@@ -207,7 +222,7 @@ class RoboMLWSClient(RoboMLHTTPClient):
             finally:
                 self._request_lock.release()
 
-        return ChunkStream(chunks(), on_close=release, label=f"{self._label()}: inference")
+        return self._chunk_stream(chunks(), watch, f"{self._label()}: inference", on_close=release)
 
     # -- component streaming path -----------------------------------------------------------
 

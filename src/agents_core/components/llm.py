@@ -395,6 +395,15 @@ class LLM(ModelComponent):
         return self._publish_stream(output)
 
     def _publish_stream(self, chunks: Iterable[str]) -> str:
+        """Publish a streamed answer as it arrives; returns the whole visible text.
+
+        StreamingString outputs get each visible piece (``done=False``) and then an empty
+        ``done=True`` message. When the stream fails midway (the server dropped, a stream timeout
+        passed), the listeners still get that closing ``done=True`` message, with empty text (the
+        partial answer has already gone out piece by piece), and then the error is raised again,
+        so the step fails: the health becomes COMPONENT_FAILURE and the fallbacks run. The
+        unfinished sentence held for String outputs is not published then.
+        """
         streaming, plain = self._text_publishers()
         stripper = ThinkStripper() if self.config.strip_think_tokens else None
         parts: list[str] = []
@@ -422,6 +431,10 @@ class LLM(ModelComponent):
                     if sentence:
                         for pub in plain:
                             pub.publish(sentence)
+        except Exception:
+            # Listeners must never wait for a "done" that does not come.
+            self._close_streams(streaming)
+            raise
         finally:
             close = getattr(chunks, "close", None)
             if callable(close):
@@ -438,6 +451,14 @@ class LLM(ModelComponent):
         for pub in streaming:
             pub.publish(StreamingStringMsg(data="", stream=True, done=True))
         return "".join(parts).strip()
+
+    def _close_streams(self, streaming: list[Any]) -> None:
+        """The closing ``done=True`` message after a failed stream (a publish failing here is logged only)."""
+        for pub in streaming:
+            try:
+                pub.publish(StreamingStringMsg(data="", stream=True, done=True))
+            except Exception as exc:  # the stream's own error is the one to report
+                self._logger.debug("closing message of a failed stream not published: %s", exc)
 
     # -- lifecycle ------------------------------------------------------------------------------
 
