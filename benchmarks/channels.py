@@ -69,7 +69,9 @@ class FrameworkChannel(Channel):
             self._make = lambda seq: ImageMsg(data=pixels, encoding="rgb8", header=Header(frame_id=str(seq)))
             self._seq_of = lambda msg: int(msg.header.frame_id)
         self._pub = transport.create_publisher(Topic(inp, type_name))
-        self._sub = transport.create_subscription(Topic(out, type_name), self._on_value)
+        # Inline: the callback only wakes the waiting thread, so it may run on the middleware's
+        # thread (what a component input does too); no delivery thread in between.
+        self._sub = transport.create_subscription(Topic(out, type_name), self._on_value, inline=True)
 
     def send(self, seq: int) -> None:
         self._pub.publish(self._make(seq))

@@ -53,3 +53,18 @@ class Stage(Component):
 def five_stage_recipe(prefix: str = "startup") -> list[Component]:
     """Five components in a chain: ``<prefix>/t0`` -> stage0 -> ``t1`` -> ... -> stage4 -> ``t5``."""
     return [Stage(f"{prefix}/t{i}", f"{prefix}/t{i + 1}", f"stage{i}") for i in range(5)]
+
+
+class Merge(Component):
+    """Three String inputs (any of them triggers), one output: the thread-count figure's component."""
+
+    def __init__(self, prefix: str) -> None:
+        self.allowed_inputs = {"Required": [String]}
+        self.allowed_outputs = {"Required": [String]}
+        sources = [Topic(f"{prefix}/in{i}", "String") for i in range(3)]
+        super().__init__(inputs=sources, outputs=[Topic(f"{prefix}/out", "String")], trigger=sources,
+                         component_name="merge")
+
+    def _execution_step(self, **kwargs: Any) -> None:
+        topic = kwargs["topic"]
+        self.publishers_dict[self.outputs[0].name].publish(self.trig_callbacks[topic.name].get_output())

@@ -17,7 +17,8 @@ from .common import REPO
 METRICS: dict[str, list[tuple[str, str, str, str]]] = {
     "hop": [("rtt_median", "us", "lower", "rtt.median_us"), ("rtt_p99", "us", "lower", "rtt.p99_us")],
     "throughput": [("msgs_per_s", "msg/s", "higher", "msgs_per_s"), ("mb_per_s", "MB/s", "higher", "mb_per_s")],
-    "startup": [("start_to_active", "ms", "lower", "median_ms")],
+    "startup": [("start_to_active", "ms", "lower", "median_ms"),
+                ("threads_3_inputs", "threads", "lower", "threads_3_inputs")],
     "model": [("ttft", "ms", "lower", "ttft_ms"), ("tokens_per_s", "tokens/s", "higher", "tokens_per_s")],
 }
 
@@ -25,9 +26,11 @@ METRICS: dict[str, list[tuple[str, str, str, str]]] = {
 NOTE_THRESHOLD = 1.3
 
 
-def _read(record: dict[str, Any], path: str) -> float:
+def _read(record: dict[str, Any], path: str) -> float | None:
     value: Any = record
     for key in path.split("."):
+        if not isinstance(value, dict) or key not in value:
+            return None  # a figure one mode has and the other has not (threads: framework only)
         value = value[key]
     return float(value)
 
@@ -45,8 +48,12 @@ def build_figures(records: Iterable[dict[str, Any]]) -> list[dict[str, Any]]:
     figures = []
     for (suite, transport, payload), modes in by_key.items():
         for metric, unit, better, path in METRICS[suite]:
-            fw = statistics.median(_read(r, path) for r in modes["framework"]) if "framework" in modes else None
-            raw = statistics.median(_read(r, path) for r in modes["raw"]) if "raw" in modes else None
+            fw_values = [v for r in modes.get("framework", []) if (v := _read(r, path)) is not None]
+            raw_values = [v for r in modes.get("raw", []) if (v := _read(r, path)) is not None]
+            if not fw_values and not raw_values:
+                continue
+            fw = statistics.median(fw_values) if fw_values else None
+            raw = statistics.median(raw_values) if raw_values else None
             ratio = fw / raw if fw is not None and raw else None
             slowdown = None
             if ratio is not None and ratio > 0:

@@ -51,6 +51,32 @@ def framework_once(transport: str, rep: int) -> float:
     return took
 
 
+def threads_of_one_component(transport: str) -> int:
+    """Threads a component with three inputs adds once it is active (its transport's own excluded)."""
+    from agents_core import Launcher  # noqa: PLC0415
+    from agents_core.transport import resolve_transport  # noqa: PLC0415
+
+    from .common import zenoh_framework_options  # noqa: PLC0415
+    from .parts import Merge  # noqa: PLC0415
+
+    options: dict[str, Any] = {}
+    if transport == "zenoh":
+        options = zenoh_framework_options(["tcp/127.0.0.1:0"], [], f"threads_{os.getpid()}")
+    opened = resolve_transport(transport, **options)
+    launcher = Launcher(transport=opened)
+    launcher.add_pkg(components=[Merge(f"threads{os.getpid()}")])
+    try:
+        before = threading.active_count()
+        launcher.start()
+        while not launcher.all_active():
+            time.sleep(0.001)
+        time.sleep(0.05)  # let every thread the component starts be running
+        return threading.active_count() - before
+    finally:
+        launcher.stop()
+        opened.close()
+
+
 def raw_zenoh_once(rep: int) -> float:
     import zenoh  # noqa: PLC0415
 
@@ -119,9 +145,12 @@ def main(argv: list[str] | None = None) -> int:
         raise SystemExit("the memory transport has no raw counterpart")
     once(0)  # warm-up: imports, first-use initialisation
     times = [once(rep) for rep in range(1, args.reps + 1)]
-    emit({"suite": "startup", "payload": "five_components", "times_s": times,
-          "median_ms": statistics.median(times) * 1000.0, "min_ms": min(times) * 1000.0,
-          "max_ms": max(times) * 1000.0})
+    record: dict[str, Any] = {"suite": "startup", "payload": "five_components", "times_s": times,
+                              "median_ms": statistics.median(times) * 1000.0, "min_ms": min(times) * 1000.0,
+                              "max_ms": max(times) * 1000.0}
+    if args.mode == "framework":
+        record["threads_3_inputs"] = threads_of_one_component(args.transport)
+    emit(record)
     return 0
 
 
@@ -144,7 +173,9 @@ def run_suite(transports: list[str], settings: dict[str, Any], children: Childre
                     records.append(record)
                     progress(f"{'startup':<10} {transport:<6} {mode:<9} {'5 comps':<12} start -> active "
                              f"median {record['median_ms']:8.1f} ms  (min {record['min_ms']:.1f}, "
-                             f"max {record['max_ms']:.1f}, n={len(record['times_s'])})")
+                             f"max {record['max_ms']:.1f}, n={len(record['times_s'])})"
+                             + (f"; a 3-input component starts {record['threads_3_inputs']} thread(s)"
+                                if "threads_3_inputs" in record else ""))
                 rc = children.stop(child)
                 if rc != 0:
                     raise ChildFailed(f"exited with {rc}\n{child.log_tail()}")

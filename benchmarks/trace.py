@@ -75,9 +75,12 @@ def install_framework(transport: str) -> None:
     from agents_core.callbacks import GenericCallback  # noqa: PLC0415
     from agents_core.components.component_base import Component  # noqa: PLC0415
     from agents_core.components.worker import StepWorker  # noqa: PLC0415
-    from agents_core.transport.delivery import BoundedDelivery  # noqa: PLC0415
+    from agents_core.transport.core import CorePublisher  # noqa: PLC0415
+    from agents_core.transport.delivery import BoundedDelivery, InlineDelivery  # noqa: PLC0415
 
     _patch(BoundedDelivery, "offer", "queue_to_delivery_thread", _bench_topic)
+    _patch(InlineDelivery, "offer", "inline_delivery", _bench_topic)
+    _patch(CorePublisher, "publish", "publish", _bench_topic)
     _patch(GenericCallback, "_receive", "component_callback", _bench_topic)
     _patch(StepWorker, "submit_step", "queue_to_worker")
     _patch(Component, "_run_step", "step", lambda args: args[2] is not None)
@@ -86,7 +89,7 @@ def install_framework(transport: str) -> None:
 
         _patch(pubsub.ZenohSubscription, "_on_sample", "zenoh_callback", _bench_topic)
         _patch(pubsub, "decode_value", "decode", _bench_type)
-        _patch(pubsub.ZenohPublisher, "publish", "publish", _bench_topic)
+        _patch(pubsub.ZenohPublisher, "send", "send", _bench_topic)
         _patch(pubsub, "encode_value", "encode", _bench_type)
     elif transport == "ros2":
         import rclpy.publisher  # noqa: PLC0415
@@ -94,13 +97,9 @@ def install_framework(transport: str) -> None:
         from agents_ros2 import transport as ros  # noqa: PLC0415
 
         _patch(ros._Ros2Subscription, "_on_message", "rclpy_callback", _bench_topic)
-        _patch(ros._Ros2Publisher, "publish", "publish", _bench_topic)
+        _patch(ros._Ros2Publisher, "send", "send", _bench_topic)
         _patch(rclpy.publisher.Publisher, "publish", "rclpy_publish",
                lambda args: str(getattr(args[0], "topic_name", "")).startswith("/bench/"))
-    else:
-        from agents_core.transport import memory  # noqa: PLC0415
-
-        _patch(memory._MemoryPublisher, "publish", "publish", _bench_topic)
 
 
 def dump(path: str | Path, role: str) -> None:

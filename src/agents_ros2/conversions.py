@@ -180,7 +180,8 @@ def _header_from_ros(header: RosHeader) -> m.Header:
 def _seq(typecode: str, values: npt.ArrayLike, dtype: type[np.generic]) -> array.array[Any]:
     """A numeric ROS sequence field: rclpy takes an ``array.array`` of the field's type without a per-item check."""
     out = array.array(typecode)
-    out.frombytes(np.ascontiguousarray(values, dtype=dtype).tobytes())
+    # frombytes reads the array's buffer directly: one copy of the data (tobytes() would add one).
+    out.frombytes(memoryview(np.ascontiguousarray(values, dtype=dtype)).cast("B"))
     return out
 
 
