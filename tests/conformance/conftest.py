@@ -1,39 +1,26 @@
-"""The transport fixture of the conformance suite: one parameter per transport.
+"""This repository's conformance run: the shipped plugin, enabled for this directory only.
 
-Each parameter yields a pair of transports ``(a, b)`` that reach each other: the same memory
-transport twice, or two independent middleware sessions on loopback. A transport whose extra is
-not installed is skipped with the reason shown.
+The suite itself lives in ``agents_core.testing.suite`` and is collected here, under this
+``conftest.py`` (``pytest tests/conformance``, ``-m memory`` / ``-m zenoh`` / ``-m ros2``). A
+``conftest.py`` below the rootdir may not use ``pytest_plugins``, so the plugin's hooks and fixture
+are imported instead (see ``agents_core.testing``); a transport package of your own needs only
+``pytest_plugins = ["agents_core.testing"]`` in its top ``conftest.py``.
 """
 
 from __future__ import annotations
 
-import importlib
-from collections.abc import Iterator
+from agents_core.testing import (
+    pytest_collect_file,
+    pytest_configure,
+    pytest_generate_tests,
+    pytest_make_collect_report,
+    transport_pair,
+)
 
-import pytest
-
-from agents_core.transport import MemoryTransport, Transport
-
-# name -> "module:function" returning a context manager that yields (a, b)
-PAIR_FACTORIES = {
-    "memory": None,
-    "zenoh": "tests.conformance.zenoh_pair:zenoh_pair",
-    "ros2": "tests.conformance.ros2_pair:ros2_pair",
-}
-
-
-@pytest.fixture(params=sorted(PAIR_FACTORIES), ids=sorted(PAIR_FACTORIES))
-def transport_pair(request: pytest.FixtureRequest) -> Iterator[tuple[Transport, Transport]]:
-    name = request.param
-    if name == "memory":
-        transport = MemoryTransport()
-        yield transport, transport
-        transport.close()
-        return
-    module_name, _, func = PAIR_FACTORIES[name].partition(":")
-    try:
-        module = importlib.import_module(module_name)
-    except ImportError as exc:
-        pytest.skip(f"{name} transport not available here: {exc}")
-    with getattr(module, func)() as pair:
-        yield pair
+__all__ = [
+    "pytest_collect_file",
+    "pytest_configure",
+    "pytest_generate_tests",
+    "pytest_make_collect_report",
+    "transport_pair",
+]

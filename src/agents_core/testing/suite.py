@@ -1,7 +1,9 @@
-"""The transport conformance suite: the same promises checked on every transport.
+"""The transport conformance suite: the same promises checked on every installed transport.
 
-Every test takes ``transport_pair`` (see conftest.py): ``a`` publishes / serves / declares,
-``b`` subscribes / requests / observes. On memory both are the same object.
+Collected by the :mod:`agents_core.testing` pytest plugin (never import it into a test module of
+your own: the plugin already collects it once). Every test takes ``transport_pair``: ``a``
+publishes / serves / declares, ``b`` subscribes / requests / observes; on memory (and on a
+third-party transport without a pair factory) both are the same object.
 """
 
 from __future__ import annotations
@@ -26,7 +28,8 @@ from agents_core.status import HealthStatus, LifecycleState
 from agents_core.supported_types import registered_types
 from agents_core.topics import QoSConfig, Topic
 from agents_core.transport import Transport
-from tests.conftest import wait_for
+
+from .helpers import wait_for
 
 _ids = itertools.count()
 
