@@ -25,7 +25,7 @@ from typing import Any
 import pytest
 
 from agents_core import Launcher, Topic
-from agents_core.errors import WiringError
+from agents_core.errors import TransportNotAvailableError, WiringError
 from agents_core.ros import QoSConfig
 from agents_core.testing.pairs import missing_requirement, pair_factory
 from agents_core.transport import Transport
@@ -41,8 +41,15 @@ def pair(request: pytest.FixtureRequest) -> Iterator[tuple[Transport, Transport]
     reason = missing_requirement(name)
     if reason is not None:
         pytest.skip(reason)
-    with pair_factory(name)() as transports:
+    try:
+        opened = pair_factory(name)()
+        transports = opened.__enter__()
+    except TransportNotAvailableError as exc:
+        pytest.skip(f"{name} transport not available here: {exc}")
+    try:
         yield transports
+    finally:
+        opened.__exit__(None, None, None)
 
 
 _names = iter(range(1_000_000))

@@ -181,7 +181,7 @@ def _seq(typecode: str, values: npt.ArrayLike, dtype: type[np.generic]) -> array
     """A numeric ROS sequence field: rclpy takes an ``array.array`` of the field's type without a per-item check."""
     out = array.array(typecode)
     # frombytes reads the array's buffer directly: one copy of the data (tobytes() would add one).
-    out.frombytes(memoryview(np.ascontiguousarray(values, dtype=dtype)).cast("B"))
+    out.frombytes(np.ascontiguousarray(values, dtype=dtype).data.cast("B"))
     return out
 
 

@@ -314,7 +314,9 @@ class Ros2Driver:
             node = self._node_for(owner)
             rclpy_publisher = node.create_publisher(conversion.ros_type, absolute_name(topic.name),
                                                     publisher_qos(topic.qos_profile))
-            return _Ros2Publisher(topic, node, conversion, rclpy_publisher, first_publish_wait=self._first_publish_wait)
+            # A transient_local topic replays to late joiners: nothing is lost to discovery, no wait.
+            wait = 0.0 if topic.qos_profile.durability == "transient_local" else self._first_publish_wait
+            return _Ros2Publisher(topic, node, conversion, rclpy_publisher, first_publish_wait=wait)
 
     def open_subscriber(self, topic: Topic, sink: Sink, owner: str | None) -> _Ros2Subscription:
         """Convert ``topic``'s messages on the executor thread into ``sink``."""

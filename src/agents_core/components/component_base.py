@@ -179,6 +179,9 @@ class Component:
         self._status_timer: PeriodicTimer | None = None
         self._worker: StepWorker | None = None
         self._failed_steps = 0
+        # Set by a failed step (or a health change away from HEALTHY), cleared by the next good
+        # one: the common path of a step checks one flag.
+        self._recovering = False
         # Bumped by every deactivate: a step that started under an older epoch was overtaken by
         # it, and its outputs and failures are discarded (counted), never reported as failures.
         self._epoch = 0
@@ -723,9 +726,11 @@ class Component:
             if epoch != self._epoch:
                 self._overtaken_steps += 1
                 return
-            if self._health != HealthStatus.HEALTHY:
-                self._set_health(HealthStatus.HEALTHY, "")
-            if self._gave_up or any(f._index or f._tries for f in self._fallbacks.values()):
+            if self._recovering:
+                # The first good step after failures: healthy again, fallbacks start over.
+                self._recovering = False
+                if self._health != HealthStatus.HEALTHY:
+                    self._set_health(HealthStatus.HEALTHY, "")
                 for f in self._fallbacks.values():
                     f.reset()
                 self._gave_up = False
@@ -740,6 +745,7 @@ class Component:
 
     def _step_failed(self, status: HealthStatus, exc: Exception) -> None:
         self._failed_steps += 1
+        self._recovering = True
         self._logger.error("step failed (%s): %s: %s", status.name, type(exc).__name__, exc,
                            exc_info=self._logger.isEnabledFor(logging.DEBUG))
         self._set_health(status, f"{type(exc).__name__}: {exc}")
@@ -767,6 +773,8 @@ class Component:
     # -- health -----------------------------------------------------------------------------
 
     def _set_health(self, status: HealthStatus, message: str) -> None:
+        if status != HealthStatus.HEALTHY:
+            self._recovering = True
         changed = status != self._health
         self._health = status
         self._health_message = message

@@ -15,6 +15,7 @@ import collections
 import contextvars
 import logging
 import math
+import queue
 import threading
 import time
 from collections.abc import Callable
@@ -80,11 +81,18 @@ class StepWorker:
         self.policy = policy
         self._steps: collections.deque[Callable[[], None]] = collections.deque()
         self._control: collections.deque[Callable[[], None]] = collections.deque()
-        self._cond = threading.Condition()
+        self._lock = threading.Lock()
+        # Signalled when an item ends (wait_step_done waits on it).
+        self._cond = threading.Condition(self._lock)
+        # One token per queued item (and one to stop): the thread sleeps in SimpleQueue.get, whose
+        # wake-up is C code, cheaper than a Condition's. A token whose item was dropped meanwhile
+        # wakes the thread for nothing, which is harmless.
+        self._wake: queue.SimpleQueue[bool] = queue.SimpleQueue()
         self._stats = WorkerStatistics()
         self._stopping = False
         self._busy = False
         self._busy_is_step = False
+        self._done_waiters = 0
         self._thread = threading.Thread(target=self._run, name=f"worker:{name}", daemon=True)
         self._thread.start()
 
@@ -105,8 +113,8 @@ class StepWorker:
                     return False
                 self._steps.popleft()
             self._steps.append(step)
-            self._cond.notify()
-            return True
+        self._wake.put(True)
+        return True
 
     def set_queue(self, depth: int | None = None,
                   policy: Literal["drop_oldest", "drop_newest"] | None = None) -> None:
@@ -149,7 +157,7 @@ class StepWorker:
             if len(self._control) >= MAX_PENDING_CONTROL:
                 raise ComponentError(f"component {self.name!r} has {MAX_PENDING_CONTROL} pending actions")
             self._control.append(run)
-            self._cond.notify()
+        self._wake.put(True)
         return future
 
     def count_discarded(self) -> None:
@@ -176,11 +184,15 @@ class StepWorker:
         """Wait until no step is running (pending ones are not waited for); True if so in time."""
         deadline = time.monotonic() + timeout
         with self._cond:
-            while self._busy and self._busy_is_step:
-                remaining = deadline - time.monotonic()
-                if remaining <= 0 or (abort is not None and abort.is_set()):
-                    return False
-                self._cond.wait(min(remaining, 0.05))
+            self._done_waiters += 1
+            try:
+                while self._busy and self._busy_is_step:
+                    remaining = deadline - time.monotonic()
+                    if remaining <= 0 or (abort is not None and abort.is_set()):
+                        return False
+                    self._cond.wait(min(remaining, 0.05))
+            finally:
+                self._done_waiters -= 1
         return True
 
     def statistics(self) -> WorkerStatistics:
@@ -192,29 +204,33 @@ class StepWorker:
 
     def _run(self) -> None:
         while True:
-            with self._cond:
-                while not self._steps and not self._control and not self._stopping:
-                    self._cond.wait()
+            self._wake.get()
+            with self._lock:
                 if self._control:
                     item = self._control.popleft()
                     is_step = False
                 elif self._steps:
                     item = self._steps.popleft()
                     is_step = True
-                else:
+                    # Counted as it starts (pending counts it until it ends): what runs after
+                    # the item is kept minimal, since the thread it handed a value to may be
+                    # waiting for the GIL meanwhile.
+                    self._stats.executed += 1
+                elif self._stopping:
                     return
+                else:
+                    continue  # the token of an item dropped or discarded meanwhile
                 self._busy = True
                 self._busy_is_step = is_step
             try:
                 item()
             except Exception:
                 logger.exception("unhandled error on the worker of %r", self.name)
-            with self._cond:
+            with self._lock:
                 self._busy = False
                 self._busy_is_step = False
-                if is_step:
-                    self._stats.executed += 1
-                self._cond.notify_all()
+                if self._done_waiters:
+                    self._cond.notify_all()
 
     def stop(self, timeout: float = 10.0, abort: threading.Event | None = None) -> bool:
         """Finish the item in progress and the pending control items, then end the thread.
@@ -226,7 +242,7 @@ class StepWorker:
             self._stopping = True
             self._stats.discarded += len(self._steps)
             self._steps.clear()
-            self._cond.notify_all()
+        self._wake.put(False)
         if self.on_worker_thread:
             return False
         if wait_on_thread(self._thread, timeout, abort):

@@ -64,14 +64,23 @@ class CorePublisher:
         self._sender = sender
         self._closed = False
         self._validate = topic.msg_type.validate
-        self._count = transport._counters.count
+        self._count_lock = transport._counters.lock
+        self._totals = transport._counters.live(topic.name)
 
     def publish(self, value: Any) -> None:
         """Validate ``value`` and send it; TypeValidationError / TransportClosedError as the contract says."""
         if self._closed or self._transport._closed:
             raise TransportClosedError(f"publisher on {self.topic.name!r} is closed")
-        self._sender.send(self._validate(value))
-        self._count(self.topic.name, published=1)
+        value = self._validate(value)
+        # Counted before sending, for the same reason as InlineDelivery.offer; undone on failure.
+        with self._count_lock:
+            self._totals.published += 1
+        try:
+            self._sender.send(value)
+        except BaseException:
+            with self._count_lock:
+                self._totals.published -= 1
+            raise
 
     def close(self) -> None:
         """Stop publishing; idempotent."""
@@ -271,22 +280,16 @@ class DriverTransport:
         """
         if not callable(callback):
             raise WiringError(f"subscription on {topic.name!r}: callback must be callable, got {callback!r}")
-        counters = self._counters
-
-        def on_count(**counts: int) -> None:
-            counters.count(topic.name, **counts)
-
         with self._lock:
             self._check_open(f"subscribe to {topic.name!r}")
             self._check_type(topic)
-            delivery = (InlineDelivery if inline else BoundedDelivery)(topic, callback, on_count)
+            delivery = (InlineDelivery if inline else BoundedDelivery)(topic, callback, self._counters)
             subscription = CoreSubscription(self, topic, delivery)
             try:
                 subscription._handle = self._driver.open_subscriber(topic, delivery, owner)
             except BaseException:
                 delivery.close()
                 raise
-            counters.track(topic.name)
             self._open[id(subscription)] = subscription
         return subscription
 

@@ -67,67 +67,98 @@ class TopicStatistics:
 
 
 class TopicCounters:
-    """Thread-safe per-topic :class:`TopicStatistics`, what ``Transport.statistics()`` returns."""
+    """Per-topic :class:`TopicStatistics` of one transport, what ``Transport.statistics()`` returns.
+
+    Deliveries and publishers add to the live totals (:meth:`live`) under :attr:`lock`, the one
+    lock of every counter of the transport: a count costs one uncontended lock, no allocation.
+    """
 
     def __init__(self) -> None:
-        self._lock = threading.Lock()
+        self.lock = threading.Lock()
         self._stats: dict[str, TopicStatistics] = {}
 
-    def track(self, topic_name: str) -> None:
-        """Make ``topic_name`` appear in snapshots (with zero counts) from now on."""
-        with self._lock:
-            self._stats.setdefault(topic_name, TopicStatistics())
+    def live(self, topic_name: str) -> TopicStatistics:
+        """The live totals of ``topic_name`` (created at zero); change them only under :attr:`lock`."""
+        with self.lock:
+            stats = self._stats.get(topic_name)
+            if stats is None:
+                stats = self._stats[topic_name] = TopicStatistics()
+            return stats
 
-    def count(self, topic_name: str, **counts: int) -> None:
-        """Add ``counts`` (field name -> increment) to the topic's counters."""
-        with self._lock:
-            stats = self._stats.setdefault(topic_name, TopicStatistics())
-            for name, n in counts.items():
-                setattr(stats, name, getattr(stats, name) + n)
+    track = live
 
     def snapshot(self, topic_name: str | None = None) -> dict[str, TopicStatistics]:
         """A copy of the counters of every topic, or of ``topic_name`` only."""
-        with self._lock:
+        with self.lock:
             return {name: TopicStatistics(s.published, s.delivered, s.dropped, s.callback_errors, s.discarded,
                                           s.decode_errors)
                     for name, s in self._stats.items() if topic_name is None or name == topic_name}
 
 
-class BoundedDelivery:
+class _Counted:
+    """The counters a delivery keeps: its own and, with ``counters``, the topic's totals too."""
+
+    def __init__(self, topic: Topic, counters: TopicCounters | None) -> None:
+        self._count_lock = counters.lock if counters is not None else threading.Lock()
+        self._stats = SubscriptionStatistics()
+        self._totals = counters.live(topic.name) if counters is not None else TopicStatistics()
+
+    def reject(self, reason: object) -> None:
+        """Count a received payload that does not decode into the topic's type; never raises.
+
+        Drivers call this instead of ``offer`` when decoding fails. The first rejection is
+        logged as a warning with its reason, later ones at debug level, so a stream of bad
+        payloads cannot flood the log; all are counted in ``statistics().decode_errors``.
+        """
+        with self._count_lock:
+            self._stats.decode_errors += 1
+            self._totals.decode_errors += 1
+            first = self._stats.decode_errors == 1
+        topic = self.topic  # type: ignore[attr-defined]  # set by the subclasses
+        log = logger.warning if first else logger.debug
+        log("topic %r: skipped a payload that does not decode as %s: %s%s", topic.name, topic.type_name,
+            reason, " (further ones are counted in statistics().decode_errors)" if first else "")
+
+    def _snapshot(self, queued: int) -> SubscriptionStatistics:
+        with self._count_lock:
+            s = self._stats
+            return SubscriptionStatistics(s.delivered, s.dropped, s.callback_errors, queued, s.decode_errors,
+                                          s.discarded)
+
+
+class BoundedDelivery(_Counted):
     """A queue of ``topic.qos_profile.depth`` values drained by one thread into ``callback``.
 
-    ``on_count(delivered=, dropped=, callback_errors=, discarded=)`` is told about every event,
-    for transport-wide statistics. Every value offered ends in exactly one of delivered,
-    dropped, callback_errors or discarded (or is still queued).
+    With ``counters``, every event is also added to the topic's totals there. Every value
+    offered ends in exactly one of delivered, dropped, callback_errors or discarded (or is
+    still queued).
     """
 
-    def __init__(self, topic: Topic, callback: Callable[[Any], None],
-                 on_count: Callable[..., None] | None = None) -> None:
+    def __init__(self, topic: Topic, callback: Callable[[Any], None], counters: TopicCounters | None = None) -> None:
+        super().__init__(topic, counters)
         self.topic = topic
         self._callback = callback
-        self._on_count = on_count
         self._queue: collections.deque[Any] = collections.deque()
         self._depth = topic.qos_profile.depth
         self._cond = threading.Condition()
         self._closed = False
-        self._stats = SubscriptionStatistics()
         self._thread = threading.Thread(target=self._run, name=f"deliver:{topic.name}", daemon=True)
         self._thread.start()
 
     def offer(self, value: Any) -> None:
         """Queue ``value`` (never blocks; drops the oldest waiting value when full)."""
-        dropped = False
         with self._cond:
             if self._closed:
                 return
-            if len(self._queue) >= self._depth:
+            dropped = len(self._queue) >= self._depth
+            if dropped:
                 self._queue.popleft()
-                self._stats.dropped += 1
-                dropped = True
             self._queue.append(value)
             self._cond.notify()
-        if dropped and self._on_count is not None:
-            self._on_count(dropped=1)
+        if dropped:
+            with self._count_lock:
+                self._stats.dropped += 1
+                self._totals.dropped += 1
 
     def _run(self) -> None:
         while True:
@@ -141,38 +172,19 @@ class BoundedDelivery:
                 self._callback(value)
             except Exception:
                 logger.exception("callback on topic %r raised; the subscription keeps running", self.topic.name)
-                with self._cond:
+                with self._count_lock:
                     self._stats.callback_errors += 1
-                if self._on_count is not None:
-                    self._on_count(callback_errors=1)
+                    self._totals.callback_errors += 1
             else:
-                with self._cond:
+                with self._count_lock:
                     self._stats.delivered += 1
-                if self._on_count is not None:
-                    self._on_count(delivered=1)
-
-    def reject(self, reason: object) -> None:
-        """Count a received payload that does not decode into the topic's type; never raises.
-
-        Adapters call this instead of :meth:`offer` when decoding fails. The first rejection is
-        logged as a warning with its reason, later ones at debug level, so a stream of bad
-        payloads cannot flood the log; all are counted in ``statistics().decode_errors``.
-        """
-        with self._cond:
-            self._stats.decode_errors += 1
-            first = self._stats.decode_errors == 1
-        if self._on_count is not None:
-            self._on_count(decode_errors=1)
-        log = logger.warning if first else logger.debug
-        log("topic %r: skipped a payload that does not decode as %s: %s%s", self.topic.name, self.topic.type_name,
-            reason, " (further ones are counted in statistics().decode_errors)" if first else "")
+                    self._totals.delivered += 1
 
     def statistics(self) -> SubscriptionStatistics:
         """A snapshot of the counters."""
         with self._cond:
-            s = self._stats
-            return SubscriptionStatistics(s.delivered, s.dropped, s.callback_errors, len(self._queue),
-                                          s.decode_errors, s.discarded)
+            queued = len(self._queue)
+        return self._snapshot(queued)
 
     def close(self) -> None:
         """Stop delivering; waiting values are discarded and counted. Idempotent."""
@@ -181,67 +193,53 @@ class BoundedDelivery:
                 return
             self._closed = True
             discarded = len(self._queue)
-            self._stats.discarded += discarded
             self._queue.clear()
             self._cond.notify_all()
-        if discarded and self._on_count is not None:
-            self._on_count(discarded=discarded)
+        if discarded:
+            with self._count_lock:
+                self._stats.discarded += discarded
+                self._totals.discarded += discarded
         if threading.current_thread() is not self._thread:
             self._thread.join(timeout=5.0)
 
 
-class InlineDelivery:
+class InlineDelivery(_Counted):
     """Calls ``callback(value)`` on the thread that offers the value (see the module docstring).
 
     Same interface and counters as :class:`BoundedDelivery`, without a queue or a thread: the
     callback must return at once.
     """
 
-    def __init__(self, topic: Topic, callback: Callable[[Any], None],
-                 on_count: Callable[..., None] | None = None) -> None:
+    def __init__(self, topic: Topic, callback: Callable[[Any], None], counters: TopicCounters | None = None) -> None:
+        super().__init__(topic, counters)
         self.topic = topic
         self._callback = callback
-        self._on_count = on_count
-        self._lock = threading.Lock()
         self._closed = False
-        self._stats = SubscriptionStatistics()
 
     def offer(self, value: Any) -> None:
         """Run the callback with ``value`` now; count the outcome; never raises."""
         if self._closed:
             return
+        # Counted before the call: the callback hands the value to another thread, which waits
+        # for the GIL until this one is done, so nothing should run after it on the way back.
+        with self._count_lock:
+            self._stats.delivered += 1
+            self._totals.delivered += 1
         try:
             self._callback(value)
         except Exception:
-            with self._lock:
+            with self._count_lock:
+                self._stats.delivered -= 1
+                self._totals.delivered -= 1
                 self._stats.callback_errors += 1
+                self._totals.callback_errors += 1
                 first = self._stats.callback_errors == 1
             (logger.exception if first else logger.debug)(
                 "callback on topic %r raised; the subscription keeps running", self.topic.name)
-            if self._on_count is not None:
-                self._on_count(callback_errors=1)
-            return
-        with self._lock:
-            self._stats.delivered += 1
-        if self._on_count is not None:
-            self._on_count(delivered=1)
-
-    def reject(self, reason: object) -> None:
-        """Count a payload that does not decode (logged once, as :meth:`BoundedDelivery.reject`)."""
-        with self._lock:
-            self._stats.decode_errors += 1
-            first = self._stats.decode_errors == 1
-        if self._on_count is not None:
-            self._on_count(decode_errors=1)
-        log = logger.warning if first else logger.debug
-        log("topic %r: skipped a payload that does not decode as %s: %s%s", self.topic.name, self.topic.type_name,
-            reason, " (further ones are counted in statistics().decode_errors)" if first else "")
 
     def statistics(self) -> SubscriptionStatistics:
         """A snapshot of the counters (``queued`` is always 0)."""
-        with self._lock:
-            s = self._stats
-            return SubscriptionStatistics(s.delivered, s.dropped, s.callback_errors, 0, s.decode_errors, s.discarded)
+        return self._snapshot(0)
 
     def close(self) -> None:
         """Stop calling back; idempotent."""
