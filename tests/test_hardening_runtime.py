@@ -399,3 +399,9 @@ def test_an_action_server_needs_a_transport_with_actions() -> None:
     with pytest.raises(WiringError, match=r"'mover' runs as an action server, but the 'memory' transport has no "
                                           r"long-running goals"):
         launcher.start()
+
+
+def test_add_pkg_refuses_unknown_arguments() -> None:
+    relay = Relay(inputs=[Topic("words", "String")], trigger=Topic("words", "String"), component_name="relay")
+    with pytest.raises(TypeError, match="multiprocesing"):
+        Launcher(transport="memory").add_pkg(components=[relay], multiprocesing=True)  # type: ignore[call-arg]

@@ -79,12 +79,13 @@ class Launcher:
         events_actions: Mapping[Event, Action | Sequence[Action]] | None = None,
         multiprocessing: bool = False,
         package_name: str | None = None,
-        **_ignored: Any,
     ) -> None:
         """Add components (and event -> action wiring) to launch.
 
         ``multiprocessing=True`` (one process per component) needs a transport whose capabilities
         say ``cross_process``; the memory transport, which lives in one process, is refused at start.
+        ``package_name`` is accepted for upstream recipes (ROS packages) and not needed here. Any
+        other argument is refused, as components refuse theirs.
         """
         if self._started:
             raise ConfigError("add_pkg() must be called before the launcher starts")
@@ -143,7 +144,7 @@ class Launcher:
                 event.add_listener(runner)
                 self._event_runners.append((event, runner))
             for c in self.components:
-                c._bind(self._transport)
+                c.runtime.bind(self._transport)
             self._watch_events()
             for c in self.components:
                 c.configure()
@@ -167,10 +168,11 @@ class Launcher:
         def run(event: Event, values: Mapping[str, Any]) -> None:
             for action in actions:
                 owner = action.owner
-                worker = owner._worker if isinstance(owner, Component) else self._action_worker
-                if worker is None:
-                    continue
-                worker.submit_control(functools.partial(self._run_action, event, action, values))
+                job = functools.partial(self._run_action, event, action, values)
+                if isinstance(owner, Component) and owner.runtime.is_bound:
+                    owner.runtime.submit_action(job)
+                elif self._action_worker is not None:
+                    self._action_worker.submit_control(job)
 
         return run
 
@@ -195,7 +197,7 @@ class Launcher:
                 event.remove_listener(runner)
             self._event_runners.clear()
             for c in reversed(self.components):
-                if c._transport is None:
+                if not c.runtime.is_bound:
                     continue
                 try:
                     c.shutdown()
@@ -213,7 +215,7 @@ class Launcher:
         """Make a running or coming :meth:`stop` stop waiting for components' running steps."""
         self._hurry.set()
         for c in self.components:
-            c.hurry_shutdown()
+            c.runtime.hurry()
 
     def all_active(self) -> bool:
         """True when every component is in the active state."""

@@ -14,6 +14,7 @@ import json
 import re
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
+from types import MappingProxyType
 from typing import Any
 
 import jinja2
@@ -27,7 +28,7 @@ from ..messages import DetectionsMsg, StreamingStringMsg
 from ..status import LifecycleState
 from ..supported_types import Detections, StreamingString, String, SupportedType
 from ..topics import Topic
-from .component_base import TriggerType
+from .component_base import AllowedTypes, TriggerType
 from .model_component import ModelComponent
 
 __all__ = ["LLM", "ThinkStripper"]
@@ -105,6 +106,9 @@ class LLM(ModelComponent):
     """
 
     config_class = LLMConfig
+    allowed_inputs: AllowedTypes | None = MappingProxyType({"Required": [String], "Optional": [Detections]})
+    allowed_outputs: AllowedTypes | None = MappingProxyType({"Required": [[String, StreamingString]]})
+    handled_outputs: Sequence[type[SupportedType]] = (String, StreamingString)
 
     def __init__(
         self,
@@ -117,23 +121,11 @@ class LLM(ModelComponent):
         component_name: str = "llm",
         **kwargs: Any,
     ) -> None:
-        if not hasattr(self, "allowed_inputs"):
-            self.allowed_inputs = {"Required": [String], "Optional": [Detections]}
-        if not hasattr(self, "allowed_outputs"):
-            self.allowed_outputs = {"Required": [[String, StreamingString]]}
-        if not hasattr(self, "handled_outputs"):
-            self.handled_outputs: list[type[SupportedType]] = [String, StreamingString]
-        if config is not None and not isinstance(config, LLMConfig):
-            raise ConfigError(f"component {component_name!r}: config must be an LLMConfig, got {type(config).__name__}")
         super().__init__(inputs=inputs, outputs=outputs, model_client=model_client, config=config,
-                         trigger=trigger, component_name=component_name, **kwargs)
+                         trigger=trigger, component_name=component_name, db_client=db_client, **kwargs)
         self.config: LLMConfig
-        if db_client is not None and not isinstance(db_client, DBClient):
-            raise WiringError(f"component {self.component_name!r}: db_client must be a DBClient, "
-                              f"got {type(db_client).__name__}")
         if self.config.enable_rag and db_client is None:
             raise WiringError(f"component {self.component_name!r}: config.enable_rag needs a db_client")
-        self.db_client = db_client
         #: The conversation so far (user and assistant turns; the system prompt is kept apart).
         self.messages: list[dict[str, Any]] = []
         # Prompts are plain text, not HTML: no autoescaping. StrictUndefined turns a typo into an error.
@@ -459,23 +451,6 @@ class LLM(ModelComponent):
                 pub.publish(StreamingStringMsg(data="", stream=True, done=True))
             except Exception as exc:  # the stream's own error is the one to report
                 self._logger.debug("closing message of a failed stream not published: %s", exc)
-
-    # -- lifecycle ------------------------------------------------------------------------------
-
-    def custom_on_configure(self) -> None:
-        if self.db_client is not None:
-            self.db_client.check_connection()
-            if self.db_client.init_on_activation:
-                self.db_client.initialize()
-        super().custom_on_configure()
-
-    def custom_on_shutdown(self) -> None:
-        super().custom_on_shutdown()
-        if self.db_client is not None:
-            try:
-                self.db_client.deinitialize()
-            except Exception as exc:
-                self._logger.warning("database client did not deinitialize cleanly: %s", exc)
 
     # -- local model and warm-up ------------------------------------------------------------------
 

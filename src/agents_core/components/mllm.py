@@ -30,7 +30,7 @@ from ..actions import component_action
 from ..clients.db_base import DBClient
 from ..clients.model_base import ModelClient
 from ..config import MLLMConfig
-from ..errors import AlgorithmFailure, ConfigError, WiringError
+from ..errors import AlgorithmFailure, WiringError
 from ..messages import DetectionsMsg, ImageMsg, PointsOfInterestMsg
 from ..supported_types import Detections, Image, PointsOfInterest, StreamingString, String, SupportedType
 from ..topics import Topic
@@ -93,9 +93,6 @@ class MLLM(LLM):
         self.allowed_inputs = {"Required": [String, Image], "Optional": [Detections]}
         self.allowed_outputs = {"Required": [[String, StreamingString, Detections, PointsOfInterest]]}
         self.handled_outputs = [String, StreamingString, Detections, PointsOfInterest]
-        if config is not None and not isinstance(config, MLLMConfig):
-            raise ConfigError(f"component {component_name!r}: config must be an MLLMConfig (VLMConfig), "
-                              f"got {type(config).__name__}")
         super().__init__(inputs=inputs, outputs=outputs, model_client=model_client, config=config,
                          db_client=db_client, trigger=trigger, component_name=component_name, **kwargs)
         self.config: MLLMConfig

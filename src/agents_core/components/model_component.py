@@ -19,9 +19,10 @@ from collections.abc import Callable, Mapping, MutableMapping, Sequence
 from typing import Any
 
 from ..actions import component_fallback
+from ..clients.db_base import DBClient
 from ..clients.model_base import ModelClient
 from ..config import ModelComponentConfig
-from ..errors import ComponentError, ConfigError, InferenceError, RequestTimeoutError, WiringError
+from ..errors import ComponentError, InferenceError, RequestTimeoutError, WiringError
 from ..supported_types import SupportedType
 from ..topics import Topic
 from .component_base import Component, TriggerType
@@ -39,6 +40,8 @@ class ModelComponent(Component):
     """
 
     config_class = ModelComponentConfig
+    #: The output types this component can produce (every output topic must be one of them).
+    handled_outputs: Sequence[type[SupportedType]] = ()
 
     def __init__(
         self,
@@ -49,16 +52,17 @@ class ModelComponent(Component):
         trigger: TriggerType = 1.0,
         component_name: str = "model_component",
         additional_model_clients: Mapping[str, ModelClient] | None = None,
+        db_client: DBClient | None = None,
         **kwargs: Any,
     ) -> None:
-        if not hasattr(self, "handled_outputs"):
-            self.handled_outputs: list[type[SupportedType]] = []
-        if config is not None and not isinstance(config, ModelComponentConfig):
-            raise ConfigError(f"component {component_name!r}: config must be a ModelComponentConfig, "
-                              f"got {type(config).__name__}")
         super().__init__(inputs=inputs, outputs=outputs, config=config, trigger=trigger,
                          component_name=component_name, **kwargs)
         self.config: ModelComponentConfig
+        if db_client is not None and not isinstance(db_client, DBClient):
+            raise WiringError(f"component {self.component_name!r}: db_client must be a DBClient, "
+                              f"got {type(db_client).__name__}")
+        #: The vector database client, for components that use one (RAG, routing, maps).
+        self.db_client = db_client
         if model_client is not None and not isinstance(model_client, ModelClient):
             raise WiringError(f"component {self.component_name!r}: model_client must be a ModelClient, "
                               f"got {type(model_client).__name__}")
@@ -100,16 +104,21 @@ class ModelComponent(Component):
 
     # -- lifecycle ----------------------------------------------------------------------------
 
+    # The component owns its clients: connected here, at configure (database first, since a
+    # warm-up may use it), released at shutdown, switched by change_model_client.
+
     def custom_on_configure(self) -> None:
+        if self.db_client is not None:
+            self._start_client(self.db_client)
         if self.model_client is not None:
             self._start_client(self.model_client)
         elif self.config.enable_local_model:
             self._deploy_local_model()
-        if self.config.warmup:
+        if self.config.warmup and (self.model_client is not None or self.local_model is not None):
             self._logger.info("warming up")
             self._warmup()
 
-    def _start_client(self, client: ModelClient) -> None:
+    def _start_client(self, client: ModelClient | DBClient) -> None:
         client.check_connection()
         if client.init_on_activation:
             client.initialize()
@@ -132,11 +141,13 @@ class ModelComponent(Component):
             self._streaming_thread = None
 
     def custom_on_shutdown(self) -> None:
-        if self.model_client is not None and self.model_client.initialized:
+        if self.model_client is not None:
+            self._release_client(self.model_client)
+        if self.db_client is not None:
             try:
-                self.model_client.deinitialize()
+                self.db_client.deinitialize()
             except Exception as exc:
-                self._logger.warning("model client did not deinitialize cleanly: %s", exc)
+                self._logger.warning("database client did not deinitialize cleanly: %s", exc)
 
     def _streaming_loop(self) -> None:
         # A short poll keeps token latency low without a busy loop (1 ms, as upstream).

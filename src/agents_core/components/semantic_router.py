@@ -104,6 +104,7 @@ class SemanticRouter(ModelComponent):
                               "(LLM mode), not both")
         if db_client is not None and not isinstance(db_client, DBClient):
             raise WiringError(f"component {component_name!r}: db_client must be a DBClient")
+        # Set before super().__init__, which asks _runs_without_model (vector mode needs no model).
         self.db_client = db_client
         self.routes = routes
         self.default_route = default_route or routes[0]
@@ -113,7 +114,7 @@ class SemanticRouter(ModelComponent):
         inputs = list(inputs or [])
         super().__init__(inputs=inputs, outputs=[r.routes_to for r in routes], model_client=model_client,
                          config=config, trigger=inputs if trigger is None else trigger,
-                         component_name=component_name, **kwargs)
+                         component_name=component_name, db_client=db_client, **kwargs)
         self.config: SemanticRouterConfig
         self._tool_routes = {self._tool_name(r): r for r in self.routes}
         #: How many texts went to each route (by topic name), for monitoring.
@@ -134,12 +135,9 @@ class SemanticRouter(ModelComponent):
     # -- lifecycle ------------------------------------------------------------------------------
 
     def custom_on_configure(self) -> None:
+        super().custom_on_configure()
         if self.db_client is None:
-            super().custom_on_configure()
             return
-        self.db_client.check_connection()
-        if self.db_client.init_on_activation:
-            self.db_client.initialize()
         ids, documents, metadatas = [], [], []
         for route in self.routes:
             for i, sample in enumerate(route.samples):
@@ -150,14 +148,6 @@ class SemanticRouter(ModelComponent):
         self.db_client.add({"collection_name": self.config.router_name, "distance_func": self.config.distance_func,
                             "ids": ids, "documents": documents, "metadatas": metadatas})
         self._logger.info("stored %d samples of %d routes in %r", len(ids), len(self.routes), self.config.router_name)
-
-    def custom_on_shutdown(self) -> None:
-        super().custom_on_shutdown()
-        if self.db_client is not None:
-            try:
-                self.db_client.deinitialize()
-            except Exception as exc:
-                self._logger.warning("database client did not deinitialize cleanly: %s", exc)
 
     # -- routing --------------------------------------------------------------------------------
 
