@@ -366,8 +366,11 @@ def test_a_hostile_sample_is_counted_quickly_while_another_topic_keeps_flowing(
     transport.create_subscription(steady_topic, lambda _: arrivals.append(time.monotonic()))
     # One peer sends both: its samples arrive over one link, decoded one after another, so a
     # slow decode of the hostile topic would hold back the steady one.
+    # Congestion control BLOCK: Zenoh's default (DROP) may drop a 5 MB sample under load, and the
+    # count below must see every hostile sample arrive.
     hostile_pub = raw.declare_publisher(transport.key_expr(hostile_topic),
-                                        encoding=zenoh.Encoding("application/msgpack").with_schema("String"))
+                                        encoding=zenoh.Encoding("application/msgpack").with_schema("String"),
+                                        congestion_control=zenoh.CongestionControl.BLOCK)
     steady_pub = raw.declare_publisher(transport.key_expr(steady_topic),
                                        encoding=zenoh.Encoding("application/msgpack").with_schema("Int64"))
     assert wait_for(lambda: hostile_pub.matching_status.matching and steady_pub.matching_status.matching)
