@@ -20,6 +20,7 @@ METRICS: dict[str, list[tuple[str, str, str, str]]] = {
     "startup": [("start_to_active", "ms", "lower", "median_ms"),
                 ("threads_3_inputs", "threads", "lower", "threads_3_inputs")],
     "model": [("ttft", "ms", "lower", "ttft_ms"), ("tokens_per_s", "tokens/s", "higher", "tokens_per_s")],
+    "imports": [("wall", "ms", "lower", "wall_ms"), ("import", "ms", "lower", "import_ms")],
 }
 
 #: Above this slowdown (framework cost / raw cost) a latency figure needs a profile note.
@@ -154,7 +155,8 @@ def plot(figures: list[dict[str, Any]], records: list[dict[str, Any]], path: Pat
     shown = [f for f in figures if f["slowdown"] is not None and f["metric"] not in ("mb_per_s",)]
     fig, (left, right) = plt.subplots(1, 2, figsize=(15, max(5.0, 0.32 * len(shown) + 1.5)),
                                       gridspec_kw={"width_ratios": [3, 2]})
-    colors = {"hop": "tab:blue", "throughput": "tab:orange", "startup": "tab:green", "model": "tab:purple"}
+    colors = {"hop": "tab:blue", "throughput": "tab:orange", "startup": "tab:green", "model": "tab:purple",
+              "imports": "tab:brown"}
     labels = [f["id"] for f in shown]
     values = [f["slowdown"] for f in shown]
     y = list(range(len(shown)))

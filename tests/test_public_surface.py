@@ -60,11 +60,25 @@ def test_ros_compat_module_exports() -> None:
 
 @pytest.mark.parametrize("module", ["agents_core", "agents_core.ros", "agents_core.transport",
                                     "agents_core.components", "agents_core.clients", "agents_core.errors",
-                                    "agents_core.messages", "agents_core.supported_types"])
+                                    "agents_core.messages", "agents_core.supported_types", "agents_core.utils",
+                                    "agents_core.config"])
 def test_all_lists_only_real_names(module: str) -> None:
+    # On the lazy packages, hasattr() imports the name's module: every entry must resolve.
     mod = importlib.import_module(module)
     for name in mod.__all__:
         assert hasattr(mod, name), f"{module}.__all__ names {name!r}, which does not exist"
+
+
+def test_star_imports_bind_every_listed_name() -> None:
+    # A fresh interpreter: star imports of the lazy modules resolve each name of __all__ on the way.
+    result = _run("import importlib\n"
+                  "for m in ('agents_core', 'agents_core.ros', 'agents_core.components', 'agents_core.clients',"
+                  " 'agents_core.utils'):\n"
+                  "    ns = {}\n"
+                  "    exec(f'from {m} import *', ns)\n"
+                  "    missing = set(importlib.import_module(m).__all__) - set(ns)\n"
+                  "    assert not missing, (m, missing)\n")
+    assert result.returncode == 0, result.stdout + result.stderr
 
 
 def test_error_tree_has_one_root_and_builtin_meanings() -> None:

@@ -3,23 +3,48 @@
 Compose an agent from components wired by typed topics, fired by triggers, calling models
 through clients, reacting to events with actions; run the same recipe in memory, over Zenoh or
 over ROS 2. This package imports no middleware: adapters load when a transport is asked for.
+
+``import agents_core`` imports nothing else either: each name below is imported from its module on
+first use (PEP 562), so a process that only relays topics never loads the model stack.
 """
 
 from __future__ import annotations
 
-from .actions import Action, component_action, component_fallback
-from .components import Component, ComponentRunType, ModelComponent
-from .config import BaseComponentConfig, ModelComponentConfig
-from .errors import AgentsError
-from .events import Event
-from .launcher import Launcher
-from .messages import Header
-from .status import HealthStatus, LifecycleState
-from .supported_types import SupportedType, add_additional_datatypes, get_type, registered_types
-from .topics import FixedInput, QoSConfig, Topic
-from .transport import MemoryTransport, Transport, resolve_transport
+from typing import TYPE_CHECKING
+
+from ._lazy import lazy_exports
 
 __version__ = "0.1.0"
+
+#: module -> the names re-exported from it, imported on first access.
+_EXPORTS: dict[str, tuple[str, ...]] = {
+    ".actions": ("Action", "component_action", "component_fallback"),
+    ".components": ("Component", "ComponentRunType", "ModelComponent"),
+    ".config": ("BaseComponentConfig", "ModelComponentConfig"),
+    ".errors": ("AgentsError",),
+    ".events": ("Event",),
+    ".launcher": ("Launcher",),
+    ".messages": ("Header",),
+    ".status": ("HealthStatus", "LifecycleState"),
+    ".supported_types": ("SupportedType", "add_additional_datatypes", "get_type", "registered_types"),
+    ".topics": ("FixedInput", "QoSConfig", "Topic"),
+    ".transport": ("MemoryTransport", "Transport", "resolve_transport"),
+}
+
+if TYPE_CHECKING:
+    from .actions import Action, component_action, component_fallback
+    from .components import Component, ComponentRunType, ModelComponent
+    from .config import BaseComponentConfig, ModelComponentConfig
+    from .errors import AgentsError
+    from .events import Event
+    from .launcher import Launcher
+    from .messages import Header
+    from .status import HealthStatus, LifecycleState
+    from .supported_types import SupportedType, add_additional_datatypes, get_type, registered_types
+    from .topics import FixedInput, QoSConfig, Topic
+    from .transport import MemoryTransport, Transport, resolve_transport
+else:
+    __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
 
 __all__ = [
     "Action",

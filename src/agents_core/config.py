@@ -20,17 +20,11 @@ from pathlib import Path
 from typing import Any, Literal, TypeVar
 
 import attrs
-import yaml
 from attrs import define, field
 
 from . import base_validators
 from .checked_attrs import CheckedFieldsMeta
 from .errors import ConfigError
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover - exercised on Python 3.10 only
-    import tomli as tomllib
 
 __all__ = [
     "BaseAttrs",
@@ -57,6 +51,33 @@ def configure_time_fields(config: Any) -> set[str]:
 T = TypeVar("T", bound="BaseAttrs")
 
 
+def _parse(text: str, suffix: str, source: Path) -> Any:
+    """The data of a config file's text. The parsers are imported here, when a file is read: the
+    components import this module, and a process configured in code should not load PyYAML."""
+    if suffix in (".yaml", ".yml"):
+        import yaml  # noqa: PLC0415
+
+        try:
+            return yaml.safe_load(text)
+        except yaml.YAMLError as exc:
+            raise ConfigError(f"config file {source} is not valid YAML: {exc}") from exc
+    if suffix == ".toml":
+        if sys.version_info >= (3, 11):
+            import tomllib  # noqa: PLC0415
+        else:  # pragma: no cover - exercised on Python 3.10 only
+            import tomli as tomllib  # noqa: PLC0415
+        try:
+            return tomllib.loads(text)
+        except tomllib.TOMLDecodeError as exc:
+            raise ConfigError(f"config file {source} is not valid TOML: {exc}") from exc
+    if suffix == ".json":
+        try:
+            return json.loads(text)
+        except json.JSONDecodeError as exc:
+            raise ConfigError(f"config file {source} is not valid JSON: {exc}") from exc
+    raise ConfigError(f"config file {source}: unknown format {suffix!r} (use .yaml, .yml, .toml or .json)")
+
+
 def load_config_file(path: str | Path) -> dict[str, Any]:
     """Read a YAML (.yaml/.yml), TOML (.toml) or JSON (.json) file into a dict."""
     p = Path(path)
@@ -64,18 +85,7 @@ def load_config_file(path: str | Path) -> dict[str, Any]:
         text = p.read_text(encoding="utf-8")
     except OSError as exc:
         raise ConfigError(f"cannot read config file {p}: {exc}") from exc
-    suffix = p.suffix.lower()
-    try:
-        if suffix in (".yaml", ".yml"):
-            data = yaml.safe_load(text)
-        elif suffix == ".toml":
-            data = tomllib.loads(text)
-        elif suffix == ".json":
-            data = json.loads(text)
-        else:
-            raise ConfigError(f"config file {p}: unknown format {suffix!r} (use .yaml, .yml, .toml or .json)")
-    except (yaml.YAMLError, tomllib.TOMLDecodeError, json.JSONDecodeError) as exc:
-        raise ConfigError(f"config file {p} is not valid {suffix[1:].upper()}: {exc}") from exc
+    data = _parse(text, p.suffix.lower(), p)
     if data is None:
         return {}
     if not isinstance(data, dict):

@@ -7,49 +7,77 @@ and works on every transport.
 
 from __future__ import annotations
 
-from . import base_validators
-from .actions import Action, Fallback, component_action, component_fallback
-from .components.semantic_router import Route
-from .config import BaseAttrs, BaseComponentConfig
-from .events import Event
-from .launcher import Launcher
-from .status import HealthStatus, LifecycleState
-from .supported_types import (
-    Audio,
-    Bool,
-    ComponentStatus,
-    CompressedImage,
-    Detections,
-    DetectionsMultiSource,
-    Float32,
-    Float32MultiArray,
-    Float64,
-    Float64MultiArray,
-    Image,
-    Int32,
-    Int64,
-    JointJog,
-    JointState,
-    JointTrajectory,
-    JointTrajectoryPoint,
-    LaserScan,
-    OccupancyGrid,
-    Odometry,
-    Point,
-    PointsOfInterest,
-    PointStamped,
-    Pose,
-    PoseStamped,
-    StreamingString,
-    String,
-    SupportedType,
-    Trackings,
-    TrackingsMultiSource,
-    Twist,
-    Video,
-    add_additional_datatypes,
-)
-from .topics import FixedInput, QoSConfig, Topic
+from typing import TYPE_CHECKING
+
+from ._lazy import lazy_exports
+
+#: module -> the names re-exported from it, imported on first access: ``from agents_core.ros import
+#: Topic, Launcher, String`` loads the launcher and the type table, never the model components or clients.
+_EXPORTS: dict[str, tuple[str, ...]] = {
+    ".actions": ("Action", "Fallback", "component_action", "component_fallback"),
+    ".components.semantic_router": ("Route",),
+    ".config": ("BaseAttrs", "BaseComponentConfig"),
+    ".events": ("Event",),
+    ".launcher": ("Launcher",),
+    ".status": ("HealthStatus", "LifecycleState"),
+    ".supported_types": (
+        "Audio", "Bool", "ComponentStatus", "CompressedImage", "Detections", "DetectionsMultiSource", "Float32",
+        "Float32MultiArray", "Float64", "Float64MultiArray", "Image", "Int32", "Int64", "JointJog", "JointState",
+        "JointTrajectory", "JointTrajectoryPoint", "LaserScan", "OccupancyGrid", "Odometry", "Point",
+        "PointsOfInterest", "PointStamped", "Pose", "PoseStamped", "StreamingString", "String", "SupportedType",
+        "Trackings", "TrackingsMultiSource", "Twist", "Video", "add_additional_datatypes",
+    ),
+    ".topics": ("FixedInput", "QoSConfig", "Topic"),
+}
+#: re-exported names that are modules themselves: name -> module.
+_MODULE_EXPORTS = {"base_validators": ".base_validators"}
+
+if TYPE_CHECKING:
+    from . import base_validators
+    from .actions import Action, Fallback, component_action, component_fallback
+    from .components.semantic_router import Route
+    from .config import BaseAttrs, BaseComponentConfig
+    from .events import Event
+    from .launcher import Launcher
+    from .status import HealthStatus, LifecycleState
+    from .supported_types import (
+        Audio,
+        Bool,
+        ComponentStatus,
+        CompressedImage,
+        Detections,
+        DetectionsMultiSource,
+        Float32,
+        Float32MultiArray,
+        Float64,
+        Float64MultiArray,
+        Image,
+        Int32,
+        Int64,
+        JointJog,
+        JointState,
+        JointTrajectory,
+        JointTrajectoryPoint,
+        LaserScan,
+        OccupancyGrid,
+        Odometry,
+        Point,
+        PointsOfInterest,
+        PointStamped,
+        Pose,
+        PoseStamped,
+        StreamingString,
+        String,
+        SupportedType,
+        Trackings,
+        TrackingsMultiSource,
+        Twist,
+        Video,
+        add_additional_datatypes,
+    )
+    from .topics import FixedInput, QoSConfig, Topic
+else:
+    __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS, modules=_MODULE_EXPORTS)
 
 __all__ = [
     "Action",

@@ -1,13 +1,34 @@
-"""Components: the processing units of a recipe."""
+"""Components: the processing units of a recipe.
+
+Each name is imported from its module on first use (PEP 562): ``from agents_core.components import
+Component`` loads the component runtime only, not the model components and their clients.
+"""
 
 from __future__ import annotations
 
-from .component_base import Component, ComponentPublisher
-from .llm import LLM
-from .mllm import MLLM, VLM
-from .model_component import ModelComponent
-from .run_type import ComponentRunType
-from .semantic_router import Route, SemanticRouter
+from typing import TYPE_CHECKING
+
+from .._lazy import lazy_exports
+
+#: module -> the names re-exported from it, imported on first access.
+_EXPORTS: dict[str, tuple[str, ...]] = {
+    ".component_base": ("Component", "ComponentPublisher"),
+    ".llm": ("LLM",),
+    ".mllm": ("MLLM", "VLM"),
+    ".model_component": ("ModelComponent",),
+    ".run_type": ("ComponentRunType",),
+    ".semantic_router": ("Route", "SemanticRouter"),
+}
+
+if TYPE_CHECKING:
+    from .component_base import Component, ComponentPublisher
+    from .llm import LLM
+    from .mllm import MLLM, VLM
+    from .model_component import ModelComponent
+    from .run_type import ComponentRunType
+    from .semantic_router import Route, SemanticRouter
+else:
+    __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
 
 __all__ = [
     "LLM",

@@ -18,7 +18,6 @@ from __future__ import annotations
 import difflib
 import importlib
 import os
-from importlib.metadata import entry_points
 from typing import Any
 
 from ..errors import ConfigError, TransportNotAvailableError
@@ -40,6 +39,10 @@ TRANSPORT_ENV_VAR = "AGENTS_TRANSPORT"
 
 
 def _entry_point_names() -> dict[str, Any]:
+    # Imported here: importlib.metadata costs tens of milliseconds, and most processes resolve
+    # a built-in transport by its alias without ever needing it.
+    from importlib.metadata import entry_points  # noqa: PLC0415
+
     return {ep.name: ep for ep in entry_points(group=ENTRY_POINT_GROUP)}
 
 
