@@ -61,6 +61,10 @@ class Model(BaseAttrs):
 
     #: Set by subclasses that only some components can use (informational).
     model_family: ClassVar[str] = "generic"
+    #: What the model does, which decides the requests a client sends for it: ``"chat"`` (the
+    #: default), ``"text_to_speech"``, ``"speech_to_text"``, ``"detection"`` or ``"policy"``. Each
+    #: client maps the tasks it serves to its handlers; declared once per model class.
+    task: ClassVar[str] = "chat"
 
     name: str = field(validator=_non_empty_str)
     checkpoint: str = field(validator=_non_empty_str)
@@ -189,6 +193,7 @@ class GenericTTS(Model):
     """
 
     model_family: ClassVar[str] = "tts"
+    task: ClassVar[str] = "text_to_speech"
 
     voice: str = field(default="alloy", validator=_non_empty_str)
     speed: float = field(default=1.0, validator=base_validators.in_range(0.25, 4.0))
@@ -209,6 +214,7 @@ class GenericSTT(Model):
     """
 
     model_family: ClassVar[str] = "stt"
+    task: ClassVar[str] = "speech_to_text"
 
     language: str | None = field(default=None)
     temperature: float = field(default=0.0, validator=base_validators.in_range(0.0, 1.0))
@@ -326,6 +332,7 @@ class Whisper(Model):
     """
 
     model_family: ClassVar[str] = "stt"
+    task: ClassVar[str] = "speech_to_text"
 
     checkpoint: str = field(default="small.en", validator=_non_empty_str)
     compute_type: str = field(default="int8", validator=base_validators.in_(WHISPER_COMPUTE_TYPES))
@@ -348,6 +355,7 @@ class TransformersTTS(Model):
     """
 
     model_family: ClassVar[str] = "tts"
+    task: ClassVar[str] = "text_to_speech"
 
     checkpoint: str = field(default="suno/bark-small", validator=_non_empty_str)
     voice: str | None = field(default="v2/en_speaker_6", validator=_optional_str)
@@ -374,6 +382,7 @@ class VisionModel(Model):
     """
 
     model_family: ClassVar[str] = "vision"
+    task: ClassVar[str] = "detection"
 
     checkpoint: str = field(default="PekingU/rtdetr_r50vd_coco_o365", validator=_non_empty_str)
     setup_trackers: bool = field(default=False, validator=_bool)
@@ -412,6 +421,7 @@ class LeRobotPolicy(Model):
     """
 
     model_family: ClassVar[str] = "vla"
+    task: ClassVar[str] = "policy"
 
     checkpoint: str = field(default="lerobot/smolvla_base", validator=_non_empty_str)
     policy_type: str = field(default="smolvla", validator=base_validators.in_(LEROBOT_POLICY_TYPES))

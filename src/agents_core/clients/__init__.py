@@ -28,7 +28,7 @@ _EXPORTS: dict[str, tuple[str, ...]] = {
 #: Clients register themselves by class name when their module is imported, and these names read that
 #: registry (ChromaClient rebuilds its embedding client from a spec): taking one from the package imports
 #: every built-in client first, as the eager package did.
-_NEED_EVERY_CLIENT = ("ChromaClient", "client_from_spec", "client_types")
+_NEED_EVERY_CLIENT = ("client_from_spec", "client_types")
 
 if TYPE_CHECKING:
     from .chroma import ChromaClient

@@ -75,7 +75,7 @@ import math
 import re
 import time
 from collections.abc import Callable, Sequence
-from typing import Any, TypeVar
+from typing import Any, ClassVar, TypeVar
 from urllib.parse import quote
 
 import httpx
@@ -84,7 +84,7 @@ from ..errors import ConfigError, HTTPStatusError, InferenceTimeoutError, Protoc
 from ..vectordbs import DB, ChromaDB, db_types
 from .client_base import client_from_spec
 from .db_base import DBClient
-from .deadline import BoundedHTTP
+from .http_base import HTTPClientBase, bearer, check_api_key
 from .model_base import ModelClient
 
 __all__ = ["ChromaClient"]
@@ -109,7 +109,7 @@ _QUERY_KEYS = frozenset({"query", "embedding", "n_results", "where", "collection
 _METADATA_QUERY_KEYS = frozenset({"where", "metadatas", "limit", "collection_name"})
 
 
-class ChromaClient(DBClient):
+class ChromaClient(HTTPClientBase, DBClient):
     """Client of a Chroma server (``chroma run``) through its v2 HTTP API.
 
     The constructor does no I/O. ``check_connection()`` asks for the server's heartbeat (retried,
@@ -137,6 +137,11 @@ class ChromaClient(DBClient):
         bare token in that header.
     :param use_https: talk HTTPS (a TLS proxy in front of Chroma, a hosted Chroma).
     """
+
+    timeout_setting: ClassVar[str] = "response_timeout"
+    status_template: ClassVar[str] = "Chroma answered {status}"
+    base_path = _API_PREFIX
+    spec_fields: ClassVar[tuple[str, ...]] = ("connection_retries", "api_key", "auth_header", "use_https")
 
     def __init__(
         self,
@@ -178,19 +183,12 @@ class ChromaClient(DBClient):
             raise ConfigError(f"{name}: connection_retries must be an int in 0..{_MAX_RETRIES}, "
                               f"got {connection_retries!r}")
         self.connection_retries = connection_retries
-        if api_key is not None and (not isinstance(api_key, str) or not api_key):
-            raise ConfigError(f"{name}: api_key must be a non-empty str or None")
+        self.api_key = check_api_key(name, api_key)
         if not isinstance(auth_header, str) or not _HEADER_NAME.match(auth_header):
             raise ConfigError(f"{name}: auth_header must be an HTTP header name such as 'Authorization' or "
                               f"'X-Chroma-Token', got {auth_header!r}")
-        self.api_key = api_key
         self.auth_header = auth_header
         self.use_https = bool(use_https)
-        # Brackets keep an IPv6 literal apart from the port in the URL.
-        netloc_host = f"[{self.host}]" if self.host and ":" in self.host and not self.host.startswith("[") \
-            else self.host
-        self.base_url = f"{'https' if self.use_https else 'http'}://{netloc_host}:{self.port}{_API_PREFIX}"
-        self._http: BoundedHTTP | None = None
         self._collection_ids: dict[str, str] = {}
         self._database_ready = False
         self._max_batch: int | None = None
@@ -198,48 +196,24 @@ class ChromaClient(DBClient):
     # -- HTTP plumbing --------------------------------------------------------------------------
 
     def _headers(self) -> dict[str, str]:
-        if not self.api_key:
-            return {}
         if self.auth_header.lower() == "authorization":
-            return {"Authorization": f"Bearer {self.api_key}"}
-        return {self.auth_header: self.api_key}
+            return bearer(self.api_key)
+        return {self.auth_header: self.api_key} if self.api_key else {}
 
     def _secrets(self) -> tuple[str, ...]:
         """The token, and the embedding client's secrets (its errors can pass through here)."""
         own = super()._secrets()
         return own + (self.embedding_client._secrets() if self.embedding_client is not None else ())
 
-    def _client(self) -> BoundedHTTP:
-        if self._http is None:
-            self._http = BoundedHTTP(self.base_url, headers=self._headers())
-        return self._http
+    def _api(self, method: str, path: str, body: dict[str, Any] | None = None, *, fresh: bool = False) -> Any:
+        """One call of Chroma's API: its decoded JSON answer (None when empty), or a typed error.
 
-    def _request(self, method: str, path: str, body: dict[str, Any] | None = None,
-                 http: BoundedHTTP | None = None) -> Any:
-        response = (http or self._client()).request(method, path, seconds=float(self.response_timeout),
-                                                    label=f"{self._label()}: {method} {_API_PREFIX}{path}",
-                                                    what="response_timeout", json=body)
-        if response.is_error:
-            raise self._status_error(method, path, response)
-        if not response.content:
-            return None
-        try:
-            return response.json()
-        except ValueError as exc:
-            raise ProtocolError(f"{self._label()}: {method} {_API_PREFIX}{path} answered non-JSON: "
-                                f"{response.text[:200]!r}") from exc
-
-    def _status_error(self, method: str, path: str, response: httpx.Response) -> HTTPStatusError:
-        # Chroma answers errors as {"error": "<kind>", "message": "<what went wrong>"}.
-        detail = response.text[:500]
-        try:
-            body = response.json()
-            if isinstance(body, dict) and "message" in body:
-                detail = f"{body.get('error', 'error')}: {body['message']}"
-        except ValueError:
-            pass
-        return HTTPStatusError(f"{self._label()}: {method} {_API_PREFIX}{path}: Chroma answered "
-                               f"{response.status_code}: {detail}", status=response.status_code)
+        Chroma answers errors as ``{"error": "<kind>", "message": "<what went wrong>"}``, which
+        the HTTPStatusError quotes as ``kind: message``.
+        """
+        what = f"{method} {_API_PREFIX}{path}"
+        response = self._request(method, path, what, fresh=fresh, json=body)
+        return self._json(response, what) if response.content else None
 
     def _database_path(self) -> str:
         return f"/tenants/{_segment(self.settings.tenant)}/databases/{_segment(self.settings.database)}"
@@ -251,12 +225,8 @@ class ChromaClient(DBClient):
         body: Any = None
         for attempt in range(attempts):
             try:
-                # A short-lived client: a connection check must leave nothing open behind it.
-                http = BoundedHTTP(self.base_url, headers=self._headers())
-                try:
-                    body = self._request("GET", "/heartbeat", http=http)
-                finally:
-                    http.close()
+                # A short-lived connection: a connection check must leave nothing open behind it.
+                body = self._api("GET", "/heartbeat", fresh=True)
                 break
             except (httpx.TransportError, HTTPStatusError, InferenceTimeoutError) as exc:
                 # Refused, timed out or 5xx may be a server still starting; 4xx will not change.
@@ -289,7 +259,7 @@ class ChromaClient(DBClient):
         self._ensure("database", self._database_path(), f"/tenants/{tenant}/databases", self.settings.database)
         size: Any = None
         try:
-            checks = self._request("GET", "/pre-flight-checks")
+            checks = self._api("GET", "/pre-flight-checks")
             size = checks.get("max_batch_size") if isinstance(checks, dict) else None
         except HTTPStatusError as exc:
             if exc.status != 404:
@@ -300,13 +270,13 @@ class ChromaClient(DBClient):
 
     def _ensure(self, what: str, get_path: str, create_path: str, name: str) -> None:
         try:
-            self._request("GET", get_path)
+            self._api("GET", get_path)
             return
         except HTTPStatusError as exc:
             if exc.status != 404 or not self.settings.create_if_missing:
                 raise
         try:
-            self._request("POST", create_path, {"name": name})
+            self._api("POST", create_path, {"name": name})
             self.logger.info("created Chroma %s %r", what, name)
         except HTTPStatusError as exc:
             # 409: someone created it between our look-up and our request, which is what we wanted.
@@ -326,7 +296,7 @@ class ChromaClient(DBClient):
         collections = f"{self._database_path()}/collections"
         if create:
             space = distance_func or self.settings.distance_func
-            info = self._request("POST", collections, {"name": name, "get_or_create": True,
+            info = self._api("POST", collections, {"name": name, "get_or_create": True,
                                                        "configuration": {"hnsw": {"space": space}}})
             actual = _space_of(info)
             if actual is not None and actual != space:
@@ -334,7 +304,7 @@ class ChromaClient(DBClient):
                 self.logger.warning("collection %r already exists with distance %r, not %r; keeping %r",
                                     name, actual, space, actual)
         else:
-            info = self._request("GET", f"{collections}/{_segment(name)}")
+            info = self._api("GET", f"{collections}/{_segment(name)}")
         cid = info.get("id") if isinstance(info, dict) else None
         if not isinstance(cid, str) or not cid:
             raise ProtocolError(f"{self._label()}: collection {name!r}: answer without an id: {info!r}")
@@ -360,7 +330,7 @@ class ChromaClient(DBClient):
         self._prepare()
         self._collection_ids.pop(name, None)
         try:
-            self._request("DELETE", f"{self._database_path()}/collections/{_segment(name)}")
+            self._api("DELETE", f"{self._database_path()}/collections/{_segment(name)}")
             self.logger.info("deleted collection %r (reset_collection)", name)
         except HTTPStatusError as exc:
             if exc.status != 404:  # nothing to reset
@@ -426,7 +396,7 @@ class ChromaClient(DBClient):
                 batch = self._batch_size()
                 for start in range(0, len(to_update), batch):
                     chunk = to_update[start:start + batch]
-                    self._request("POST", f"{path}/update", {"ids": [ids[k] for k in chunk],
+                    self._api("POST", f"{path}/update", {"ids": [ids[k] for k in chunk],
                                                              "metadatas": [metas[k] for k in chunk]})
             return {"collection_name": name, "added": [ids[k] for k in new], "skipped": [ids[k] for k in old],
                     "updated_metadatas": updated}
@@ -454,7 +424,7 @@ class ChromaClient(DBClient):
                                 "include": ["documents", "metadatas", "distances"]}
         if where is not None:
             body["where"] = where
-        answer = self._with_collection(name, False, None, lambda path: self._request("POST", f"{path}/query", body))
+        answer = self._with_collection(name, False, None, lambda path: self._api("POST", f"{path}/query", body))
         ids = _column(answer, "ids", nested=True)
         if ids is None:
             raise ProtocolError(f"{self._label()}: query answer without ids: {answer!r}")
@@ -479,7 +449,7 @@ class ChromaClient(DBClient):
             if isinstance(limit, bool) or not isinstance(limit, int) or limit < 1:
                 raise ConfigError(f"db_input['limit'] must be an int >= 1, got {limit!r}")
             body["limit"] = limit
-        answer = self._with_collection(name, False, None, lambda path: self._request("POST", f"{path}/get", body))
+        answer = self._with_collection(name, False, None, lambda path: self._api("POST", f"{path}/get", body))
         ids = _column(answer, "ids", nested=False)
         if ids is None:
             raise ProtocolError(f"{self._label()}: get answer without ids: {answer!r}")
@@ -493,9 +463,7 @@ class ChromaClient(DBClient):
             if self.embedding_client is not None:
                 self.embedding_client.deinitialize()
         finally:
-            if self._http is not None:
-                self._http.close()
-                self._http = None
+            self.close()
             self._collection_ids.clear()
             self._database_ready = False
             self._max_batch = None
@@ -512,7 +480,7 @@ class ChromaClient(DBClient):
         found: set[str] = set()
         batch = self._batch_size()
         for start in range(0, len(ids), batch):
-            answer = self._request("POST", f"{path}/get", {"ids": ids[start:start + batch], "include": []})
+            answer = self._api("POST", f"{path}/get", {"ids": ids[start:start + batch], "include": []})
             found.update(_column(answer, "ids", nested=False) or [])
         return found
 
@@ -525,17 +493,13 @@ class ChromaClient(DBClient):
                                     "embeddings": vectors[start:stop]}
             if metadatas is not None:
                 body["metadatas"] = metadatas[start:stop]
-            self._request("POST", route, body)
+            self._api("POST", route, body)
 
     # -- serialization ------------------------------------------------------------------------
 
     def serialize(self) -> dict[str, Any]:
         spec = super().serialize()
         spec["embedding_client"] = self.embedding_client.serialize() if self.embedding_client is not None else None
-        spec["connection_retries"] = self.connection_retries
-        spec["api_key"] = self.api_key
-        spec["auth_header"] = self.auth_header
-        spec["use_https"] = self.use_https
         return spec
 
     def __repr__(self) -> str:

@@ -180,6 +180,12 @@ def client_from_spec(spec: dict[str, Any]) -> BaseClient:
     name = spec["client_type"]
     cls = _client_types.get(name)
     if cls is None:
+        # Clients register when their module is imported, and the package imports them lazily:
+        # load every built-in client before deciding the name is unknown.
+        from . import client_types as builtin_client_types  # noqa: PLC0415
+
+        cls = builtin_client_types().get(name)
+    if cls is None:
         raise ConfigError(f"unknown client type {name!r}; import the module that defines it first "
                           f"(known: {sorted(_client_types)})")
     kwargs = {k: v for k, v in spec.items() if k != "client_type"}

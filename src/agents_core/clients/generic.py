@@ -10,14 +10,14 @@ What it sends depends on the model it serves:
 - :class:`~agents_core.models.GenericSTT`: ``POST {base_path}/audio/transcriptions`` (multipart
   upload); the answer is the text.
 
+Which of these a client does is decided once, by the model class's ``task``
+(:attr:`agents_core.models.Model.task`), through ``GenericHTTPClient.task_handlers``.
+
 The API key is sent as ``Authorization: Bearer <key>``. It comes from the ``api_key`` argument,
 or, when that is None, from the ``OPENAI_API_KEY`` environment variable of the process making
 the request (read when the connection is checked or opened, never in the constructor). Only an
 explicit key is part of :meth:`serialize` (a component rebuilt in another process then reads the
 variable from its own environment); ``repr()`` and logs never show it.
-
-The module also holds the small HTTP helpers the Ollama client shares (server error messages,
-status checks, JSON decoding).
 """
 
 from __future__ import annotations
@@ -27,17 +27,35 @@ import json
 import os
 import wave
 from collections.abc import Iterator, MutableMapping
-from typing import Any
+from typing import Any, ClassVar
 
-import httpx
 import numpy as np
 
-from ..errors import ConfigError, HTTPStatusError, InferenceError, ProtocolError
-from ..models import OPENAI_CHAT_OPTIONS, GenericSTT, GenericTTS, Model, model_types
-from .deadline import BoundedHTTP
+from ..errors import ConfigError, InferenceError, ProtocolError
+from ..models import OPENAI_CHAT_OPTIONS, Model
+from .http_base import (
+    HTTPClientBase,
+    bearer,
+    check_api_key,
+    check_response,
+    iter_sse_data,
+    json_object,
+    response_json,
+    server_error_message,
+    sse_data,
+)
 from .model_base import ModelClient
-from .payloads import ChunkStream, checked_messages, image_to_data_uri, make_tool_call, message_text
+from .payloads import (
+    ChunkStream,
+    checked_messages,
+    checked_tool_calls,
+    image_to_data_uri,
+    make_tool_call,
+    message_text,
+)
 
+# check_response, iter_sse_data, response_json and server_error_message live in http_base now;
+# they stay importable from here, where they were first.
 __all__ = [
     "GenericHTTPClient",
     "audio_to_upload",
@@ -52,88 +70,10 @@ API_KEY_ENV = "OPENAI_API_KEY"
 
 #: Keys of a chat inference input that are not sampling parameters.
 _CHAT_CONTROL_KEYS = frozenset({"query", "stream", "tools"})
-#: Request fields beyond the model's sampling options that a chat request may carry.
-_CHAT_EXTRA_KEYS = frozenset({"tool_choice", "parallel_tool_calls", "user"})
+#: What a chat request may carry from an inference input: the sampling options, and a few request fields.
+_CHAT_PARAMS = frozenset(OPENAI_CHAT_OPTIONS) | {"tool_choice", "parallel_tool_calls", "user"}
 #: Default sample rate assumed for audio given without one (what robot microphones usually give).
 _DEFAULT_SAMPLE_RATE = 16000
-
-
-# -- HTTP helpers shared with the Ollama client ------------------------------------------------------
-
-
-def server_error_message(response: httpx.Response) -> str:
-    """The server's own error text from an error response.
-
-    Understands OpenAI's ``{"error": {"message": ...}}``, Ollama's ``{"error": "..."}`` and
-    FastAPI's ``{"detail": ...}``; anything else is returned as (shortened) text.
-    """
-    try:
-        text = response.text
-    except httpx.ResponseNotRead:
-        try:
-            response.read()
-            text = response.text
-        except Exception:  # the connection failed while reading the error body
-            return "(no body)"
-    try:
-        body = json.loads(text)
-    except ValueError:
-        return text[:500] or response.reason_phrase
-    if isinstance(body, dict):
-        error = body.get("error")
-        if isinstance(error, dict) and isinstance(error.get("message"), str):
-            return str(error["message"])
-        if isinstance(error, str):
-            return error
-        detail = body.get("detail")
-        if isinstance(detail, str):
-            return detail
-        if detail is not None:
-            return json.dumps(detail)[:500]
-    return text[:500]
-
-
-def check_response(response: httpx.Response, context: str) -> None:
-    """Raise :class:`~agents_core.errors.HTTPStatusError` (with the server's message) unless 2xx.
-
-    ``context`` names the client and operation ("GenericHTTPClient at h:p: chat").
-    """
-    if response.is_success:
-        return
-    message = server_error_message(response)
-    raise HTTPStatusError(f"{context}: server answered {response.status_code} {response.reason_phrase}: {message}",
-                          status=response.status_code)
-
-
-def response_json(response: httpx.Response, context: str) -> Any:
-    """The decoded JSON body, or :class:`~agents_core.errors.ProtocolError` when it is not JSON."""
-    try:
-        return response.json()
-    except ValueError as exc:
-        raise ProtocolError(f"{context}: the answer is not JSON: {response.text[:200]!r}") from exc
-
-
-def iter_sse_data(lines: Iterator[str]) -> Iterator[str]:
-    """The ``data`` of each server-sent event in ``lines`` (the text/event-stream format).
-
-    Consecutive ``data:`` lines of one event are joined with newlines; comment lines (``:``,
-    used for keep-alive pings) and the ``event``/``id``/``retry`` fields are skipped, since the
-    OpenAI protocol carries everything in ``data``.
-    """
-    data: list[str] = []
-    for line in lines:
-        if not line:
-            if data:
-                yield "\n".join(data)
-                data = []
-            continue
-        if line.startswith(":"):
-            continue
-        name, _, value = line.partition(":")
-        if name == "data":
-            data.append(value[1:] if value.startswith(" ") else value)
-    if data:
-        yield "\n".join(data)
 
 
 _AUDIO_MAGIC: tuple[tuple[bytes, int, str, str], ...] = (
@@ -191,7 +131,7 @@ def audio_to_upload(audio: Any, sample_rate: int = _DEFAULT_SAMPLE_RATE) -> tupl
 # -- the client -------------------------------------------------------------------------------------
 
 
-class GenericHTTPClient(ModelClient):
+class GenericHTTPClient(HTTPClientBase, ModelClient):
     """Client for any OpenAI-compatible HTTP server.
 
     :param model: a :class:`~agents_core.models.GenericLLM`, ``GenericMLLM``, ``GenericTTS`` or
@@ -209,6 +149,15 @@ class GenericHTTPClient(ModelClient):
     :param logging_level: ``"debug"``, ``"info"``, ...
     """
 
+    #: The endpoint serving each model task (:attr:`agents_core.models.Model.task`).
+    task_handlers: ClassVar[dict[str, str]] = {
+        "chat": "_chat",
+        "text_to_speech": "_speech",
+        "speech_to_text": "_transcribe",
+    }
+    #: Only an ``api_key`` given explicitly is part of the spec (the environment's is read where it runs).
+    spec_fields: ClassVar[tuple[str, ...]] = ("api_key", "base_path", "use_https")
+
     def __init__(
         self,
         model: Model | dict[str, Any],
@@ -224,77 +173,45 @@ class GenericHTTPClient(ModelClient):
     ) -> None:
         super().__init__(model=model, host=host, port=port, inference_timeout=inference_timeout,
                          init_on_activation=init_on_activation, logging_level=logging_level, **kwargs)
-        if api_key is not None and (not isinstance(api_key, str) or not api_key):
-            raise ConfigError(f"{type(self).__name__}: api_key must be a non-empty str or None")
+        self.api_key = check_api_key(type(self).__name__, api_key)
         if not isinstance(base_path, str) or (base_path and not base_path.startswith("/")):
             raise ConfigError(f"{type(self).__name__}: base_path must be '' or start with '/', got {base_path!r}")
-        self.api_key = api_key
         self.base_path = base_path.rstrip("/")
         self.use_https = bool(use_https)
         self.checkpoint = str(self.model_init_params.get("checkpoint") or self.model_name)
         #: The ``usage`` object of the last answer that had one (token counts).
         self.last_usage: dict[str, Any] | None = None
-        self._client: BoundedHTTP | None = None
 
     # -- settings -------------------------------------------------------------------------------------
 
     @property
-    def base_url(self) -> str:
-        """``http(s)://host:port/base_path``."""
-        scheme = "https" if self.use_https else "http"
-        return f"{scheme}://{self.host}:{self.port}{self.base_path}"
-
-    @property
     def kind(self) -> str:
-        """``"chat"``, ``"tts"`` or ``"stt"``, from the model's class."""
-        cls = model_types().get(self.model_type)
-        if cls is not None and issubclass(cls, GenericTTS):
-            return "tts"
-        if cls is not None and issubclass(cls, GenericSTT):
-            return "stt"
-        return "chat"
+        """``"chat"``, ``"tts"`` or ``"stt"``: the model's ``task`` under its older, shorter names."""
+        return {"text_to_speech": "tts", "speech_to_text": "stt"}.get(self.task, "chat")
 
     @property
     def supports_tool_calls(self) -> bool:
         """Chat models take tools; speech models do not."""
-        return self.kind == "chat"
+        return self.task == "chat"
 
-    def _headers(self) -> dict[str, str]:
+    def _key(self) -> str | None:
         # Read the variable per connection, so a client rebuilt in another process uses that
         # process's environment and a serialized spec never has to carry the key.
-        key = self.api_key if self.api_key is not None else os.environ.get(API_KEY_ENV) or None
-        return {"Authorization": f"Bearer {key}"} if key else {}
+        return self.api_key if self.api_key is not None else os.environ.get(API_KEY_ENV) or None
+
+    def _headers(self) -> dict[str, str]:
+        return bearer(self._key())
 
     def _secrets(self) -> tuple[str, ...]:
         """The key sent: the explicit one, else the environment's."""
-        key = self.api_key if self.api_key is not None else os.environ.get(API_KEY_ENV) or None
+        key = self._key()
         return (key,) if key else ()
-
-    def _http(self) -> BoundedHTTP:
-        # Created lazily too: with init_on_activation=False inference must still work.
-        if self._client is None:
-            self._client = BoundedHTTP(self.base_url, headers=self._headers())
-        return self._client
-
-    def _request(self, method: str, path: str, context: str, **kwargs: Any) -> httpx.Response:
-        """One request, its whole answer read within ``inference_timeout``."""
-        return self._http().request(method, path, seconds=float(self.inference_timeout), label=context, **kwargs)
-
-    def _context(self, what: str) -> str:
-        return f"{self._label()}: {what}"
 
     # -- ModelClient ----------------------------------------------------------------------------------
 
     def _check_connection(self) -> None:
         """``GET {base_path}/models``; warns when the model id is not among those listed."""
-        http = BoundedHTTP(self.base_url, headers=self._headers())
-        try:
-            response = http.request("GET", "/models", seconds=float(self.inference_timeout),
-                                    label=self._context("listing models"))
-            check_response(response, self._context("listing models"))
-            body = response_json(response, self._context("listing models"))
-        finally:
-            http.close()
+        body = self._request_json("GET", "/models", "listing models", fresh=True)
         data = body.get("data") if isinstance(body, dict) else None
         if not isinstance(data, list):
             raise ProtocolError(f"{self._context('listing models')}: expected {{'data': [...]}}, got {str(body)[:200]}")
@@ -309,33 +226,20 @@ class GenericHTTPClient(ModelClient):
     def _initialize(self) -> None:
         """Open the HTTP connection pool (the server loads its models itself)."""
         self.close()
-        self._http()
+        self._pool()
         self.logger.debug("%s: connection opened to %s", self._label(), self.base_url)
 
     def _deinitialize(self) -> None:
         """Close the connection pool."""
         self.close()
 
-    def close(self) -> None:
-        """Close the connection pool now (without telling the server anything); reopened on next use."""
-        if self._client is not None:
-            self._client.close()
-            self._client = None
-
     def _inference(self, inference_input: dict[str, Any]) -> MutableMapping[str, Any] | None:
-        kind = self.kind
-        if kind == "tts":
-            return self._speech(inference_input)
-        if kind == "stt":
-            return self._transcribe(inference_input)
-        return self._chat(inference_input)
+        return self._task_handler()(inference_input)
 
     def _embed(self, texts: list[str]) -> list[list[float]]:
         """``POST {base_path}/embeddings``; one vector per text, in input order."""
         context = self._context("embeddings")
-        response = self._request("POST", "/embeddings", context, json={"model": self.checkpoint, "input": texts})
-        check_response(response, context)
-        body = response_json(response, context)
+        body = self._request_json("POST", "/embeddings", "embeddings", json={"model": self.checkpoint, "input": texts})
         data = body.get("data") if isinstance(body, dict) else None
         if not isinstance(data, list):
             raise ProtocolError(f"{context}: expected {{'data': [...]}}, got {str(body)[:200]}")
@@ -352,14 +256,6 @@ class GenericHTTPClient(ModelClient):
                 raise ProtocolError(f"{context}: an embedding must be a list of numbers, got {str(vector)[:200]}")
             vectors.append([float(x) for x in vector])
         return vectors
-
-    def serialize(self) -> dict[str, Any]:
-        """The base spec plus ``api_key`` (only one given explicitly), ``base_path`` and ``use_https``."""
-        spec = super().serialize()
-        spec["api_key"] = self.api_key
-        spec["base_path"] = self.base_path
-        spec["use_https"] = self.use_https
-        return spec
 
     # -- chat -----------------------------------------------------------------------------------------
 
@@ -390,27 +286,11 @@ class GenericHTTPClient(ModelClient):
             messages.append(out)
         return messages
 
-    def _chat_params(self, inference_input: dict[str, Any]) -> dict[str, Any]:
-        params: dict[str, Any] = dict(self.model_init_params.get("options") or {})
-        ignored: list[str] = []
-        for key, value in inference_input.items():
-            if key in _CHAT_CONTROL_KEYS or value is None:
-                continue
-            if key == "max_new_tokens":
-                params["max_tokens"] = value
-            elif key in OPENAI_CHAT_OPTIONS or key in _CHAT_EXTRA_KEYS:
-                params[key] = value
-            else:
-                ignored.append(key)
-        if ignored:
-            self.logger.debug("%s: inference parameters not part of the protocol, not sent: %s", self._label(),
-                              sorted(ignored))
-        return params
-
     def _chat(self, inference_input: dict[str, Any]) -> MutableMapping[str, Any]:
         tools = inference_input.get("tools")
         body: dict[str, Any] = {"model": self.checkpoint, "messages": self._messages(inference_input.get("query")),
-                                **self._chat_params(inference_input)}
+                                **self._call_options(inference_input, skip=_CHAT_CONTROL_KEYS,
+                                                     known=_CHAT_PARAMS, max_tokens="max_tokens")}
         if tools:
             body["tools"] = tools
         # With tools the answer is read whole: tool-call arguments arrive in fragments when
@@ -419,9 +299,7 @@ class GenericHTTPClient(ModelClient):
             body["stream"] = True
             return {"output": self._chat_stream(body)}
         context = self._context("chat")
-        response = self._request("POST", "/chat/completions", context, json=body)
-        check_response(response, context)
-        answer = response_json(response, context)
+        answer = self._request_json("POST", "/chat/completions", "chat", json=body)
         choices = answer.get("choices") if isinstance(answer, dict) else None
         if not isinstance(choices, list) or not choices or not isinstance(choices[0], dict) \
                 or not isinstance(choices[0].get("message"), dict):
@@ -433,47 +311,22 @@ class GenericHTTPClient(ModelClient):
             raise ProtocolError(f"{context}: message content must be a string, got {str(content)[:200]}")
         result: dict[str, Any] = {"output": content or ""}
         if tools:
-            calls = message.get("tool_calls") or []
-            if not isinstance(calls, list):
-                raise ProtocolError(f"{context}: tool_calls must be a list, got {str(calls)[:200]}")
-            result["tool_calls"] = [_tool_call(call, index) for index, call in enumerate(calls)]
+            result["tool_calls"] = checked_tool_calls(message.get("tool_calls"), context, _tool_call)
         return result
 
     def _chat_stream(self, body: dict[str, Any]) -> ChunkStream[str]:
         context = self._context("chat stream")
         watch = self._watch("chat stream", stream=True)
-        try:
-            response = self._http().open("POST", "/chat/completions", watch, json=body)
-        except BaseException:
-            watch.close()
-            raise
-        try:
-            check_response(response, context)
-        except Exception as exc:
-            watch.close()
-            response.close()
-            if watch.fired is not None:
-                raise watch.error() from exc
-            raise
-
-        def lines() -> Iterator[str]:
-            # Keep-alive comments and blank lines arrive here too: the deadline is checked on
-            # every line, so they cannot keep the call alive.
-            for line in response.iter_lines():
-                watch.check()
-                yield line
+        response = self._open_stream("POST", "/chat/completions", "chat stream", watch, json=body)
 
         def chunks() -> Iterator[str]:
             finished = False
-            for data in iter_sse_data(lines()):
+            # Keep-alive comments are no events: they never count as chunks, and the watchdog
+            # cuts a stream of nothing but them at its limit.
+            for data in sse_data(response, context, watch):
                 if data == "[DONE]":
                     return
-                try:
-                    event = json.loads(data)
-                except ValueError as exc:
-                    raise ProtocolError(f"{context}: an event is not JSON: {data[:200]!r}") from exc
-                if not isinstance(event, dict):
-                    raise ProtocolError(f"{context}: an event is not a JSON object: {data[:200]!r}")
+                event = json_object(data, context, "an event")
                 if "error" in event:
                     # Servers report failures after the 200 status as an error event.
                     error = event["error"]
@@ -508,11 +361,9 @@ class GenericHTTPClient(ModelClient):
             "response_format": inference_input.get("response_format") or params.get("response_format", "wav"),
             "speed": inference_input.get("speed") or params.get("speed", 1.0),
         }
-        context = self._context("speech")
-        response = self._request("POST", "/audio/speech", context, json=body)
-        check_response(response, context)
+        response = self._request("POST", "/audio/speech", "speech", json=body)
         if not response.content:
-            raise InferenceError(f"{context}: the server returned no audio")
+            raise InferenceError(f"{self._context('speech')}: the server returned no audio")
         return {"output": response.content}
 
     def _transcribe(self, inference_input: dict[str, Any]) -> MutableMapping[str, Any]:
@@ -528,13 +379,10 @@ class GenericHTTPClient(ModelClient):
             form["language"] = str(language)
         if inference_input.get("prompt"):
             form["prompt"] = str(inference_input["prompt"])
-        context = self._context("transcription")
-        response = self._request("POST", "/audio/transcriptions", context, data=form,
-                                 files={"file": (filename, data, mime)})
-        check_response(response, context)
-        body = response_json(response, context)
+        body = self._request_json("POST", "/audio/transcriptions", "transcription", data=form,
+                                  files={"file": (filename, data, mime)})
         if not isinstance(body, dict) or not isinstance(body.get("text"), str):
-            raise ProtocolError(f"{context}: expected {{'text': ...}}, got {str(body)[:200]}")
+            raise ProtocolError(f"{self._context('transcription')}: expected {{'text': ...}}, got {str(body)[:200]}")
         return {"output": body["text"]}
 
 

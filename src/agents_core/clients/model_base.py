@@ -11,17 +11,22 @@ comments, one byte per second). Streams also have a time to the first chunk
 (``stream_first_chunk_timeout``) and between chunks (``stream_chunk_timeout``). Clients build a
 :class:`~agents_core.clients.deadline.CallWatch` per call with :meth:`ModelClient._watch` and
 hand streams out through :meth:`ModelClient._chunk_stream`.
+
+Tasks: what a model does is declared once, by its class (:attr:`agents_core.models.Model.task`).
+A client serving several tasks maps each to the method handling it in ``task_handlers`` and
+calls :meth:`ModelClient._task_handler` from ``_inference``; a model whose task is not in the
+table is refused when the client is built.
 """
 
 from __future__ import annotations
 
 import time
 from abc import abstractmethod
-from collections.abc import Callable, Iterator, MutableMapping, Sequence
-from typing import Any, TypeVar
+from collections.abc import Callable, Collection, Iterator, Mapping, MutableMapping, Sequence
+from typing import Any, ClassVar, TypeVar
 
 from ..errors import ConfigError, InferenceError, ProtocolError
-from ..models import Model
+from ..models import Model, model_types
 from .client_base import BaseClient
 from .deadline import CallWatch, check_seconds
 from .payloads import ChunkStream
@@ -56,6 +61,10 @@ class ModelClient(BaseClient):
     before ``inference_timeout``.
     """
 
+    #: The method serving each model task, by name (``{"chat": "_chat"}``); empty: any model is
+    #: accepted and ``_inference`` does not dispatch on the task.
+    task_handlers: ClassVar[Mapping[str, str]] = {}
+
     def __init__(
         self,
         model: Model | dict[str, Any],
@@ -87,6 +96,9 @@ class ModelClient(BaseClient):
         else:
             raise ConfigError(f"{type(self).__name__}: model must be a Model or its dict, got {type(model).__name__}")
         owner = type(self).__name__
+        if self.task_handlers and self.task not in self.task_handlers:
+            raise ConfigError(f"{owner}: a {self.model_type} is a {self.task!r} model; this client serves "
+                              f"{sorted(self.task_handlers)} models")
         check_seconds(owner, "inference_timeout", inference_timeout)
         self.inference_timeout = inference_timeout
         self.stream_first_chunk_timeout = check_seconds(owner, "stream_first_chunk_timeout",
@@ -95,6 +107,45 @@ class ModelClient(BaseClient):
                                                   optional=True)
         self.initialized = False
         self.last_inference_seconds: float | None = None
+
+    @property
+    def task(self) -> str:
+        """What the served model does: its class's ``task`` (a model type not imported here is a plain Model's)."""
+        cls = model_types().get(self.model_type, Model)
+        return cls.task
+
+    def _task_handler(self) -> Callable[[dict[str, Any]], MutableMapping[str, Any] | None]:
+        """The method ``task_handlers`` names for the model's task."""
+        name = self.task_handlers.get(self.task)
+        if name is None:
+            raise ConfigError(f"{type(self).__name__} has no handler for {self.task!r} models")
+        handler: Callable[[dict[str, Any]], MutableMapping[str, Any] | None] = getattr(self, name)
+        return handler
+
+    def _call_options(self, params: dict[str, Any], *, skip: Collection[str], known: Collection[str],
+                      max_tokens: str) -> dict[str, Any]:
+        """The model's ``options`` overridden by those of ``params`` (an inference input) the protocol knows.
+
+        :param skip: keys of ``params`` that are not options (``query``, ``stream``...); None values
+            are skipped too.
+        :param known: the option names the protocol takes; other keys are logged (debug), not sent.
+        :param max_tokens: the protocol's name for ``max_new_tokens``.
+        """
+        options: dict[str, Any] = dict(self.model_init_params.get("options") or {})
+        ignored: list[str] = []
+        for key, value in params.items():
+            if key in skip or value is None:
+                continue
+            if key == "max_new_tokens":
+                options[max_tokens] = value
+            elif key in known:
+                options[key] = value
+            else:
+                ignored.append(key)
+        if ignored:
+            self.logger.debug("%s: inference parameters the protocol does not take, not sent: %s", self._label(),
+                              sorted(ignored))
+        return options
 
     # -- deadlines, for subclasses ----------------------------------------------------------------
 

@@ -14,18 +14,24 @@ in memory or over a pipe) and never appears in ``repr()``, logs, errors or statu
 
 from __future__ import annotations
 
-import json
 from collections.abc import Callable, Iterator, MutableMapping
-from typing import Any
+from typing import Any, ClassVar
 
 import httpx
 
 from ..errors import ConfigError, InferenceError, ProtocolError
 from ..models import OLLAMA_OPTIONS, Model, OllamaModel
-from .deadline import BoundedHTTP, CallWatch, check_seconds
-from .generic import check_response, response_json
+from .deadline import CallWatch, check_seconds
+from .http_base import HTTPClientBase, bearer, check_api_key, iter_ndjson
 from .model_base import ModelClient
-from .payloads import ChunkStream, checked_messages, image_to_base64_png, make_tool_call, message_text
+from .payloads import (
+    ChunkStream,
+    checked_messages,
+    checked_tool_calls,
+    image_to_base64_png,
+    make_tool_call,
+    message_text,
+)
 
 __all__ = ["OllamaClient"]
 
@@ -41,7 +47,7 @@ _STAT_KEYS = ("done_reason", "total_duration", "load_duration", "prompt_eval_cou
 _DEFAULT_LOAD_TIMEOUT = 300.0
 
 
-class OllamaClient(ModelClient):
+class OllamaClient(HTTPClientBase, ModelClient):
     """Client for an Ollama server.
 
     :param model: an :class:`~agents_core.models.OllamaModel` (or its serialized dict); its
@@ -59,6 +65,10 @@ class OllamaClient(ModelClient):
     :param init_on_activation: check, pull and load the model during configure.
     :param logging_level: ``"debug"``, ``"info"``, ...
     """
+
+    #: Ollama serves chat models (and their ``generate`` and ``embed``).
+    task_handlers: ClassVar[dict[str, str]] = {"chat": "_chat"}
+    spec_fields: ClassVar[tuple[str, ...]] = ("pull_timeout", "api_key", "use_https")
 
     def __init__(
         self,
@@ -78,24 +88,16 @@ class OllamaClient(ModelClient):
         super().__init__(model=model, host=host, port=port, inference_timeout=inference_timeout,
                          init_on_activation=init_on_activation, logging_level=logging_level, **kwargs)
         check_seconds(type(self).__name__, "pull_timeout", pull_timeout)
-        if api_key is not None and (not isinstance(api_key, str) or not api_key):
-            raise ConfigError(f"{type(self).__name__}: api_key must be a non-empty str or None")
         self.pull_timeout = pull_timeout
-        self.api_key = api_key
+        self.api_key = check_api_key(type(self).__name__, api_key)
         self.use_https = bool(use_https)
         self.checkpoint = str(self.model_init_params.get("checkpoint") or self.model_name)
         #: The Ollama version seen by the last connection check.
         self.server_version: str | None = None
         #: Timing and token counts of the last finished answer (``eval_count``, ``eval_duration``...).
         self.last_stats: dict[str, Any] | None = None
-        self._client: BoundedHTTP | None = None
 
     # -- settings -------------------------------------------------------------------------------------
-
-    @property
-    def base_url(self) -> str:
-        """``http(s)://host:port``."""
-        return f"{'https' if self.use_https else 'http'}://{self.host}:{self.port}"
 
     @property
     def supports_tool_calls(self) -> bool:
@@ -108,43 +110,11 @@ class OllamaClient(ModelClient):
         return self.model_init_params.get("keep_alive")
 
     def _headers(self) -> dict[str, str]:
-        return {"Authorization": f"Bearer {self.api_key}"} if self.api_key else {}
-
-    def _http(self) -> BoundedHTTP:
-        # Created lazily too: with init_on_activation=False inference must still work.
-        if self._client is None:
-            self._client = BoundedHTTP(self.base_url, headers=self._headers())
-        return self._client
-
-    def _request(self, method: str, path: str, context: str, *, seconds: float | None = None,
-                 setting: str = "inference_timeout", **kwargs: Any) -> httpx.Response:
-        """One request, its whole answer read within ``seconds`` (default ``inference_timeout``)."""
-        return self._http().request(method, path, seconds=float(self.inference_timeout if seconds is None else seconds),
-                                    label=context, what=setting, **kwargs)
-
-    def _context(self, what: str) -> str:
-        return f"{self._label()}: {what}"
-
-    def _options(self, params: dict[str, Any]) -> dict[str, Any]:
-        """The model's options, overridden by the per-call ones (``max_new_tokens`` is ``num_predict``)."""
-        options: dict[str, Any] = dict(self.model_init_params.get("options") or {})
-        ignored: list[str] = []
-        for key, value in params.items():
-            if key in _CONTROL_KEYS or value is None:
-                continue
-            if key == "max_new_tokens":
-                options["num_predict"] = value
-            elif key in OLLAMA_OPTIONS:
-                options[key] = value
-            else:
-                ignored.append(key)
-        if ignored:
-            self.logger.debug("%s: parameters Ollama does not know, not sent: %s", self._label(), sorted(ignored))
-        return options
+        return bearer(self.api_key)
 
     def _request_body(self, params: dict[str, Any], **fields: Any) -> dict[str, Any]:
         body: dict[str, Any] = {"model": self.checkpoint, **fields}
-        options = self._options(params)
+        options = self._call_options(params, skip=_CONTROL_KEYS, known=OLLAMA_OPTIONS, max_tokens="num_predict")
         if options:
             body["options"] = options
         keep_alive = params.get("keep_alive", self.keep_alive)
@@ -158,14 +128,7 @@ class OllamaClient(ModelClient):
 
     def _check_connection(self) -> None:
         """``GET /api/version``."""
-        http = BoundedHTTP(self.base_url, headers=self._headers())
-        try:
-            response = http.request("GET", "/api/version", seconds=float(self.inference_timeout),
-                                    label=self._context("version"))
-            check_response(response, self._context("version"))
-            body = response_json(response, self._context("version"))
-        finally:
-            http.close()
+        body = self._request_json("GET", "/api/version", "version", fresh=True)
         if not isinstance(body, dict) or not isinstance(body.get("version"), str):
             raise ProtocolError(f"{self._context('version')}: expected {{'version': ...}}, got {str(body)[:200]}")
         self.server_version = body["version"]
@@ -173,29 +136,27 @@ class OllamaClient(ModelClient):
 
     def _initialize(self) -> None:
         """Pull the model if Ollama does not have it, then load it (so the first answer is fast)."""
-        response = self._request("POST", "/api/show", self._context("show"), json={"model": self.checkpoint})
+        response = self._request("POST", "/api/show", "show", check=False, json={"model": self.checkpoint})
         if response.status_code == httpx.codes.NOT_FOUND:
             self.logger.info("%s: model %r not present, pulling it", self._label(), self.checkpoint)
             self.pull()
         else:
-            check_response(response, self._context("show"))
+            self._check_response(response, "show")
         self.load()
 
     def _deinitialize(self) -> None:
         """Unload the model from Ollama's memory and close the connection pool."""
         try:
-            if self._client is not None:
+            if self._http is not None:
                 self._unload()
         finally:
             self.close()
 
-    def close(self) -> None:
-        """Close the connection pool now (without telling the server anything); reopened on next use."""
-        if self._client is not None:
-            self._client.close()
-            self._client = None
-
     def _inference(self, inference_input: dict[str, Any]) -> MutableMapping[str, Any] | None:
+        return self._task_handler()(inference_input)
+
+    def _chat(self, inference_input: dict[str, Any]) -> MutableMapping[str, Any]:
+        """``POST /api/chat``, streamed as NDJSON or read whole."""
         tools = inference_input.get("tools")
         body = self._request_body(inference_input, messages=self._messages(inference_input.get("query")))
         if tools:
@@ -207,40 +168,24 @@ class OllamaClient(ModelClient):
         if stream:
             return {"output": self._stream("/api/chat", body, "chat stream", _message_text)}
         context = self._context("chat")
-        response = self._request("POST", "/api/chat", context, json=body)
-        check_response(response, context)
-        answer = self._final_object(response, context)
+        answer = self._final_object(self._request("POST", "/api/chat", "chat", json=body), "chat")
         message = answer.get("message")
         if not isinstance(message, dict):
             raise ProtocolError(f"{context}: the answer has no 'message' object: {str(answer)[:200]}")
         result: dict[str, Any] = {"output": str(message.get("content") or "")}
         if tools:
-            calls = message.get("tool_calls") or []
-            if not isinstance(calls, list):
-                raise ProtocolError(f"{context}: tool_calls must be a list, got {str(calls)[:200]}")
-            result["tool_calls"] = [_tool_call(call, index) for index, call in enumerate(calls)]
+            result["tool_calls"] = checked_tool_calls(message.get("tool_calls"), context, _tool_call)
         return result
 
     def _embed(self, texts: list[str]) -> list[list[float]]:
         """``POST /api/embed`` with every text at once."""
         context = self._context("embed")
-        body = self._request_body({}, input=texts)
-        response = self._request("POST", "/api/embed", context, json=body)
-        check_response(response, context)
-        answer = response_json(response, context)
+        answer = self._request_json("POST", "/api/embed", "embed", json=self._request_body({}, input=texts))
         vectors = answer.get("embeddings") if isinstance(answer, dict) else None
         if not isinstance(vectors, list) or not all(
                 isinstance(v, list) and all(isinstance(x, int | float) for x in v) for v in vectors):
             raise ProtocolError(f"{context}: expected {{'embeddings': [[...], ...]}}, got {str(answer)[:200]}")
         return [[float(x) for x in vector] for vector in vectors]
-
-    def serialize(self) -> dict[str, Any]:
-        """The base spec plus ``pull_timeout``, ``api_key`` and ``use_https`` (keep it off argv and logs)."""
-        spec = super().serialize()
-        spec["pull_timeout"] = self.pull_timeout
-        spec["api_key"] = self.api_key
-        spec["use_https"] = self.use_https
-        return spec
 
     # -- Ollama-specific operations -----------------------------------------------------------------
 
@@ -278,33 +223,23 @@ class OllamaClient(ModelClient):
             body["system"] = system
         if stream:
             return self._stream("/api/generate", body, "generate stream", _response_text)
-        context = self._context("generate")
-        response = self._request("POST", "/api/generate", context, json=body)
-        check_response(response, context)
-        answer = self._final_object(response, context)
+        answer = self._final_object(self._request("POST", "/api/generate", "generate", json=body), "generate")
         return str(answer.get("response") or "")
 
     def _pull(self) -> None:
-        context = self._context(f"pull {self.checkpoint}")
+        what = f"pull {self.checkpoint}"
+        context = self._context(what)
         # The whole download within pull_timeout, and some progress line at least every
         # max(inference_timeout, 60) s: a stalled download fails long before the hour is up.
         stall = max(float(self.inference_timeout), 60.0)
         watch = CallWatch(float(self.pull_timeout), context, first_chunk=stall, between_chunks=stall,
                           what="pull_timeout")
+        response = self._open_stream("POST", "/api/pull", what, watch, json={"model": self.checkpoint, "stream": True})
         try:
-            response = self._http().open("POST", "/api/pull", watch, json={"model": self.checkpoint, "stream": True})
-        except BaseException:
-            watch.close()
-            raise
-        try:
-            check_response(response, context)
             last_status, last_decile = "", -1
-            for count, line in enumerate(_timed_lines(response, watch)):
+            for count, progress in enumerate(iter_ndjson(_timed_lines(response, watch), context)):
                 if count >= _MAX_PULL_LINES:
                     raise InferenceError(f"{context}: not finished after {_MAX_PULL_LINES} progress lines")
-                if not line.strip():
-                    continue
-                progress = _json_line(line, context)
                 if "error" in progress:
                     raise InferenceError(f"{context} failed: {progress['error']}")
                 status = str(progress.get("status", ""))
@@ -332,21 +267,16 @@ class OllamaClient(ModelClient):
         raise ProtocolError(f"{context}: the progress stream ended without 'success'")
 
     def _load(self) -> None:
-        context = self._context("load")
         load_timeout = float(self.init_timeout or _DEFAULT_LOAD_TIMEOUT)
-        body = self._request_body({}, stream=False)
-        response = self._request("POST", "/api/generate", context, seconds=load_timeout, setting="init_timeout",
-                                 json=body)
-        check_response(response, context)
-        self._final_object(response, context)
+        response = self._request("POST", "/api/generate", "load", seconds=load_timeout, setting="init_timeout",
+                                 json=self._request_body({}, stream=False))
+        self._final_object(response, "load")
         self.logger.info("%s: model %r loaded", self._label(), self.checkpoint)
 
     def _unload(self) -> None:
-        context = self._context("unload")
-        response = self._request("POST", "/api/generate", context, json={"model": self.checkpoint, "keep_alive": 0,
-                                                                         "stream": False})
-        check_response(response, context)
-        self._final_object(response, context)
+        response = self._request("POST", "/api/generate", "unload", json={"model": self.checkpoint, "keep_alive": 0,
+                                                                          "stream": False})
+        self._final_object(response, "unload")
         self.logger.info("%s: model %r unloaded", self._label(), self.checkpoint)
 
     # -- protocol details -----------------------------------------------------------------------------
@@ -368,8 +298,9 @@ class OllamaClient(ModelClient):
             messages.append(out)
         return messages
 
-    def _final_object(self, response: httpx.Response, context: str) -> dict[str, Any]:
-        answer = response_json(response, context)
+    def _final_object(self, response: httpx.Response, what: str) -> dict[str, Any]:
+        context = self._context(what)
+        answer = self._json(response, what)
         if not isinstance(answer, dict):
             raise ProtocolError(f"{context}: expected a JSON object, got {str(answer)[:200]}")
         if "error" in answer:
@@ -386,27 +317,11 @@ class OllamaClient(ModelClient):
                 text_of: Callable[[dict[str, Any]], str]) -> ChunkStream[str]:
         context = self._context(what)
         watch = self._watch(what, stream=True)
-        try:
-            response = self._http().open("POST", path, watch, json=body)
-        except BaseException:
-            watch.close()
-            raise
-        try:
-            check_response(response, context)
-        except Exception as exc:
-            watch.close()
-            response.close()
-            if watch.fired is not None:
-                raise watch.error() from exc
-            raise
+        response = self._open_stream("POST", path, what, watch, json=body)
 
         def chunks() -> Iterator[str]:
             # Blank lines (and anything else that is not an answer piece) do not reset the timers.
-            for line in response.iter_lines():
-                watch.check()
-                if not line.strip():
-                    continue
-                obj = _json_line(line, context)
+            for obj in iter_ndjson(response.iter_lines(), context, watch):
                 if "error" in obj:
                     raise InferenceError(f"{context}: the server failed mid-stream: {obj['error']}")
                 text = text_of(obj)
@@ -432,16 +347,6 @@ def _timed_lines(response: httpx.Response, watch: CallWatch) -> Iterator[str]:
             return
         watch.after_chunk()
         yield line
-
-
-def _json_line(line: str, context: str) -> dict[str, Any]:
-    try:
-        obj = json.loads(line)
-    except ValueError as exc:
-        raise ProtocolError(f"{context}: a streamed line is not JSON: {line[:200]!r}") from exc
-    if not isinstance(obj, dict):
-        raise ProtocolError(f"{context}: a streamed line is not a JSON object: {line[:200]!r}")
-    return obj
 
 
 def _message_text(obj: dict[str, Any]) -> str:

@@ -61,6 +61,7 @@ __all__ = [
     "CHAT_ROLES",
     "ChunkStream",
     "checked_messages",
+    "checked_tool_calls",
     "encode_png",
     "image_to_base64_png",
     "image_to_data_uri",
@@ -244,6 +245,18 @@ def parse_tool_arguments(arguments: Any, tool_name: str = "?") -> dict[str, Any]
         if isinstance(parsed, dict):
             return parsed
     raise ProtocolError(f"tool call {tool_name!r}: arguments must be a JSON object, got {arguments!r:.200}")
+
+
+def checked_tool_calls(calls: Any, context: str, parse: Callable[[Any, int], dict[str, Any]]) -> list[dict[str, Any]]:
+    """The ToolCall dicts of a server's ``tool_calls`` list (None: none), each made by ``parse(call, index)``.
+
+    Anything but a list raises :class:`~agents_core.errors.ProtocolError`; ``context`` names the
+    client and operation.
+    """
+    calls = calls or []
+    if not isinstance(calls, list):
+        raise ProtocolError(f"{context}: tool_calls must be a list, got {str(calls)[:200]}")
+    return [parse(call, index) for index, call in enumerate(calls)]
 
 
 def make_tool_call(name: str, arguments: Any, call_id: str | None, index: int = 0) -> dict[str, Any]:

@@ -1,6 +1,6 @@
 """``RoboMLRESPClient``: a model served by RoboML's RESP (Redis protocol) server.
 
-Commands, argument and reply encodings are described in :mod:`agents_core.clients.roboml`. The
+Commands, argument and reply encodings are described in :mod:`agents_core.clients.roboml_protocol`. The
 client uses redis-py (``pip install redis``), imported on first use so that agents_core imports
 without it.
 """
@@ -22,7 +22,7 @@ from ..errors import (
     ProtocolError,
 )
 from .deadline import CallWatch
-from .roboml import (
+from .roboml_protocol import (
     RoboMLNodeClient,
     build_roboml_input,
     normalize_result,

@@ -1,6 +1,6 @@
 """``RoboMLWSClient``: RoboML inference over its WebSocket endpoint, lifecycle over HTTP.
 
-Frames and their meaning are described in :mod:`agents_core.clients.roboml`. RoboML's WebSocket
+Frames and their meaning are described in :mod:`agents_core.clients.roboml_protocol`. RoboML's WebSocket
 replies carry no request id, so replies are matched to requests by order: the client keeps one
 connection with at most one request in flight on it (a lock), and throws the connection away
 whenever a reply may be left unread (a timeout, a stream closed early, an error), so a late
@@ -29,8 +29,17 @@ from ..errors import (
 )
 from .deadline import CallWatch, shutdown_socket
 from .payloads import ChunkStream
-from .roboml import RESPONSE_ENDED, WS_CHUNK_SIZE, build_roboml_input, normalize_result, packb, retry_connect, unpackb
 from .roboml_http import RoboMLHTTPClient
+from .roboml_protocol import (
+    RESPONSE_ENDED,
+    ROBOML_NODE_MODELS,
+    WS_CHUNK_SIZE,
+    build_roboml_input,
+    normalize_result,
+    packb,
+    retry_connect,
+    unpackb,
+)
 
 __all__ = ["RoboMLWSClient"]
 
@@ -199,7 +208,7 @@ class RoboMLWSClient(RoboMLHTTPClient):
             return "".join(p for p in parts if isinstance(p, str))
         data = b"".join(p for p in parts if isinstance(p, bytes))
         # Bytes outputs (speech audio) come raw; every other non-text output is msgpack.
-        return data if self.node_model == "TransformersTTS" else unpackb(data)
+        return data if ROBOML_NODE_MODELS[self.node_model] == "text_to_speech" else unpackb(data)
 
     def _stream_ws(self, ws: ClientConnection, watch: CallWatch) -> ChunkStream[str]:
         ended = threading.Event()
@@ -231,7 +240,7 @@ class RoboMLWSClient(RoboMLHTTPClient):
         """Serve at most one request from ``req_queue`` into ``resp_queue``.
 
         The reply goes into ``resp_queue`` as the output's chunks (or the whole output when it
-        does not stream), then one final item: :data:`~agents_core.clients.roboml.RESPONSE_ENDED`,
+        does not stream), then one final item: :data:`~agents_core.clients.roboml_protocol.RESPONSE_ENDED`,
         or the typed :class:`~agents_core.errors.ModelClientError` if the request failed.
         Setting ``stop_event`` cuts a stream short (it still ends with RESPONSE_ENDED).
 
