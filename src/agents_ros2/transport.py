@@ -99,6 +99,14 @@ _DISCOVERY_POLL_S = 0.02
 #: Health reported for a lifecycle node that has published no ComponentStatus (not ours, or not yet).
 UNKNOWN_HEALTH = "UNKNOWN"
 
+def _destroy(destroy: Any, entity: Any, what: str) -> None:
+    """Destroy an rclpy entity, tolerating a node that is already gone."""
+    try:
+        destroy(entity)
+    except Exception as exc:  # the node is already gone
+        logger.debug("destroying %s: %s", what, exc)
+
+
 class _Ros2Publisher:
     """Publishes one topic's values as ROS messages."""
 
@@ -135,13 +143,9 @@ class _Ros2Publisher:
 
     def close(self) -> None:
         """Stop publishing; idempotent."""
-        if self._closed:
-            return
-        self._closed = True
-        try:
-            self._node.destroy_publisher(self._publisher)
-        except Exception as exc:  # the node is already gone
-            logger.debug("destroying the publisher on %r: %s", self.topic.name, exc)
+        if not self._closed:
+            self._closed = True
+            _destroy(self._node.destroy_publisher, self._publisher, f"the publisher on {self.topic.name!r}")
 
 
 class _Ros2Subscription:
@@ -172,10 +176,7 @@ class _Ros2Subscription:
             if self._closed:
                 return
             self._closed = True
-        try:
-            self._node.destroy_subscription(self._subscription)
-        except Exception as exc:  # the node is already gone
-            logger.debug("destroying the subscription on %r: %s", self.topic.name, exc)
+        _destroy(self._node.destroy_subscription, self._subscription, f"the subscription on {self.topic.name!r}")
 
 
 class _Ros2Service:
@@ -203,13 +204,9 @@ class _Ros2Service:
 
     def close(self) -> None:
         """Stop serving; idempotent."""
-        if self._closed:
-            return
-        self._closed = True
-        try:
-            self._node.destroy_service(self._service)
-        except Exception as exc:  # the node is already gone
-            logger.debug("destroying the service %r: %s", self.name, exc)
+        if not self._closed:
+            self._closed = True
+            _destroy(self._node.destroy_service, self._service, f"the service {self.name!r}")
 
 
 class Ros2Driver:

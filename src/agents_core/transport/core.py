@@ -91,15 +91,33 @@ class CorePublisher:
         _close_quietly(self._sender, f"publisher on {self.topic.name!r}")
 
 
-class CoreSubscription:
+class _DriverHandle:
+    """Something the core opened through the driver: closed once, forgotten by the transport."""
+
+    def __init__(self, transport: DriverTransport, what: str) -> None:
+        self._transport = transport
+        self._what = what
+        self._handle: Closable | None = None
+        self._closed = False
+
+    def _close_handle(self) -> bool:
+        """Close the driver's handle; False if this ran before."""
+        if self._closed:
+            return False
+        self._closed = True
+        self._transport._forget(self)  # type: ignore[arg-type]  # only subclasses are ever forgotten
+        if self._handle is not None:
+            _close_quietly(self._handle, self._what)
+        return True
+
+
+class CoreSubscription(_DriverHandle):
     """A driver's subscriber feeding a delivery (bounded thread or inline)."""
 
     def __init__(self, transport: DriverTransport, topic: Topic, delivery: BoundedDelivery | InlineDelivery) -> None:
+        super().__init__(transport, f"subscription on {topic.name!r}")
         self.topic = topic
-        self._transport = transport
         self._delivery = delivery
-        self._handle: Closable | None = None
-        self._closed = False
 
     def statistics(self) -> SubscriptionStatistics:
         """Delivered / dropped / callback-error / decode-error / discarded counts."""
@@ -107,32 +125,20 @@ class CoreSubscription:
 
     def close(self) -> None:
         """Stop receiving, then stop delivering (waiting values are discarded, counted); idempotent."""
-        if self._closed:
-            return
-        self._closed = True
-        self._transport._forget(self)
-        if self._handle is not None:
-            _close_quietly(self._handle, f"subscription on {self.topic.name!r}")
-        self._delivery.close()
+        if self._close_handle():
+            self._delivery.close()
 
 
-class CoreService:
+class CoreService(_DriverHandle):
     """A service name served by the driver, its requests run on the owner's lane."""
 
     def __init__(self, transport: DriverTransport, name: str) -> None:
+        super().__init__(transport, f"service {name!r}")
         self.name = name
-        self._transport = transport
-        self._handle: Closable | None = None
-        self._closed = False
 
     def close(self) -> None:
         """Stop serving; idempotent."""
-        if self._closed:
-            return
-        self._closed = True
-        self._transport._forget(self)
-        if self._handle is not None:
-            _close_quietly(self._handle, f"service {self.name!r}")
+        self._close_handle()
 
 
 class CorePresence:
