@@ -21,6 +21,9 @@ METRICS: dict[str, list[tuple[str, str, str, str]]] = {
                 ("threads_3_inputs", "threads", "lower", "threads_3_inputs")],
     "model": [("ttft", "ms", "lower", "ttft_ms"), ("tokens_per_s", "tokens/s", "higher", "tokens_per_s")],
     "imports": [("wall", "ms", "lower", "wall_ms"), ("import", "ms", "lower", "import_ms")],
+    # framework: camera -> Vision component (Zenoh) -> Detections; raw: a direct onnxruntime loop.
+    "vision": [("fps", "frames/s", "higher", "fps"), ("latency_p50", "ms", "lower", "latency_ms.p50"),
+               ("latency_p99", "ms", "lower", "latency_ms.p99")],
 }
 
 #: Above this slowdown (framework cost / raw cost) a latency figure needs a profile note.
@@ -156,7 +159,7 @@ def plot(figures: list[dict[str, Any]], records: list[dict[str, Any]], path: Pat
     fig, (left, right) = plt.subplots(1, 2, figsize=(15, max(5.0, 0.32 * len(shown) + 1.5)),
                                       gridspec_kw={"width_ratios": [3, 2]})
     colors = {"hop": "tab:blue", "throughput": "tab:orange", "startup": "tab:green", "model": "tab:purple",
-              "imports": "tab:brown"}
+              "imports": "tab:brown", "vision": "tab:red"}
     labels = [f["id"] for f in shown]
     values = [f["slowdown"] for f in shown]
     y = list(range(len(shown)))

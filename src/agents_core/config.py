@@ -34,6 +34,8 @@ __all__ = [
     "ModelComponentConfig",
     "SemanticRouterConfig",
     "VLMConfig",
+    "VideoMessageMakerConfig",
+    "VisionConfig",
     "configure_time_fields",
     "load_config_file",
 ]
@@ -271,3 +273,94 @@ class SemanticRouterConfig(ModelComponentConfig):
     distance_func: str = field(default="l2", validator=base_validators.in_(["l2", "cosine", "ip"]),
                                metadata=AT_CONFIGURE)
     maximum_distance: float = field(default=0.4, validator=base_validators.gt(0.0))
+
+
+def _optional_labels(instance: Any, attribute: attrs.Attribute[Any], value: Any) -> None:
+    if value is None:
+        return
+    ok = (isinstance(value, list) and all(isinstance(v, str) for v in value)) or (
+        isinstance(value, dict) and all(isinstance(k, int) and not isinstance(k, bool) and isinstance(v, str)
+                                        for k, v in value.items()))
+    if not ok:
+        raise ConfigError(f"{type(instance).__name__}.{attribute.name} must be None, a list of str or a dict "
+                          f"int -> str, got {value!r:.200}")
+
+
+def _optional_str_list(instance: Any, attribute: attrs.Attribute[Any], value: Any) -> None:
+    if value is not None and not (isinstance(value, list) and all(isinstance(v, str) and v for v in value)):
+        raise ConfigError(f"{type(instance).__name__}.{attribute.name} must be None or a list of non-empty str, "
+                          f"got {value!r:.200}")
+
+
+@define(kw_only=True)
+class VisionConfig(ModelComponentConfig):
+    """Settings of the :class:`~agents_core.components.vision.Vision` component.
+
+    :param threshold: minimum score of a published detection.
+    :param nms_threshold: the local model's non-maximum suppression IoU (same-class boxes overlapping more
+        than this are merged into the best one).
+    :param get_dataset_labels: publish class names (False: class ids as text).
+    :param labels_to_track: the labels Trackings outputs follow (None: every label); the ``track``
+        action changes it at run time.
+    :param enable_visualization: publish each frame with its boxes and labels drawn on the Image output.
+    :param include_image: put the input image into every Detections / Trackings message.
+    :param max_image_side: frames larger than this (pixels, either side) are refused with an error.
+    :param tracking_max_age: seconds a tracked object may go unseen and keep its id when it reappears.
+    :param tracking_iou_threshold: minimum overlap of a detection with a track's predicted box to continue it.
+    :param input_height, input_width: the local model's input size, when the model file does not fix it.
+    :param dataset_labels: class names of the local model (a list in class order, or id -> name);
+        None: from a labels file beside the model, the model's metadata, or COCO.
+    :param dataset_labels_file: a labels file for the local model (see
+        :func:`~agents_core.utils.local_vision.read_labels_file`).
+    """
+
+    threshold: float = field(default=0.5, validator=base_validators.in_range(0.0, 1.0))
+    nms_threshold: float = field(default=0.5, validator=base_validators.in_range(0.0, 1.0), metadata=AT_CONFIGURE)
+    get_dataset_labels: bool = field(default=True)
+    labels_to_track: list[str] | None = field(default=None, validator=_optional_str_list)
+    enable_visualization: bool = field(default=False, metadata=AT_CONFIGURE)
+    include_image: bool = field(default=False)
+    max_image_side: int = field(default=4096, validator=base_validators.in_range(1, 1 << 20))
+    tracking_max_age: float = field(default=1.0, validator=base_validators.in_range(0.0, 3600.0))
+    tracking_iou_threshold: float = field(default=0.2, validator=base_validators.in_range(0.0, 1.0))
+    input_height: int = field(default=640, validator=base_validators.in_range(1, 8192), metadata=AT_CONFIGURE)
+    input_width: int = field(default=640, validator=base_validators.in_range(1, 8192), metadata=AT_CONFIGURE)
+    dataset_labels: list[str] | dict[int, str] | None = field(default=None, validator=_optional_labels,
+                                                              metadata=AT_CONFIGURE)
+    dataset_labels_file: str | None = field(default=None, validator=_optional_str, metadata=AT_CONFIGURE)
+
+    def _get_inference_params(self) -> dict[str, Any]:
+        params: dict[str, Any] = {"threshold": self.threshold, "get_dataset_labels": self.get_dataset_labels}
+        if self.labels_to_track:
+            params["labels_to_track"] = list(self.labels_to_track)
+        return params
+
+
+def _video_frames_order(instance: Any, attribute: attrs.Attribute[Any], value: Any) -> None:
+    low = value if attribute.name == "min_video_frames" else getattr(instance, "min_video_frames", 1)
+    high = value if attribute.name == "max_video_frames" else getattr(instance, "max_video_frames", low)
+    if low > high:
+        raise ConfigError(f"{type(instance).__name__}: min_video_frames ({low}) must not exceed "
+                          f"max_video_frames ({high})")
+
+
+@define(kw_only=True)
+class VideoMessageMakerConfig(BaseComponentConfig):
+    """Settings of the :class:`~agents_core.components.video_maker.VideoMessageMaker` component.
+
+    :param min_video_frames: a clip with fewer frames when the motion stops is dropped.
+    :param max_video_frames: a clip is published when it reaches this many frames (a new one starts).
+    :param motion_estimation_func: ``"frame_difference"`` (a frame moves when it differs enough from
+        the previous one), or None (every frame counts as motion: clips of ``max_video_frames``).
+    :param threshold: percent of the pixels that must change for a frame to count as motion.
+    :param pixel_threshold: how much (grey levels, 0..255) a pixel must change to count as changed.
+    :param max_still_frames: still frames a clip may contain before it ends (they stay in the clip).
+    """
+
+    min_video_frames: int = field(default=15, validator=[base_validators.in_range(1, 100_000), _video_frames_order])
+    max_video_frames: int = field(default=600, validator=[base_validators.in_range(1, 100_000), _video_frames_order])
+    motion_estimation_func: Literal["frame_difference"] | None = field(
+        default="frame_difference", validator=base_validators.in_(["frame_difference", None]))
+    threshold: float = field(default=0.5, validator=base_validators.in_range(0.0, 100.0))
+    pixel_threshold: int = field(default=25, validator=base_validators.in_range(1, 255))
+    max_still_frames: int = field(default=3, validator=base_validators.in_range(0, 100_000))

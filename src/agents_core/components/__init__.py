@@ -18,6 +18,8 @@ _EXPORTS: dict[str, tuple[str, ...]] = {
     ".model_component": ("ModelComponent",),
     ".run_type": ("ComponentRunType",),
     ".semantic_router": ("Route", "SemanticRouter"),
+    ".video_maker": ("VideoMessageMaker",),
+    ".vision": ("Vision",),
 }
 
 if TYPE_CHECKING:
@@ -27,6 +29,8 @@ if TYPE_CHECKING:
     from .model_component import ModelComponent
     from .run_type import ComponentRunType
     from .semantic_router import Route, SemanticRouter
+    from .video_maker import VideoMessageMaker
+    from .vision import Vision
 else:
     __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
 
@@ -40,4 +44,6 @@ __all__ = [
     "ModelComponent",
     "Route",
     "SemanticRouter",
+    "VideoMessageMaker",
+    "Vision",
 ]
