@@ -7,13 +7,14 @@ import threading
 import time
 from typing import TYPE_CHECKING, Any
 
+import msgpack  # type: ignore[import-untyped]  # msgpack ships no type information
 import zenoh
 
 from agents_core.errors import TransportClosedError, TransportError
 from agents_core.topics import Topic
 from agents_core.transport.driver import Sink
 
-from .codecs import MSGPACK, CodecError, decode_value, encode_value, pack
+from .codecs import MSGPACK, CodecError, decode_value, encode_value
 
 if TYPE_CHECKING:
     from .transport import ZenohDriver
@@ -61,7 +62,8 @@ class ZenohPublisher:
         with self._lock:
             # Under the lock: the reusable buffer is shared, and sequence numbers follow put order.
             payload = encode_value(self.topic.msg_type, value, self._buffer)
-            attachment = pack({"seq": self._seq, "stamp_ns": time.time_ns()})
+            # The attachment map has no arrays: msgpack alone writes the same bytes as pack(), faster.
+            attachment = msgpack.packb({"seq": self._seq, "stamp_ns": time.time_ns()})
             self._seq += 1
             try:
                 self._pub.put(payload, attachment=attachment)
