@@ -7,6 +7,11 @@ for a trigger topic); ``_execution_step`` reads it with :meth:`GenericCallback.g
 During a step fired by a trigger topic, that topic's ``get_output()`` returns the very message
 that fired the step, even if newer ones arrived meanwhile, so every triggering message is
 processed once, in order. Other inputs give their latest value.
+
+A message type may name its own callback class (``SupportedType.callback``, the upstream hook):
+a :class:`GenericCallback` subclass overriding :meth:`GenericCallback._msg_to_output` (value ->
+what ``get_output()`` returns) or :meth:`GenericCallback._get_output`. :func:`callback_for` creates
+it for every input of that type.
 """
 
 from __future__ import annotations
@@ -15,6 +20,7 @@ import threading
 from collections.abc import Callable
 from typing import Any
 
+from .errors import ConfigError
 from .topics import FixedInput, Topic
 
 __all__ = ["FixedCallback", "GenericCallback", "callback_for"]
@@ -25,8 +31,10 @@ _UNSET: Any = object()
 class GenericCallback:
     """Buffers the latest value of one input topic."""
 
-    def __init__(self, topic: Topic) -> None:
+    def __init__(self, topic: Topic, node_name: str | None = None) -> None:
         self.input_topic = topic
+        #: The component that owns this callback (upstream passes it; informational here).
+        self.node_name = node_name
         self._lock = threading.Lock()
         self._latest: Any = None
         self._step_value: Any = _UNSET
@@ -83,22 +91,29 @@ class GenericCallback:
         None until a value has arrived. ``clear_last`` forgets the latest value after reading
         it, so the next step sees None unless a new one arrives.
         """
-        value = self.msg
+        if self.msg is None:
+            return None
+        out = self._get_output()
         if clear_last and self._step_value is _UNSET:
             self._clear()
-        if value is None:
-            return None
-        out = self.input_topic.msg_type.to_output(value)
         for func in self._postprocessors:
             out = func(out)
         return out
+
+    def _get_output(self, **_: Any) -> Any:
+        """The output for the current value (:attr:`msg`, not None); override for more than :meth:`_msg_to_output`."""
+        return self._msg_to_output(self.msg)
+
+    def _msg_to_output(self, msg: Any) -> Any:
+        """A received value as the component uses it; default: the type's ``to_output`` (an Image as an array)."""
+        return self.input_topic.msg_type.to_output(msg)
 
 
 class FixedCallback(GenericCallback):
     """The callback of a :class:`~agents_core.topics.FixedInput`: always has its fixed value."""
 
-    def __init__(self, topic: FixedInput) -> None:
-        super().__init__(topic)
+    def __init__(self, topic: FixedInput, node_name: str | None = None) -> None:
+        super().__init__(topic, node_name)
         self._latest = topic.fixed
         self._received = 1
 
@@ -106,8 +121,18 @@ class FixedCallback(GenericCallback):
         """A fixed input never forgets its value."""
 
 
-def callback_for(topic: Topic) -> GenericCallback:
-    """The callback class that fits ``topic``."""
+def callback_for(topic: Topic, node_name: str | None = None) -> GenericCallback:
+    """The callback that fits ``topic``: its type's ``callback`` class if it names one, else GenericCallback."""
+    own = getattr(topic.msg_type, "callback", None)
+    if own is not None and not (isinstance(own, type) and issubclass(own, GenericCallback)):
+        raise ConfigError(f"{topic.type_name}.callback must be a GenericCallback subclass, got {own!r}")
     if isinstance(topic, FixedInput):
-        return FixedCallback(topic)
-    return GenericCallback(topic)
+        if own is None or issubclass(own, FixedCallback):
+            return FixedCallback(topic, node_name)
+        return _fixed_variant(own)(topic, node_name)
+    return (own or GenericCallback)(topic, node_name)
+
+
+def _fixed_variant(callback: type[GenericCallback]) -> type[FixedCallback]:
+    """``callback`` with a fixed value (a FixedInput of a type with its own callback class)."""
+    return type(f"Fixed{callback.__name__}", (FixedCallback, callback), {})

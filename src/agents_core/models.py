@@ -18,6 +18,7 @@ from attrs import define, field
 from . import base_validators
 from .config import BaseAttrs
 from .errors import ConfigError
+from .registry import Registry
 
 __all__ = [
     "LLM",
@@ -37,12 +38,14 @@ __all__ = [
     "model_types",
 ]
 
-_model_types: dict[str, type[Model]] = {}
+# Keyed by class name, as serialized clients name their model; a class defined again under a name
+# (a notebook re-run, attrs re-creating a slotted class) replaces the previous one.
+_model_types: Registry[type[Model]] = Registry("model class", hint="import the module that defines it first")
 
 
 def model_types() -> dict[str, type[Model]]:
     """Every model class defined so far, by class name."""
-    return dict(_model_types)
+    return _model_types.snapshot()
 
 
 def _non_empty_str(instance: Any, attribute: Any, value: Any) -> None:
@@ -73,14 +76,14 @@ class Model(BaseAttrs):
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
         # attrs re-creates slotted classes; the last registration is the final class.
-        _model_types[cls.__name__] = cls
+        _model_types.register(cls.__name__, cls, replace=True)
 
     def _get_init_params(self) -> dict[str, Any]:
         """The parameters the serving platform needs to load this model."""
         return {"checkpoint": self.checkpoint}
 
 
-_model_types["Model"] = Model
+_model_types.register("Model", Model, replace=True)
 
 
 def _check_options(allowed: dict[str, type | tuple[type, ...]]) -> Any:

@@ -21,12 +21,14 @@ _EXPORTS: dict[str, tuple[str, ...]] = {
     ".launcher": ("Launcher",),
     ".status": ("HealthStatus", "LifecycleState"),
     ".supported_types": (
-        "Audio", "Bool", "ComponentStatus", "CompressedImage", "Detections", "DetectionsMultiSource", "Float32",
-        "Float32MultiArray", "Float64", "Float64MultiArray", "Image", "Int32", "Int64", "JointJog", "JointState",
-        "JointTrajectory", "JointTrajectoryPoint", "LaserScan", "OccupancyGrid", "Odometry", "Point",
-        "PointsOfInterest", "PointStamped", "Pose", "PoseStamped", "StreamingString", "String", "SupportedType",
-        "Trackings", "TrackingsMultiSource", "Twist", "Video", "add_additional_datatypes",
+        "Audio", "Bool", "CameraInfo", "ComponentStatus", "CompressedImage", "Detections", "DetectionsMultiSource",
+        "Float32", "Float32MultiArray", "Float64", "Float64MultiArray", "Image", "Imu", "Int32", "Int64", "JointJog",
+        "JointState", "JointTrajectory", "JointTrajectoryPoint", "LaserScan", "MapMetaData", "NavSatFix",
+        "OccupancyGrid", "Odometry", "Path", "Point", "PointCloud2", "PointsOfInterest", "PointStamped", "Pose",
+        "PoseArray", "PoseStamped", "RGBD", "StreamingString", "String", "SupportedType", "Trackings",
+        "TrackingsMultiSource", "Twist", "Video", "add_additional_datatypes",
     ),
+    ".callbacks": ("GenericCallback",),
     ".topics": ("FixedInput", "QoSConfig", "Topic"),
 }
 #: re-exported names that are modules themselves: name -> module.
@@ -35,14 +37,17 @@ _MODULE_EXPORTS = {"base_validators": ".base_validators"}
 if TYPE_CHECKING:
     from . import base_validators
     from .actions import Action, Fallback, component_action, component_fallback
+    from .callbacks import GenericCallback
     from .components.semantic_router import Route
     from .config import BaseAttrs, BaseComponentConfig
     from .events import Event
     from .launcher import Launcher
     from .status import HealthStatus, LifecycleState
     from .supported_types import (
+        RGBD,
         Audio,
         Bool,
+        CameraInfo,
         ComponentStatus,
         CompressedImage,
         Detections,
@@ -52,6 +57,7 @@ if TYPE_CHECKING:
         Float64,
         Float64MultiArray,
         Image,
+        Imu,
         Int32,
         Int64,
         JointJog,
@@ -59,12 +65,17 @@ if TYPE_CHECKING:
         JointTrajectory,
         JointTrajectoryPoint,
         LaserScan,
+        MapMetaData,
+        NavSatFix,
         OccupancyGrid,
         Odometry,
+        Path,
         Point,
+        PointCloud2,
         PointsOfInterest,
         PointStamped,
         Pose,
+        PoseArray,
         PoseStamped,
         StreamingString,
         String,
@@ -80,11 +91,13 @@ else:
     __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS, modules=_MODULE_EXPORTS)
 
 __all__ = [
+    "RGBD",
     "Action",
     "Audio",
     "BaseAttrs",
     "BaseComponentConfig",
     "Bool",
+    "CameraInfo",
     "ComponentStatus",
     "CompressedImage",
     "Detections",
@@ -96,8 +109,10 @@ __all__ = [
     "Float32MultiArray",
     "Float64",
     "Float64MultiArray",
+    "GenericCallback",
     "HealthStatus",
     "Image",
+    "Imu",
     "Int32",
     "Int64",
     "JointJog",
@@ -107,12 +122,17 @@ __all__ = [
     "LaserScan",
     "Launcher",
     "LifecycleState",
+    "MapMetaData",
+    "NavSatFix",
     "OccupancyGrid",
     "Odometry",
+    "Path",
     "Point",
+    "PointCloud2",
     "PointStamped",
     "PointsOfInterest",
     "Pose",
+    "PoseArray",
     "PoseStamped",
     "QoSConfig",
     "Route",

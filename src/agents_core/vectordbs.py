@@ -9,15 +9,17 @@ from attrs import define, field
 from . import base_validators
 from .config import BaseAttrs
 from .errors import ConfigError
+from .registry import Registry
 
 __all__ = ["DB", "ChromaDB", "db_types"]
 
-_db_types: dict[str, type[DB]] = {}
+# Keyed by class name, as serialized clients name their database; a class defined again replaces the old one.
+_db_types: Registry[type[DB]] = Registry("vector database class", hint="import the module that defines it first")
 
 
 def db_types() -> dict[str, type[DB]]:
     """Every DB class defined so far, by class name."""
-    return dict(_db_types)
+    return _db_types.snapshot()
 
 
 def _non_empty_str(instance: Any, attribute: Any, value: Any) -> None:
@@ -43,14 +45,14 @@ class DB(BaseAttrs):
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
-        _db_types[cls.__name__] = cls
+        _db_types.register(cls.__name__, cls, replace=True)
 
     def _get_init_params(self) -> dict[str, Any]:
         """The parameters the database server needs to open this database."""
         return {"db_location": self.db_location}
 
 
-_db_types["DB"] = DB
+_db_types.register("DB", DB, replace=True)
 
 
 @define(kw_only=True)

@@ -22,7 +22,6 @@ from __future__ import annotations
 import array
 import math
 import sys
-import threading
 import warnings
 from collections.abc import Callable, Sequence
 from typing import Any
@@ -35,14 +34,22 @@ from builtin_interfaces.msg import Duration as RosDuration
 from geometry_msgs.msg import Point as RosPoint
 from geometry_msgs.msg import PointStamped as RosPointStamped
 from geometry_msgs.msg import Pose as RosPose
+from geometry_msgs.msg import PoseArray as RosPoseArray
 from geometry_msgs.msg import PoseStamped as RosPoseStamped
 from geometry_msgs.msg import Twist as RosTwist
+from nav_msgs.msg import MapMetaData as RosMapMetaData
 from nav_msgs.msg import OccupancyGrid as RosOccupancyGrid
 from nav_msgs.msg import Odometry as RosOdometry
+from nav_msgs.msg import Path as RosPath
+from sensor_msgs.msg import CameraInfo as RosCameraInfo
 from sensor_msgs.msg import CompressedImage as RosCompressedImage
 from sensor_msgs.msg import Image as RosImage
+from sensor_msgs.msg import Imu as RosImu
 from sensor_msgs.msg import JointState as RosJointState
 from sensor_msgs.msg import LaserScan as RosLaserScan
+from sensor_msgs.msg import NavSatFix as RosNavSatFix
+from sensor_msgs.msg import PointCloud2 as RosPointCloud2
+from sensor_msgs.msg import PointField as RosPointField
 from std_msgs.msg import Bool as RosBool
 from std_msgs.msg import Float32 as RosFloat32
 from std_msgs.msg import Float32MultiArray as RosFloat32MultiArray
@@ -58,8 +65,9 @@ from trajectory_msgs.msg import JointTrajectoryPoint as RosJointTrajectoryPoint
 
 from agents_core import messages as m
 from agents_core.errors import ConfigError, TypeValidationError
+from agents_core.registry import NotRegisteredError, Registry
 from agents_core.status import HealthStatus
-from agents_core.supported_types import SupportedType, get_type
+from agents_core.supported_types import SupportedType, get_type, ros_message_class, shares_value_class
 
 with warnings.catch_warnings():
     # rclpy imports rosidl_generator_py the first time it loads a type support, which imports the
@@ -77,8 +85,10 @@ except ImportError as exc:  # pragma: no cover - depends on the installation
     ) from exc
 
 __all__ = [
+    "MissingConversionError",
     "RosConversion",
     "conversion_for",
+    "derive_conversion",
     "from_ros",
     "register_conversion",
     "registered_conversions",
@@ -104,8 +114,15 @@ class RosConversion:
     from_ros: Callable[[Any], Any]
 
 
-_conversions: dict[str, RosConversion] = {}
-_lock = threading.Lock()
+class MissingConversionError(NotRegisteredError):
+    """A message type has no ROS 2 conversion (none registered, no ``_ros_type`` to derive one from)."""
+
+
+_conversions: Registry[RosConversion] = Registry(
+    "ROS 2 conversion", missing_error=MissingConversionError, missing_text="message type {name} has no {kind}",
+    class_name=lambda cls: cls.type_name() if issubclass(cls, SupportedType) else cls.__name__,
+    hint="register one with agents_ros2.conversions.register_conversion(), or give the type a _ros_type",
+)
 
 
 def register_conversion(
@@ -119,31 +136,32 @@ def register_conversion(
     Registering again for the same name replaces the conversion (a deliberate override).
     """
     name = get_type(msg_type).type_name()
-    with _lock:
-        _conversions[name] = RosConversion(ros_type, to_ros, from_ros)
+    _conversions.register(name, RosConversion(ros_type, to_ros, from_ros), replace=True)
 
 
 def registered_conversions() -> dict[str, RosConversion]:
     """A snapshot: type name -> conversion."""
-    with _lock:
-        return dict(_conversions)
+    return _conversions.snapshot()
 
 
 def conversion_for(msg_type: type[SupportedType]) -> RosConversion:
-    """The conversion for ``msg_type``, or for the nearest registered base class of it.
+    """The conversion for ``msg_type``: its own, one derived from its ``_ros_type``, or its nearest base's.
 
-    A subclass of a registered type (``class MyImage(Image)``) uses its base's conversion.
+    A type that declares a ``_ros_type`` of its own travels as that message: a type whose value is
+    the ROS message itself (the upstream way) as is, an attrs value class field by field (see
+    :func:`derive_conversion`). A subclass of a registered type with the same value class
+    (``class MyImage(Image)``) uses its base's conversion: the registries' one subclass rule.
     """
-    with _lock:
-        for cls in msg_type.__mro__:
-            if isinstance(cls, type) and issubclass(cls, SupportedType) and cls is not SupportedType:
-                found = _conversions.get(cls.type_name())
-                if found is not None:
-                    return found
-    raise ConfigError(
-        f"message type {msg_type.type_name()!r} has no ROS 2 conversion; register one with "
-        "agents_ros2.conversions.register_conversion()"
-    )
+    name = msg_type.type_name()
+    own = _conversions.find(name)
+    if own is not None:
+        return own
+    if "_ros_type" in vars(msg_type) and msg_type._ros_type is not None:
+        return _conversions.register(name, derive_conversion(msg_type))
+    found = _conversions.find_for_class(msg_type, inherits=shares_value_class)
+    if found is not None:
+        return found
+    raise _conversions.missing(name)
 
 
 def to_ros(msg_type: type[SupportedType], value: Any) -> Any:
@@ -646,6 +664,290 @@ def _status_from_ros(msg: Any) -> m.ComponentStatusMsg:
                                 message=msg.message, header=_header_from_ros(msg.header))
 
 
+# -- depth cameras, point clouds, inertial and satellite sensors, paths, maps ---------------------
+
+
+def _rgbd_to_ros(v: m.RGBDMsg) -> Any:
+    out = ai.RGBD()
+    _header_to_ros(v.header, out.header)
+    _image_to_ros(v.image, out.rgb)
+    _image_to_ros(v.depth, out.depth)
+    return out
+
+
+def _rgbd_from_ros(msg: Any) -> m.RGBDMsg:
+    return m.RGBDMsg(image=_image_from_ros(msg.rgb), depth=_image_from_ros(msg.depth),
+                     header=_header_from_ros(msg.header))
+
+
+# sensor_msgs/PointField datatypes <-> numpy dtypes (kind + size).
+_POINT_FIELD_TYPES: dict[int, str] = {
+    RosPointField.INT8: "i1", RosPointField.UINT8: "u1", RosPointField.INT16: "i2", RosPointField.UINT16: "u2",
+    RosPointField.INT32: "i4", RosPointField.UINT32: "u4", RosPointField.FLOAT32: "f4", RosPointField.FLOAT64: "f8",
+}
+_POINT_FIELD_CODES = {code: datatype for datatype, code in _POINT_FIELD_TYPES.items()}
+
+
+def _cloud_to_ros(v: m.PointCloud2Msg) -> RosPointCloud2:
+    points = v.points
+    height, width = (1, points.shape[0]) if points.ndim == 1 else points.shape
+    step = points.dtype.itemsize
+    out = RosPointCloud2(height=int(height), width=int(width), is_bigendian=_NATIVE_BIG_ENDIAN, point_step=step,
+                         row_step=step * int(width), is_dense=v.is_dense)
+    _header_to_ros(v.header, out.header)
+    assert points.dtype.fields is not None  # the value class only holds structured arrays
+    out.fields = [RosPointField(name=name, offset=offset, datatype=_POINT_FIELD_CODES[f"{dtype.kind}{dtype.itemsize}"],
+                                count=1) for name, (dtype, offset, *_) in points.dtype.fields.items()]
+    out.data = _seq("B", np.ascontiguousarray(points).reshape(-1).view(np.uint8), np.uint8)
+    return out
+
+
+def _cloud_from_ros(msg: RosPointCloud2) -> m.PointCloud2Msg:
+    height, width, step, row_step = int(msg.height), int(msg.width), int(msg.point_step), int(msg.row_step)
+    order = ">" if msg.is_bigendian else "<"
+    names: list[str] = []
+    formats: list[str] = []
+    offsets: list[int] = []
+    for f in msg.fields:
+        kind = _POINT_FIELD_TYPES.get(f.datatype)
+        if kind is None:
+            raise TypeValidationError(f"PointCloud2 field {f.name!r}: datatype {f.datatype} is not a PointField type")
+        if f.count != 1:
+            raise TypeValidationError(f"PointCloud2 field {f.name!r}: count {f.count} is not supported (only 1)")
+        if f.name in names:
+            raise TypeValidationError(f"PointCloud2 field {f.name!r} appears twice")
+        size = int(kind[1])
+        if f.offset + size > step:
+            raise TypeValidationError(f"PointCloud2 field {f.name!r}: offset {f.offset} + {size} bytes exceeds "
+                                      f"point_step {step}")
+        names.append(f.name)
+        formats.append(order + kind)
+        offsets.append(int(f.offset))
+    if row_step < step * width:
+        raise TypeValidationError(f"PointCloud2 row_step {row_step} is smaller than width {width} x point_step {step}")
+    raw = _np(msg.data, np.uint8)
+    if raw.size != row_step * height:
+        raise TypeValidationError(f"PointCloud2 data has {raw.size} bytes; {height} rows of row_step {row_step} "
+                                  f"need {row_step * height}")
+    try:
+        dtype = np.dtype({"names": names, "formats": formats, "offsets": offsets, "itemsize": step})
+    except (TypeError, ValueError) as exc:
+        raise TypeValidationError(f"PointCloud2 fields do not make a point layout: {exc}") from exc
+    rows = raw.reshape(height, row_step)[:, :step * width] if height else raw.reshape(0, step * width)
+    points = np.ascontiguousarray(rows).view(dtype).reshape(height, width)
+    if msg.is_bigendian != _NATIVE_BIG_ENDIAN:
+        points = points.astype(dtype.newbyteorder())
+    return m.PointCloud2Msg(points=points[0] if height == 1 else points, is_dense=bool(msg.is_dense),
+                            header=_header_from_ros(msg.header))
+
+
+def _fixed(values: Any) -> npt.NDArray[np.float64]:
+    return np.ascontiguousarray(values, dtype=np.float64)
+
+
+def _imu_to_ros(v: m.ImuMsg) -> RosImu:
+    out = RosImu(orientation_covariance=_fixed(v.orientation_covariance),
+                 angular_velocity_covariance=_fixed(v.angular_velocity_covariance),
+                 linear_acceleration_covariance=_fixed(v.linear_acceleration_covariance))
+    _header_to_ros(v.header, out.header)
+    o = out.orientation
+    o.x, o.y, o.z, o.w = (float(c) for c in v.orientation)
+    out.angular_velocity.x, out.angular_velocity.y, out.angular_velocity.z = (float(c) for c in v.angular_velocity)
+    a = out.linear_acceleration
+    a.x, a.y, a.z = (float(c) for c in v.linear_acceleration)
+    return out
+
+
+def _imu_from_ros(msg: RosImu) -> m.ImuMsg:
+    o, w, a = msg.orientation, msg.angular_velocity, msg.linear_acceleration
+    return m.ImuMsg(orientation=[o.x, o.y, o.z, o.w], orientation_covariance=_fixed(msg.orientation_covariance),
+                    angular_velocity=[w.x, w.y, w.z],
+                    angular_velocity_covariance=_fixed(msg.angular_velocity_covariance),
+                    linear_acceleration=[a.x, a.y, a.z],
+                    linear_acceleration_covariance=_fixed(msg.linear_acceleration_covariance),
+                    header=_header_from_ros(msg.header))
+
+
+def _fix_to_ros(v: m.NavSatFixMsg) -> RosNavSatFix:
+    out = RosNavSatFix(latitude=float(v.latitude), longitude=float(v.longitude), altitude=float(v.altitude),
+                       position_covariance=_fixed(v.position_covariance),
+                       position_covariance_type=int(v.position_covariance_type))
+    out.status.status, out.status.service = int(v.status), int(v.service)
+    _header_to_ros(v.header, out.header)
+    return out
+
+
+def _fix_from_ros(msg: RosNavSatFix) -> m.NavSatFixMsg:
+    return m.NavSatFixMsg(latitude=msg.latitude, longitude=msg.longitude, altitude=msg.altitude,
+                          status=int(msg.status.status), service=int(msg.status.service),
+                          position_covariance=_fixed(msg.position_covariance),
+                          position_covariance_type=int(msg.position_covariance_type),
+                          header=_header_from_ros(msg.header))
+
+
+def _path_to_ros(v: m.PathMsg) -> RosPath:
+    out = RosPath(poses=[_pose_stamped_to_ros(p) for p in v.poses])
+    _header_to_ros(v.header, out.header)
+    return out
+
+
+def _path_from_ros(msg: RosPath) -> m.PathMsg:
+    return m.PathMsg(poses=[_pose_stamped_from_ros(p) for p in msg.poses], header=_header_from_ros(msg.header))
+
+
+def _pose_array_to_ros(v: m.PoseArrayMsg) -> RosPoseArray:
+    out = RosPoseArray(poses=[_pose_to_ros(p) for p in v.poses])
+    _header_to_ros(v.header, out.header)
+    return out
+
+
+def _pose_array_from_ros(msg: RosPoseArray) -> m.PoseArrayMsg:
+    header = _header_from_ros(msg.header)
+    # geometry_msgs/Pose has no header: each pose takes the array's.
+    return m.PoseArrayMsg(poses=[_pose_from_ros(p, header) for p in msg.poses], header=header)
+
+
+def _time_to_ros(stamp_ns: int, out: Any) -> None:
+    sec, nanosec = divmod(int(stamp_ns), _NS_PER_S)
+    if sec > _INT32_MAX:
+        raise TypeValidationError(f"stamp {stamp_ns} ns does not fit ROS 2 time (int32 seconds)")
+    out.sec, out.nanosec = sec, nanosec
+
+
+def _map_info_to_ros(v: m.MapMetaDataMsg) -> RosMapMetaData:
+    out = RosMapMetaData(resolution=float(v.resolution), width=int(v.width), height=int(v.height),
+                         origin=_pose_to_ros(v.origin))
+    _time_to_ros(v.map_load_time_ns, out.map_load_time)
+    return out
+
+
+def _map_info_from_ros(msg: RosMapMetaData) -> m.MapMetaDataMsg:
+    t = msg.map_load_time
+    if t.sec < 0 or t.nanosec >= _NS_PER_S:
+        raise TypeValidationError(f"map_load_time ({t.sec} s, {t.nanosec} ns) is not a valid stamp")
+    return m.MapMetaDataMsg(resolution=_f32(msg.resolution), width=int(msg.width), height=int(msg.height),
+                            origin=_pose_from_ros(msg.origin), map_load_time_ns=t.sec * _NS_PER_S + t.nanosec)
+
+
+def _camera_info_to_ros(v: m.CameraInfoMsg) -> RosCameraInfo:
+    out = RosCameraInfo(height=int(v.height), width=int(v.width), distortion_model=v.distortion_model,
+                        k=_fixed(v.k), r=_fixed(v.r), p=_fixed(v.p), binning_x=int(v.binning_x),
+                        binning_y=int(v.binning_y))
+    out.d = _seq("d", v.d, np.float64)
+    roi = out.roi
+    roi.x_offset, roi.y_offset, roi.height, roi.width = (int(c) for c in v.roi)
+    roi.do_rectify = bool(v.roi_do_rectify)
+    _header_to_ros(v.header, out.header)
+    return out
+
+
+def _camera_info_from_ros(msg: RosCameraInfo) -> m.CameraInfoMsg:
+    roi = msg.roi
+    return m.CameraInfoMsg(height=int(msg.height), width=int(msg.width), distortion_model=msg.distortion_model,
+                           d=_np(msg.d, np.float64), k=_fixed(msg.k), r=_fixed(msg.r), p=_fixed(msg.p),
+                           binning_x=int(msg.binning_x), binning_y=int(msg.binning_y),
+                           roi=[roi.x_offset, roi.y_offset, roi.height, roi.width], roi_do_rectify=bool(roi.do_rectify),
+                           header=_header_from_ros(msg.header))
+
+
+# -- conversions derived from a type's _ros_type ----------------------------------------------
+
+_ROS_TYPECODES: dict[str, tuple[str, type[np.generic]]] = {
+    "float": ("f", np.float32), "double": ("d", np.float64), "int8": ("b", np.int8), "uint8": ("B", np.uint8),
+    "int16": ("h", np.int16), "uint16": ("H", np.uint16), "int32": ("i", np.int32), "uint32": ("I", np.uint32),
+    "int64": ("q", np.int64), "uint64": ("Q", np.uint64),
+}
+
+
+def derive_conversion(msg_type: type[SupportedType]) -> RosConversion:
+    """The conversion of a type that names its ROS message in ``_ros_type``.
+
+    A type without a value class of its own (the upstream way) uses the ROS message as its value:
+    the conversion is the identity. An attrs value class is copied field by field into the
+    message's fields of the same names: a :class:`~agents_core.messages.Header` into
+    ``std_msgs/Header`` (stamp exact to the nanosecond), a nested value through its own type's
+    conversion (an ``ImageMsg`` as ``sensor_msgs/Image``, ``None`` as an empty one), numpy arrays
+    as numeric sequences, ``float`` seconds as ``builtin_interfaces/Duration``, the rest as is.
+    Raises :class:`ConfigError` naming the package to install, or the field that has no counterpart.
+    """
+    ros_type = ros_message_class(msg_type)
+    if msg_type.value_class is object:
+        return RosConversion(ros_type, lambda v: v, lambda msg: msg)
+    value_class = msg_type.value_class
+    if not attrs.has(value_class):
+        raise ConfigError(f"{msg_type.type_name()}: a _ros_type conversion needs an attrs value class or none, "
+                          f"not {value_class.__name__}; register one with register_conversion()")
+    ros_fields: dict[str, str] = ros_type.get_fields_and_field_types()
+    copies = []
+    for f in attrs.fields(value_class):
+        if not f.init:
+            continue
+        if f.name not in ros_fields:
+            raise ConfigError(f"{msg_type.type_name()}: field {f.name!r} of {value_class.__name__} has no field "
+                              f"of that name in {ros_type.__module__.split('.')[0]}/{ros_type.__name__} "
+                              f"(it has {sorted(ros_fields)})")
+        copies.append(_field_copy(f, ros_fields[f.name]))
+
+    def to(value: Any) -> Any:
+        out = ros_type()
+        for name, write, _ in copies:
+            try:
+                write(getattr(value, name), out, name)
+            except TypeValidationError as exc:
+                raise TypeValidationError(f"{msg_type.type_name()} field {name!r}: {exc}") from exc
+        return out
+
+    def back(message: Any) -> Any:
+        kwargs = {}
+        for name, _, read in copies:
+            try:
+                kwargs[name] = read(getattr(message, name))
+            except TypeValidationError as exc:
+                raise TypeValidationError(f"{msg_type.type_name()} field {name!r}: {exc}") from exc
+        return value_class(**kwargs)
+
+    return RosConversion(ros_type, to, back)
+
+
+_Write = Callable[[Any, Any, str], None]
+_Read = Callable[[Any], Any]
+
+
+def _field_copy(f: attrs.Attribute[Any], ros_kind: str) -> tuple[str, _Write, _Read]:
+    """How one value-class field is written into, and read from, the ROS field of the same name."""
+    def assign(value: Any, out: Any, name: str) -> None:
+        setattr(out, name, value)
+
+    def header(value: Any, out: Any, name: str) -> None:
+        _header_to_ros(value, getattr(out, name))
+
+    if ros_kind == "std_msgs/Header":
+        return f.name, header, _header_from_ros
+    if ros_kind == "builtin_interfaces/Duration":
+        return f.name, lambda v, out, name: setattr(out, name, _duration_to_ros(v)), _duration_from_ros
+    if ros_kind == "sensor_msgs/Image":
+        return (f.name, lambda v, out, name: _optional_image_to_ros(v, getattr(out, name)),
+                _optional_image_from_ros)
+    sequence = ros_kind.removeprefix("sequence<").removesuffix(">") if ros_kind.startswith("sequence<") else None
+    if sequence in _ROS_TYPECODES:
+        typecode, dtype = _ROS_TYPECODES[sequence]
+        default: Any = f.default
+        template = default.factory() if isinstance(default, attrs.Factory) else None  # type: ignore[arg-type]
+        tail = tuple(template.shape[1:]) if isinstance(template, np.ndarray) else ()
+
+        def read(values: Any) -> Any:
+            flat = _np(values, dtype)
+            return flat.reshape(-1, *tail) if tail else flat
+
+        return (f.name, lambda v, out, name: setattr(out, name, _seq(typecode, np.asarray(v).reshape(-1), dtype)),
+                read)
+    if ros_kind == "float":
+        return f.name, assign, _f32
+    if ros_kind == "sequence<string>":
+        return f.name, lambda v, out, name: setattr(out, name, list(v)), list
+    return f.name, assign, lambda v: v
+
+
 # -- the built-in table -------------------------------------------------------------------------
 
 
@@ -685,9 +987,17 @@ def _register_builtin() -> None:
         "OccupancyGrid": RosConversion(RosOccupancyGrid, _grid_to_ros, _grid_from_ros),
         "LaserScan": RosConversion(RosLaserScan, _scan_to_ros, _scan_from_ros),
         "ComponentStatus": RosConversion(ai.ComponentStatus, _status_to_ros, _status_from_ros),
+        "RGBD": RosConversion(ai.RGBD, _rgbd_to_ros, _rgbd_from_ros),
+        "PointCloud2": RosConversion(RosPointCloud2, _cloud_to_ros, _cloud_from_ros),
+        "Imu": RosConversion(RosImu, _imu_to_ros, _imu_from_ros),
+        "NavSatFix": RosConversion(RosNavSatFix, _fix_to_ros, _fix_from_ros),
+        "Path": RosConversion(RosPath, _path_to_ros, _path_from_ros),
+        "PoseArray": RosConversion(RosPoseArray, _pose_array_to_ros, _pose_array_from_ros),
+        "MapMetaData": RosConversion(RosMapMetaData, _map_info_to_ros, _map_info_from_ros),
+        "CameraInfo": RosConversion(RosCameraInfo, _camera_info_to_ros, _camera_info_from_ros),
     }
-    with _lock:
-        _conversions.update({name: attrs.evolve(c, from_ros=_overflow_to_inf(c.from_ros)) for name, c in table.items()})
+    for name, c in table.items():
+        _conversions.register(name, attrs.evolve(c, from_ros=_overflow_to_inf(c.from_ros)))
 
 
 def _overflow_to_inf(from_ros: Callable[[Any], Any]) -> Callable[[Any], Any]:

@@ -31,10 +31,16 @@ document is measured and unpacked under them, and a payload that exceeds one is 
 
 from __future__ import annotations
 
+import array
+import contextlib
+import functools
+import importlib
 import math
 import re
 import threading
-from collections.abc import Callable, Mapping
+import types
+import typing
+from collections.abc import Callable, Iterable, Mapping
 from typing import Any
 
 import attrs
@@ -45,7 +51,8 @@ from attrs import define, field
 
 from agents_core import messages as m
 from agents_core.errors import TypeValidationError
-from agents_core.supported_types import SupportedType, get_type, registered_types
+from agents_core.registry import NotRegisteredError, Registry
+from agents_core.supported_types import SupportedType, get_type, registered_types, shares_value_class
 
 __all__ = [
     "DEFAULT_DECODE_LIMITS",
@@ -53,15 +60,21 @@ __all__ = [
     "Codec",
     "CodecError",
     "DecodeLimits",
+    "MissingCodecError",
+    "builtin_schema_names",
     "codec_for",
     "decode_limits",
     "decode_value",
+    "derive_codec",
     "describe_schemas",
     "encode_value",
     "pack",
     "register_codec",
+    "schema_list",
+    "schema_name",
     "set_decode_limits",
     "unpack",
+    "update_schema_doc",
 ]
 
 #: The Zenoh encoding of every payload this adapter writes; the type name is its schema.
@@ -201,6 +214,8 @@ _PERCEPTION_LIMITS = DecodeLimits(max_document_bytes=256 * _MIB, max_str_len=16 
 _BUNDLE_LIMITS = attrs.evolve(_PERCEPTION_LIMITS, max_maps=4096)  # ~1000 sources / frames
 # Waypoints: one map and four lists each.
 _TRAJECTORY_LIMITS = attrs.evolve(_PERCEPTION_LIMITS, max_maps=16_384, max_arrays=4 * 16_384 + 64)
+# Poses (Path, PoseArray): two maps (pose, header) and two lists each; up to 16,384 poses.
+_POSES_LIMITS = attrs.evolve(_PERCEPTION_LIMITS, max_maps=2 * 16_384 + 64, max_arrays=2 * 16_384 + 64)
 
 
 # -- framing: document + trailing array buffers ---------------------------------------------
@@ -474,17 +489,13 @@ class Codec:
 
 
 class _Kind:
-    """How one field of a structured type travels (see the ``_struct`` tables below)."""
+    """How one field of a structured type travels (see :func:`derive_codec`)."""
 
     def __init__(self, describe: str, encode: Callable[[Any], Any] = lambda v: v,
                  decode: Callable[[Any], Any] = lambda d: d) -> None:
         self.describe = describe
         self.encode = encode
         self.decode = decode
-
-
-def _scalar(describe: str) -> _Kind:
-    return _Kind(describe)
 
 
 def _vector(describe: str) -> _Kind:
@@ -500,6 +511,59 @@ def _ndarray(describe: str) -> _Kind:
         return doc
 
     return _Kind(f"ndarray {describe}", decode=decode)
+
+
+# A structured array's layout on the wire: at most this many fields, each at most this many bytes a record.
+_MAX_RECORD_FIELDS, _MAX_RECORD_BYTES = 256, 65_536
+_FIELD_DTYPE_RE = re.compile(r"^[<|][iuf][1248]$")
+
+
+def _structured(describe: str | None) -> _Kind:
+    """A numpy structured array (e.g. point cloud points): its field layout, its shape, and its raw bytes."""
+
+    def encode(arr: npt.NDArray[Any]) -> Any:
+        fields = [[name, offset, dtype.str] for name, (dtype, offset, *_) in arr.dtype.fields.items()]  # type: ignore[union-attr]
+        raw = np.ascontiguousarray(arr).reshape(-1).view(np.uint8)
+        return {"fields": fields, "itemsize": arr.dtype.itemsize, "shape": list(arr.shape), "data": raw}
+
+    def decode(doc: Any) -> Any:
+        if not isinstance(doc, dict) or not {"fields", "itemsize", "shape", "data"} <= doc.keys():
+            raise CodecError("expected a map with fields, itemsize, shape and data")
+        fields, itemsize, shape, raw = doc["fields"], doc["itemsize"], doc["shape"], doc["data"]
+        if not isinstance(itemsize, int) or isinstance(itemsize, bool) or not 0 < itemsize <= _MAX_RECORD_BYTES:
+            raise CodecError(f"itemsize {itemsize!r} is not an int from 1 to {_MAX_RECORD_BYTES}")
+        if not isinstance(fields, list) or not 0 < len(fields) <= _MAX_RECORD_FIELDS:
+            raise CodecError(f"fields must be a list of 1 to {_MAX_RECORD_FIELDS} [name, offset, dtype] entries")
+        names, formats, offsets = [], [], []
+        for entry in fields:
+            if (not isinstance(entry, list) or len(entry) != 3 or not isinstance(entry[0], str)
+                    or not isinstance(entry[1], int) or isinstance(entry[1], bool) or not isinstance(entry[2], str)
+                    or not _FIELD_DTYPE_RE.match(entry[2])):
+                raise CodecError(f"field entry {entry!r} is not [name, offset, dtype] with a numeric dtype "
+                                 "such as '<f4'")
+            name, offset, dtype = entry
+            if not 0 <= offset <= itemsize - np.dtype(dtype).itemsize:
+                raise CodecError(f"field {name!r} at offset {offset} does not fit a {itemsize}-byte record")
+            names.append(name)
+            formats.append(dtype)
+            offsets.append(offset)
+        if (not isinstance(shape, list) or len(shape) > 2
+                or not all(isinstance(d, int) and not isinstance(d, bool) and 0 <= d <= _MAX_DIM for d in shape)):
+            raise CodecError(f"shape {shape!r} is not a list of at most 2 sizes")
+        try:
+            dtype_ = np.dtype({"names": names, "formats": formats, "offsets": offsets, "itemsize": itemsize})
+        except (TypeError, ValueError) as exc:
+            raise CodecError(f"the fields do not make a record layout: {exc}") from exc
+        if not isinstance(raw, np.ndarray) or raw.dtype != np.uint8 or raw.ndim != 1:
+            raise CodecError("data must be a 1-D |u1 ndarray")
+        if raw.size != math.prod(shape) * itemsize:
+            raise CodecError(f"data has {raw.size} bytes; {shape} records of {itemsize} bytes need "
+                             f"{math.prod(shape) * itemsize}")
+        return raw.view(dtype_).reshape(tuple(shape))
+
+    schema = ('{"fields": [[name, offset, dtype], ...], "itemsize": int, "shape": [int, ...], '
+              '"data": ndarray |u1 (the records\' bytes)}')
+    return _Kind(describe or schema, encode=encode, decode=decode)
 
 
 def _nested(codec: Codec) -> _Kind:
@@ -526,13 +590,12 @@ def _list_of(kind: _Kind) -> _Kind:
     return _Kind(f"[{kind.describe}, ...]", encode=lambda v: [kind.encode(x) for x in v], decode=decode)
 
 
-def _tagged(options: Mapping[str, Codec]) -> _Kind:
+def _tagged(options: Mapping[str, Codec], classes: Mapping[type, str]) -> _Kind:
     """One of several structured types, told apart by an added ``"type"`` key."""
-    by_class = {_value_class(name): (name, codec) for name, codec in options.items()}
 
     def encode(value: Any) -> Any:
-        name, codec = by_class[type(value)]
-        return {"type": name, **codec.encode(value)}
+        name = classes[type(value)]
+        return {"type": name, **options[name].encode(value)}
 
     def decode(doc: Any) -> Any:
         if not isinstance(doc, dict) or doc.get("type") not in options:
@@ -543,12 +606,89 @@ def _tagged(options: Mapping[str, Codec]) -> _Kind:
     return _Kind(names, encode=encode, decode=decode)
 
 
-def _value_class(type_name: str) -> type:
-    return registered_types()[type_name].value_class
+# -- codecs derived from value classes ----------------------------------------------------------
+
+#: What a plain (non-attrs) value class is called in the schemas.
+_PLAIN_NAMES: dict[type, str] = {str: "str", bool: "bool", int: "int", float: "float", bytes: "bin"}
 
 
-def _struct(type_name: str, cls: type, **fields: _Kind) -> Codec:
-    """A codec for an attrs message class: a msgpack map with one key per field."""
+def schema_name(value_class: type) -> str:
+    """The name a value class has in the schemas: its registered type's (``ImageMsg`` -> ``Image``)."""
+    for name, t in registered_types().items():
+        if t.value_class is value_class:
+            return name
+    return value_class.__name__.removesuffix("Msg")
+
+
+def _field_hints(cls: type) -> dict[str, Any]:
+    try:
+        return typing.get_type_hints(cls)
+    except Exception:
+        # A class defined in a function may name locals in string annotations: use the annotations that
+        # are already objects; the others travel as they are (the class's converters see them on decode).
+        return {f.name: f.type for f in attrs.fields(cls) if f.type is not None and not isinstance(f.type, str)}
+
+
+def _is_union(hint: Any) -> bool:
+    return typing.get_origin(hint) in (typing.Union, types.UnionType)
+
+
+def _kind_for(hint: Any, spec: m.Wire, seen: dict[type, Codec]) -> _Kind:
+    """The wire form of a field with type ``hint`` (see :class:`agents_core.messages.Wire` for ``spec``)."""
+    origin = typing.get_origin(hint)
+    if hint is np.ndarray or origin is np.ndarray:
+        if spec.structured:
+            return _structured(spec.describe)
+        if spec.as_list:
+            return _vector(spec.describe or "[float, ...]")
+        return _ndarray(spec.describe or "any shape")
+    if _is_union(hint):
+        options = [a for a in typing.get_args(hint) if a is not type(None)]
+        optional = len(options) < len(typing.get_args(hint))
+        if len(options) == 1:
+            kind = _kind_for(options[0], m.Wire(), seen)
+        elif all(attrs.has(a) for a in options):
+            codecs = {schema_name(a): _derived_struct(a, seen) for a in options}
+            kind = _tagged(codecs, {a: schema_name(a) for a in options})
+        else:
+            kind = _Kind(" | ".join(_describe_plain(a) for a in options))
+        kind = _optional(kind) if optional else kind
+        if spec.describe:
+            kind.describe = spec.describe
+        return kind
+    if isinstance(hint, type) and attrs.has(hint):
+        return _nested(_derived_struct(hint, seen))
+    if origin is list:
+        (item,) = typing.get_args(hint) or (Any,)
+        if (isinstance(item, type) and attrs.has(item)) or _is_union(item):
+            kind = _list_of(_kind_for(item, m.Wire(), seen))
+            if spec.describe:
+                kind.describe = spec.describe
+            return kind
+    return _Kind(spec.describe or _describe_plain(hint))
+
+
+def _describe_plain(hint: Any) -> str:
+    if typing.get_origin(hint) is list:
+        (item,) = typing.get_args(hint) or (Any,)
+        return f"[{_describe_plain(item)}, ...]"
+    if isinstance(hint, type):
+        return _PLAIN_NAMES.get(hint, hint.__name__)
+    return "any"
+
+
+def _derived_struct(cls: type, seen: dict[type, Codec] | None = None) -> Codec:
+    """The codec of an attrs message class: a msgpack map with one key per field, in field order."""
+    seen = {} if seen is None else seen
+    if cls in seen:
+        return seen[cls]
+    hints = _field_hints(cls)
+    fields: dict[str, _Kind] = {}
+    for f in attrs.fields(cls):
+        if not f.init:
+            continue  # derived state, rebuilt by the class
+        spec = f.metadata.get("wire", m.Wire())
+        fields[f.name] = _kind_for(hints.get(f.name, Any), spec, seen)
 
     def encode(value: Any) -> Any:
         return {name: kind.encode(getattr(value, name)) for name, kind in fields.items()}
@@ -571,7 +711,9 @@ def _struct(type_name: str, cls: type, **fields: _Kind) -> Codec:
             raise CodecError(str(exc)) from exc
 
     schema = "{" + ", ".join(f'"{name}": {kind.describe}' for name, kind in fields.items()) + "}"
-    return Codec(type_name, encode, decode, schema)
+    codec = Codec(schema_name(cls), encode, decode, schema)
+    seen[cls] = codec
+    return codec
 
 
 def _plain(type_name: str, describe: str) -> Codec:
@@ -579,109 +721,154 @@ def _plain(type_name: str, describe: str) -> Codec:
     return Codec(type_name, lambda v: v, lambda d: d, describe)
 
 
-def _builtin_codecs() -> dict[str, Codec]:
-    header = _struct("Header", m.Header, stamp_ns=_scalar("int (ns since the Unix epoch)"),
-                     frame_id=_scalar("str"))
-    h = _nested(header)
-    image = _struct("Image", m.ImageMsg, data=_ndarray("HxWxC (|u1; <u2 for mono16 and 16UC1)"),
-                    encoding=_scalar("str (rgb8, bgr8, rgba8, bgra8, mono8, mono16, 16UC1)"), header=h)
-    compressed = _struct("CompressedImage", m.CompressedImageMsg, data=_scalar("bin"),
-                         format=_scalar("str (jpeg, png, ...)"), header=h)
-    detections = _struct(
-        "Detections", m.DetectionsMsg, boxes=_vector("[[x1, y1, x2, y2] float, ...]"),
-        labels=_scalar("[str, ...]"),
-        scores=_vector("[float, ...]"), image=_optional(_nested(image)), header=h,
-    )
-    trackings = _struct(
-        "Trackings", m.TrackingsMsg, ids=_vector("[int, ...]"), labels=_scalar("[str, ...]"),
-        boxes=_vector("[[x1, y1, x2, y2] float, ...]"), centroids=_vector("[[x, y] float, ...]"),
-        estimated_velocities=_vector("[[vx, vy] float, ...]"), image=_optional(_nested(image)), header=h,
-    )
-    pose = _struct("Pose", m.PoseMsg, position=_vector("[x, y, z] float"),
-                   orientation=_vector("[x, y, z, w] float"), header=h)
-    twist = _struct("Twist", m.TwistMsg, linear=_vector("[x, y, z] float"),
-                    angular=_vector("[x, y, z] float"), header=h)
-    point = _struct("Point", m.PointMsg, x=_scalar("float"), y=_scalar("float"), z=_scalar("float"), header=h)
-    floats = _vector("[float, ...]")
-    trajectory_point = _struct(
-        "JointTrajectoryPoint", m.JointTrajectoryPointMsg, positions=floats, velocities=floats,
-        accelerations=floats, effort=floats, time_from_start=_scalar("float (s)"),
-    )
-    codecs = [
-        _plain("String", "str"),
-        _struct("StreamingString", m.StreamingStringMsg, data=_scalar("str"), stream=_scalar("bool"),
-                done=_scalar("bool"), header=h),
-        _plain("Bool", "bool"),
-        _plain("Int32", "int"),
-        _plain("Int64", "int"),
-        _plain("Float32", "float"),
-        _plain("Float64", "float"),
-        _plain("Float32MultiArray", "ndarray <f4, any shape"),
-        _plain("Float64MultiArray", "ndarray <f8, any shape"),
-        image,
-        compressed,
-        _struct("Audio", m.AudioMsg, data=_ndarray("1-D interleaved samples (<i2 or <f4)"),
-                sample_rate=_scalar("int (Hz)"), channels=_scalar("int"), header=h),
-        _struct("Video", m.VideoMsg,
-                frames=_list_of(_tagged({"Image": image, "CompressedImage": compressed})), header=h),
-        detections,
-        _list_codec("DetectionsMultiSource", detections),
-        trackings,
-        _list_codec("TrackingsMultiSource", trackings),
-        _struct("PointsOfInterest", m.PointsOfInterestMsg, points=_vector("[[x, y] float, ...]"),
-                image=_optional(_nested(image)), header=h),
-        point,
-        _alias(point, "PointStamped"),
-        pose,
-        _alias(pose, "PoseStamped"),
-        twist,
-        _struct("Odometry", m.OdometryMsg, pose=_nested(pose), twist=_nested(twist),
-                child_frame_id=_scalar("str"), header=h),
-        _struct("JointState", m.JointStateMsg, name=_scalar("[str, ...]"), position=floats, velocity=floats,
-                effort=floats, header=h),
-        trajectory_point,
-        _struct("JointTrajectory", m.JointTrajectoryMsg, joint_names=_scalar("[str, ...]"),
-                points=_list_of(_nested(trajectory_point)), header=h),
-        _struct("JointJog", m.JointJogMsg, joint_names=_scalar("[str, ...]"), displacements=floats,
-                velocities=floats, duration=_scalar("float (s)"), header=h),
-        _struct("OccupancyGrid", m.OccupancyGridMsg, data=_ndarray("HxW |i1 (-1 unknown, 0..100)"),
-                resolution=_scalar("float (m/cell)"), origin=_nested(pose), header=h),
-        _struct("LaserScan", m.LaserScanMsg, angle_min=_scalar("float"), angle_max=_scalar("float"),
-                angle_increment=_scalar("float"), time_increment=_scalar("float"),
-                scan_time=_scalar("float"), range_min=_scalar("float"), range_max=_scalar("float"),
-                ranges=_ndarray("1-D <f4"), intensities=_ndarray("1-D <f4"), header=h),
-        _struct("ComponentStatus", m.ComponentStatusMsg, component=_scalar("str"),
-                lifecycle_state=_scalar("str"), health=_scalar("str (HEALTHY, ALGORITHM_FAILURE, ...)"),
-                message=_scalar("str"), header=h),
-    ]
-    table = {c.type_name: c for c in codecs}
-    table["Header"] = header
-    limits = {
-        **dict.fromkeys(("Bool", "Int32", "Int64", "Float32", "Float64"), _SCALAR_LIMITS),
-        "String": _TEXT_LIMITS,
-        **dict.fromkeys(("Image", "CompressedImage", "Audio", "OccupancyGrid", "LaserScan", "Float32MultiArray",
-                         "Float64MultiArray"), _ARRAY_LIMITS),
-        **dict.fromkeys(("Detections", "Trackings", "PointsOfInterest"), _PERCEPTION_LIMITS),
-        **dict.fromkeys(("DetectionsMultiSource", "TrackingsMultiSource", "Video"), _BUNDLE_LIMITS),
-        "JointTrajectory": _TRAJECTORY_LIMITS,
-    }
-    # Everything else (Header, StreamingString, Pose, Twist, Odometry, JointState, ...) is a fixed-shape message.
-    return {name: attrs.evolve(codec, limits=limits.get(name, _STRUCT_LIMITS)) for name, codec in table.items()}
+def derive_codec(msg_type: type[SupportedType]) -> Codec | None:
+    """The codec of ``msg_type`` derived from its value class, or None when it has no derivable one.
+
+    An attrs value class travels as a map of its fields (nested attrs values and headers as
+    maps, numpy arrays out of band, small vectors as lists where the field says so); a builtin
+    value class (str, bool, int, float, bytes) or a numpy array with a ``dtype`` as itself; a
+    list type with an ``item`` type as a list of the item's documents.
+    """
+    name = msg_type.type_name()
+    value_class = msg_type.value_class
+    if attrs.has(value_class):
+        return attrs.evolve(_derived_struct(value_class), type_name=name)
+    if value_class in _PLAIN_NAMES:
+        return _plain(name, _PLAIN_NAMES[value_class])
+    dtype = getattr(msg_type, "dtype", None)
+    if value_class is np.ndarray and dtype is not None:
+        return _plain(name, f"ndarray {np.dtype(dtype).str}, any shape")
+    if value_class is object and getattr(msg_type, "_ros_type", None) is not None:
+        return _ros_codec(msg_type.message_class(), name)
+    item = getattr(msg_type, "item", None)
+    if value_class is list and isinstance(item, type) and issubclass(item, SupportedType):
+        item_codec = codec_for(item)
+        kind = _list_of(_nested(item_codec))
+        return Codec(name, kind.encode, kind.decode, kind.describe)
+    return None
 
 
-def _alias(codec: Codec, type_name: str) -> Codec:
-    """The same document under another type name (e.g. PoseStamped travels as Pose)."""
-    return attrs.evolve(codec, type_name=type_name)
+# -- codecs of ROS message classes (a type declared the upstream way: _ros_type, no value class) ----
+
+# ROS primitive -> (numpy dtype, array.array typecode) for numeric sequences and arrays.
+_ROS_NUMERIC: dict[str, tuple[str, str]] = {
+    "float": ("<f4", "f"), "double": ("<f8", "d"), "int8": ("|i1", "b"), "uint8": ("|u1", "B"),
+    "int16": ("<i2", "h"), "uint16": ("<u2", "H"), "int32": ("<i4", "i"), "uint32": ("<u4", "I"),
+    "int64": ("<i8", "q"), "uint64": ("<u8", "Q"),
+}
+_ROS_SEQUENCE = re.compile(r"^sequence<([\w/]+)(?:, \d+)?>$|^([\w/]+)\[(\d*)\]$")
 
 
-def _list_codec(type_name: str, item: Codec) -> Codec:
-    """A multi-source type: a msgpack list of ``item`` documents."""
-    kind = _list_of(_nested(item))
-    return Codec(type_name, kind.encode, kind.decode, kind.describe)
+@functools.cache
+def _ros_class(name: str) -> type:
+    package, _, message = name.partition("/")
+    module = importlib.import_module(f"{package}.msg")
+    cls: type = getattr(module, message)
+    return cls
 
 
-_lock = threading.Lock()
-_codecs: dict[str, Codec] = _builtin_codecs()
+def _ros_codec(ros_class: type, type_name: str) -> Codec:
+    """A ROS message as a msgpack map of its fields (cached per class)."""
+    return _ros_codec_cached(ros_class, type_name)
+
+
+@functools.cache
+def _ros_codec_cached(ros_class: Any, type_name: str) -> Codec:
+    """A ROS message as a msgpack map of its fields: nested messages as maps, numeric sequences as arrays."""
+    fields: dict[str, str] = ros_class.get_fields_and_field_types()
+
+    def encode_field(kind: str, value: Any) -> Any:
+        seq = _ROS_SEQUENCE.match(kind)
+        item = (seq.group(1) or seq.group(2)) if seq else None
+        if item in _ROS_NUMERIC:
+            return np.asarray(value, dtype=_ROS_NUMERIC[item][0])
+        if item is not None:
+            return [encode_field(item, v) for v in value]
+        if "/" in kind:
+            return _ros_codec(_ros_class(kind), kind).encode(value)
+        return value
+
+    def decode_field(kind: str, doc: Any) -> Any:
+        seq = _ROS_SEQUENCE.match(kind)
+        item = (seq.group(1) or seq.group(2)) if seq else None
+        if item in _ROS_NUMERIC:
+            dtype, typecode = _ROS_NUMERIC[item]
+            values = np.asarray(doc, dtype=dtype)
+            if seq is not None and seq.group(3):  # a fixed-size array: rosidl keeps it as numpy
+                return values.astype(values.dtype.newbyteorder("="))
+            out = array.array(typecode)
+            out.frombytes(np.ascontiguousarray(values, dtype=values.dtype.newbyteorder("=")).tobytes())
+            return out
+        if item is not None:
+            if not isinstance(doc, list):
+                raise CodecError(f"expected a list, got {type(doc).__name__}")
+            return [decode_field(item, d) for d in doc]
+        if "/" in kind:
+            return _ros_codec(_ros_class(kind), kind).decode(doc)
+        return doc
+
+    def encode(value: Any) -> Any:
+        return {name: encode_field(kind, getattr(value, name)) for name, kind in fields.items()}
+
+    def decode(doc: Any) -> Any:
+        if not isinstance(doc, dict):
+            raise CodecError(f"expected a map, got {type(doc).__name__}")
+        message = ros_class()
+        for name, kind in fields.items():
+            if name in doc:
+                try:
+                    setattr(message, name, decode_field(kind, doc[name]))
+                except Exception as exc:
+                    raise CodecError(f"field {name!r}: {exc}") from exc
+        return message
+
+    schema = "{" + ", ".join(f'"{name}": {kind}' for name, kind in fields.items()) + "}"
+    return Codec(type_name, encode, decode, f"{schema} (the fields of the ROS message)")
+
+
+# The built-in types' decode limits, by what their documents hold (see the *_LIMITS above).
+_TYPE_LIMITS: dict[str, DecodeLimits] = {
+    **dict.fromkeys(("Bool", "Int32", "Int64", "Float32", "Float64"), _SCALAR_LIMITS),
+    "String": _TEXT_LIMITS,
+    **dict.fromkeys(("Image", "CompressedImage", "Audio", "OccupancyGrid", "LaserScan", "Float32MultiArray",
+                     "Float64MultiArray", "RGBD", "PointCloud2"), _ARRAY_LIMITS),
+    **dict.fromkeys(("Path", "PoseArray"), _POSES_LIMITS),
+    **dict.fromkeys(("Detections", "Trackings", "PointsOfInterest"), _PERCEPTION_LIMITS),
+    **dict.fromkeys(("DetectionsMultiSource", "TrackingsMultiSource", "Video"), _BUNDLE_LIMITS),
+    "JointTrajectory": _TRAJECTORY_LIMITS,
+}
+# Every other built-in type (Header, StreamingString, Pose, Twist, Odometry, JointState, ...) is a fixed-shape message.
+_BUILTIN_MODULE = "agents_core.supported_types"
+
+
+class MissingCodecError(CodecError, NotRegisteredError):
+    """A message type has no Zenoh codec (neither registered nor derivable)."""
+
+
+_codecs: Registry[Codec] = Registry(
+    "Zenoh codec", missing_error=MissingCodecError, missing_text="message type {name} has no {kind}",
+    class_name=lambda cls: cls.type_name() if issubclass(cls, SupportedType) else cls.__name__,
+    hint="register one with agents_zenoh.register_codec({name}, encode, decode), or register the type "
+         "with add_additional_datatypes to derive it from its attrs value class",
+)
+_lock = threading.Lock()  # makes derive-then-register one step
+
+
+def _limits_for(msg_type: type[SupportedType]) -> DecodeLimits:
+    name = msg_type.type_name()
+    if name in _TYPE_LIMITS:
+        return _TYPE_LIMITS[name]
+    return _STRUCT_LIMITS if msg_type.__module__ == _BUILTIN_MODULE else DEFAULT_DECODE_LIMITS
+
+
+def _register_derived(msg_type: type[SupportedType]) -> Codec | None:
+    codec = derive_codec(msg_type)
+    if codec is None:
+        return None
+    codec = attrs.evolve(codec, limits=_limits_for(msg_type))
+    with _lock:
+        existing = _codecs.find(msg_type.type_name())
+        return existing if existing is not None else _codecs.register(msg_type.type_name(), codec)
 
 
 def register_codec(type_name: str, encode: Callable[[Any], Any], decode: Callable[[Any], Any],
@@ -701,14 +888,13 @@ def register_codec(type_name: str, encode: Callable[[Any], Any], decode: Callabl
         raise CodecError(f"codec for {type_name!r}: encode and decode must be callables")
     if limits is not None and not isinstance(limits, DecodeLimits):
         raise CodecError(f"codec for {type_name!r}: limits must be a DecodeLimits, got {type(limits).__name__}")
-    with _lock:
-        _codecs[type_name] = Codec(type_name, encode, decode, schema, limits or DEFAULT_DECODE_LIMITS)
+    _codecs.register(type_name, Codec(type_name, encode, decode, schema, limits or DEFAULT_DECODE_LIMITS),
+                     replace=True)
 
 
 def _own_codec(msg_type: str | type[SupportedType]) -> Codec:
     if isinstance(msg_type, str):
-        with _lock:
-            codec = _codecs.get(msg_type)
+        codec = _codecs.find(msg_type)
         # A name with a codec but no registered type (register_codec alone) is looked up directly.
         return codec if codec is not None else codec_for(get_type(msg_type))
     return codec_for(msg_type)
@@ -734,33 +920,30 @@ def set_decode_limits(msg_type: str | type[SupportedType], limits: DecodeLimits 
     """
     name = _own_codec(msg_type).type_name
     with _lock:
-        codec = _codecs[name]
+        codec = _codecs.get(name)
         try:
             new = attrs.evolve(limits if limits is not None else codec.limits, **changes)
         except TypeError as exc:
             raise CodecError(f"set_decode_limits({name!r}): {exc}") from exc
-        _codecs[name] = attrs.evolve(codec, limits=new)
+        _codecs.register(name, attrs.evolve(codec, limits=new), replace=True)
     return new
 
 
 def codec_for(msg_type: type[SupportedType]) -> Codec:
-    """The codec of ``msg_type``: its own, else that of the nearest base type with the same value class.
+    """The codec of ``msg_type``: its own, else its nearest base type's with the same value class
+    (the registry's one subclass rule), else one derived from its value class if the type is registered.
 
     Raises :class:`CodecError` (with how to fix it) when there is none.
     """
+    found = _codecs.find_for_class(msg_type, inherits=shares_value_class)
+    if found is not None:
+        return found
     name = msg_type.type_name()
-    with _lock:
-        own = _codecs.get(name)
-        if own is not None:
-            return own
-        for base in msg_type.__mro__[1:]:
-            if (isinstance(base, type) and issubclass(base, SupportedType)
-                    and base.value_class is msg_type.value_class and base.type_name() in _codecs):
-                return _codecs[base.type_name()]
-    raise CodecError(
-        f"message type {name!r} has no Zenoh codec; register one with "
-        f"agents_zenoh.register_codec({name!r}, encode, decode)"
-    )
+    if registered_types().get(name) is msg_type:
+        derived = _register_derived(msg_type)
+        if derived is not None:
+            return derived
+    raise _codecs.missing(name)
 
 
 def encode_value(msg_type: type[SupportedType], value: Any, into: bytearray | None = None) -> bytes | bytearray:
@@ -782,6 +965,64 @@ def decode_value(msg_type: type[SupportedType], payload: bytes | bytearray | mem
 
 
 def describe_schemas() -> dict[str, str]:
-    """Type name -> the msgpack document of that type, in words (the wire-format reference)."""
-    with _lock:
-        return {name: codec.schema for name, codec in sorted(_codecs.items())}
+    """Type name -> the msgpack document of that type, in words (the wire-format reference).
+
+    Every registered type whose codec can be derived is listed, with ``Header`` and the codecs
+    registered with :func:`register_codec`.
+    """
+    for msg_type in registered_types().values():
+        with contextlib.suppress(CodecError):
+            codec_for(msg_type)
+    return {name: codec.schema for name, codec in sorted(_codecs.snapshot().items())}
+
+
+def schema_list(names: Iterable[str] | None = None) -> str:
+    """The Markdown list of schemas in ``docs/zenoh-wire-format.md`` ("- **Name**: `schema`" lines)."""
+    schemas = describe_schemas()
+    chosen = sorted(schemas) if names is None else sorted(names)
+    # Header first: most schemas refer to it.
+    chosen = ["Header", *(n for n in chosen if n != "Header")] if "Header" in chosen else chosen
+    return "".join(f"- **{name}**: `{schemas[name]}`\n" for name in chosen)
+
+
+def builtin_schema_names() -> list[str]:
+    """The schemas the wire-format document lists: Header and every framework type."""
+    return ["Header", *(n for n, t in registered_types().items() if t.__module__ == _BUILTIN_MODULE)]
+
+
+def update_schema_doc(path: str) -> bool:
+    """Rewrite the schema list of the wire-format document at ``path`` from the registry; True if it changed.
+
+    Run ``python -m agents_zenoh.codecs docs/zenoh-wire-format.md`` after adding a type.
+    """
+    with open(path, encoding="utf-8") as fh:
+        text = fh.read()
+    match = _SCHEMA_LIST.search(text)
+    if match is None:
+        raise ValueError(f"{path} has no schema list (lines '- **Name**: `...`' starting with Header)")
+    new = text[:match.start()] + schema_list(builtin_schema_names()) + text[match.end():]
+    if new != text:
+        with open(path, "w", encoding="utf-8") as fh:
+            fh.write(new)
+    return new != text
+
+
+#: The schema list in the wire-format document: consecutive "- **Name**: `...`" lines from Header on.
+_SCHEMA_LIST = re.compile(r"^- \*\*Header\*\*: `.*?\n(?:- \*\*\w+\*\*: `.*\n)*", re.M)
+
+
+def _init_builtin() -> None:
+    _codecs.register("Header", attrs.evolve(_derived_struct(m.Header), limits=_STRUCT_LIMITS))
+    for msg_type in registered_types().values():
+        if msg_type.__module__ == _BUILTIN_MODULE:
+            _register_derived(msg_type)
+
+
+_init_builtin()
+
+
+if __name__ == "__main__":  # pragma: no cover - a maintenance command
+    import sys
+
+    for doc_path in sys.argv[1:]:
+        print(f"{doc_path}: {'updated' if update_schema_doc(doc_path) else 'up to date'}")

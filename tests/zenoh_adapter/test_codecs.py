@@ -17,13 +17,16 @@ from agents_core.supported_types import SupportedType, get_type, registered_type
 from agents_zenoh.codecs import (
     REUSE_ABOVE,
     CodecError,
+    builtin_schema_names,
     codec_for,
     decode_value,
     describe_schemas,
     encode_value,
     pack,
     register_codec,
+    schema_list,
     unpack,
+    update_schema_doc,
 )
 
 pytestmark = pytest.mark.zenoh
@@ -149,3 +152,12 @@ def test_the_wire_format_document_lists_every_schema() -> None:
     schemas = describe_schemas()
     for name in ["Header", *_builtin_types()]:
         assert f"- **{name}**: `{schemas[name]}`" in doc, f"docs/zenoh-wire-format.md lacks the {name} schema"
+
+
+def test_the_wire_format_document_schema_list_is_generated_from_the_registry(tmp_path: Path) -> None:
+    doc = Path(__file__).resolve().parents[2] / "docs" / "zenoh-wire-format.md"
+    assert schema_list(builtin_schema_names()) in doc.read_text(), (
+        "docs/zenoh-wire-format.md is out of date: run python -m agents_zenoh.codecs docs/zenoh-wire-format.md")
+    copy = tmp_path / "doc.md"
+    copy.write_text(doc.read_text().replace("- **Bool**: `bool`\n", "- **Bool**: `old`\n- **Gone**: `x`\n"))
+    assert update_schema_doc(str(copy)) and copy.read_text() == doc.read_text()
