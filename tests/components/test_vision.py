@@ -14,7 +14,7 @@ from agents_core import Launcher, Topic
 from agents_core.components import VLM, Vision
 from agents_core.config import MLLMConfig, VisionConfig
 from agents_core.errors import WiringError
-from agents_core.messages import CompressedImageMsg, DetectionsMsg, Header, ImageMsg, TrackingsMsg
+from agents_core.messages import CompressedImageMsg, DetectionsMsg, Header, ImageMsg, RGBDMsg, TrackingsMsg
 from agents_core.status import HealthStatus
 
 from ..conftest import wait_for
@@ -114,6 +114,18 @@ def test_compressed_frames_are_decoded() -> None:
         det = _send(launcher, PACKED, CompressedImageMsg(data=buffer.getvalue(), format="jpeg",
                                                          header=Header(stamp_ns=5, frame_id="c")), got["objects"], 1)
     assert found_on("chelsea.png", det.labels, det.scores, det.boxes) and det.header.stamp_ns == 5
+
+
+def test_rgbd_frames_are_seen_through_their_colour_image() -> None:
+    depth_camera = Topic("depth_camera", "RGBD")
+    pixels = photo("chelsea.png")
+    depth = ImageMsg(data=np.full((*pixels.shape[:2], 1), 1.5, dtype=np.float32), encoding="32FC1")
+    frame = RGBDMsg(image=_frame(pixels, 3), depth=depth, header=Header(stamp_ns=3, frame_id="rgbd"))
+    vision = _vision(inputs=[depth_camera])
+    with _running(vision) as (launcher, got):
+        det = _send(launcher, depth_camera, frame, got["objects"], 1)
+    assert found_on("chelsea.png", det.labels, det.scores, det.boxes), (det.labels, det.scores)
+    assert det.header.frame_id == "rgbd"
 
 
 def test_visualization_publishes_the_annotated_frame() -> None:

@@ -35,6 +35,7 @@ from ..errors import (
     InferenceTimeoutError,
     ModelClientError,
 )
+from ..registry import Registry
 
 __all__ = [
     "SECRET_MASK",
@@ -49,7 +50,7 @@ __all__ = [
 R = TypeVar("R")
 E = TypeVar("E", bound=BaseException)
 
-_client_types: dict[str, type[BaseClient]] = {}
+_client_types: Registry[type[BaseClient]] = Registry("client type", hint="import the module that defines it first")
 
 _LEVELS = {"debug", "info", "warning", "error", "critical"}
 
@@ -170,7 +171,7 @@ def _response_text(response: httpx.Response) -> str:
 
 def client_types() -> dict[str, type[BaseClient]]:
     """Every client class defined so far, by class name."""
-    return dict(_client_types)
+    return _client_types.snapshot()
 
 
 def client_from_spec(spec: dict[str, Any]) -> BaseClient:
@@ -178,7 +179,7 @@ def client_from_spec(spec: dict[str, Any]) -> BaseClient:
     if not isinstance(spec, dict) or "client_type" not in spec:
         raise ConfigError("a client spec must be a dict with a 'client_type' key")
     name = spec["client_type"]
-    cls = _client_types.get(name)
+    cls = _client_types.find(name)
     if cls is None:
         # Clients register when their module is imported, and the package imports them lazily:
         # load every built-in client before deciding the name is unknown.
@@ -186,8 +187,7 @@ def client_from_spec(spec: dict[str, Any]) -> BaseClient:
 
         cls = builtin_client_types().get(name)
     if cls is None:
-        raise ConfigError(f"unknown client type {name!r}; import the module that defines it first "
-                          f"(known: {sorted(_client_types)})")
+        raise _client_types.missing(name)
     kwargs = {k: v for k, v in spec.items() if k != "client_type"}
     return cls(**kwargs)
 
@@ -200,7 +200,7 @@ class BaseClient:
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
-        _client_types[cls.__name__] = cls
+        _client_types.register(cls.__name__, cls, replace=True)  # the last definition wins
 
     def __init__(
         self,

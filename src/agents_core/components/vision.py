@@ -1,7 +1,7 @@
 """``Vision``: object detection and tracking on camera frames.
 
 Each step takes the latest frame of every image input (Image, CompressedImage decoded with
-Pillow, or the colour part of RGBD where that type exists), asks the detector, and publishes:
+Pillow, or the colour part of RGBD), asks the detector, and publishes:
 
 - on Detections outputs, the detections of the frame that fired the step (the first camera's on
   a timer), and on DetectionsMultiSource outputs those of every camera, in input order;
@@ -25,6 +25,7 @@ import io
 from collections.abc import Sequence
 from typing import Any
 
+import attrs
 import numpy as np
 import numpy.typing as npt
 
@@ -50,11 +51,9 @@ from .model_component import ModelComponent
 
 __all__ = ["Vision", "draw_detections", "frame_to_rgb"]
 
-# TODO(RGBD): the RGBD type is being added in another change; once agents_core.supported_types
-# has it, it is accepted here automatically (its colour image is what the detector sees, see
-# frame_to_rgb). Until then only Image and CompressedImage inputs are accepted.
-_RGBD: type[SupportedType] | None = getattr(st, "RGBD", None)
-_IMAGE_INPUTS: list[type[SupportedType]] = [Image, CompressedImage, *([_RGBD] if _RGBD is not None else [])]
+# RGBD is a subtype of Image: a depth camera's frame is accepted, and its colour image is what
+# the detector sees (see frame_to_rgb).
+_IMAGE_INPUTS: list[type[SupportedType]] = [Image, CompressedImage, st.RGBD]
 _RESULT_OUTPUTS: list[type[SupportedType]] = [Detections, DetectionsMultiSource, Trackings, TrackingsMultiSource]
 
 # Box colours of the visualization, cycled by class.
@@ -81,7 +80,9 @@ def _colour_part(value: Any) -> Any:
     for name in ("rgb", "image", "color", "colour"):
         part = getattr(value, name, None)
         if isinstance(part, ImageMsg | CompressedImageMsg):
-            return part
+            # The frame's own header (an RGBD's stamp and frame) is the one the outputs keep.
+            header = getattr(value, "header", None)
+            return attrs.evolve(part, header=header) if isinstance(header, Header) else part
     raise AlgorithmFailure(f"cannot find the colour image in a {type(value).__name__}")
 
 
@@ -148,7 +149,7 @@ def draw_detections(pixels: npt.NDArray[np.uint8], boxes: npt.NDArray[Any], labe
 class Vision(ModelComponent):
     """Detects (and tracks) objects in camera frames (see the module docs).
 
-    :param inputs: Image / CompressedImage topics (RGBD where available), one per camera.
+    :param inputs: Image / CompressedImage / RGBD topics, one per camera.
     :param outputs: Detections, DetectionsMultiSource, Trackings and/or TrackingsMultiSource topics,
         plus an Image topic for the annotated frames when ``enable_visualization`` is on.
     :param model_client: a client serving a :class:`~agents_core.models.VisionModel` (RoboML);
