@@ -65,6 +65,7 @@ __all__ = [
     "codec_for",
     "decode_limits",
     "decode_value",
+    "decoder_for",
     "derive_codec",
     "describe_schemas",
     "encode_value",
@@ -292,8 +293,7 @@ def unpack(payload: bytes | bytearray | memoryview, limits: DecodeLimits | None 
     buf = memoryview(payload).cast("B")
     if not buf:
         raise CodecError("the payload is empty")
-    end = _document_end(buf, limits.max_document_bytes)
-    bins = _trailing_bins(buf, end)
+    bins: list[tuple[int, int]] = []
     bad: list[tuple[_BadArray, str]] = []
 
     def resolve(obj: dict[Any, Any]) -> Any:
@@ -309,10 +309,24 @@ def unpack(payload: bytes | bytearray | memoryview, limits: DecodeLimits | None 
             return marker
 
     try:
-        if end < limits._uncounted_below:
-            document = msgpack.unpackb(buf[:end], object_hook=resolve, **limits._options)
-        else:
-            document = msgpack.unpackb(buf[:end], **_counting_hooks(limits, end, resolve), **limits._options)
+        document: Any = _NO_DOCUMENT
+        if len(buf) < limits._uncounted_below:
+            # A small payload is most often a document alone (no arrays after it): one C call,
+            # bounded by the type's length limits, without first walking the document to its end.
+            try:
+                document = msgpack.unpackb(buf, object_hook=resolve, **limits._options)
+            except Exception:
+                # Trailing arrays, or a payload that is bad anyway: the framed path decides, and
+                # names what is wrong precisely.
+                document = _NO_DOCUMENT
+                bad.clear()
+        if document is _NO_DOCUMENT:
+            end = _document_end(buf, limits.max_document_bytes)
+            bins.extend(_trailing_bins(buf, end))
+            if end < limits._uncounted_below:
+                document = msgpack.unpackb(buf[:end], object_hook=resolve, **limits._options)
+            else:
+                document = msgpack.unpackb(buf[:end], **_counting_hooks(limits, end, resolve), **limits._options)
     except CodecError:
         raise
     except ValueError as exc:
@@ -327,6 +341,9 @@ def unpack(payload: bytes | bytearray | memoryview, limits: DecodeLimits | None 
         where = _path_to(document, marker)
         raise CodecError(f"field {where!r}: {reason}" if where else reason)
     return document
+
+
+_NO_DOCUMENT: Any = object()
 
 
 class _BadArray:
@@ -953,6 +970,23 @@ def encode_value(msg_type: type[SupportedType], value: Any, into: bytearray | No
         return pack(codec.encode(value), into)
     except Exception as exc:
         raise CodecError(f"cannot encode the value as {msg_type.type_name()}: {exc}") from exc
+
+
+def decoder_for(msg_type: type[SupportedType]) -> Callable[[bytes | bytearray | memoryview], Any]:
+    """:func:`decode_value` for one type, with its codec and limits looked up once (a subscriber's hot path).
+
+    The codec is the one registered when this is called.
+    """
+    codec = codec_for(msg_type)
+    decode, limits, validate, name = codec.decode, codec.limits, msg_type.validate, msg_type.type_name()
+
+    def decode_payload(payload: bytes | bytearray | memoryview) -> Any:
+        try:
+            return validate(decode(unpack(payload, limits)))
+        except Exception as exc:
+            raise CodecError(f"cannot decode the sample as {name}: {exc}") from exc
+
+    return decode_payload
 
 
 def decode_value(msg_type: type[SupportedType], payload: bytes | bytearray | memoryview) -> Any:

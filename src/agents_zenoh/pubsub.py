@@ -14,7 +14,7 @@ from agents_core.errors import TransportClosedError, TransportError
 from agents_core.topics import Topic
 from agents_core.transport.driver import Sink
 
-from .codecs import MSGPACK, CodecError, decode_value, encode_value
+from .codecs import MSGPACK, CodecError, decoder_for, encode_value
 
 if TYPE_CHECKING:
     from .transport import ZenohDriver
@@ -102,6 +102,7 @@ class ZenohSubscription:
         self._closed = False
         self._schema = topic.type_name
         self._delivery = sink
+        self._decode = decoder_for(topic.msg_type)
         key = transport._key(topic.name)
         self._sub: zenoh.Subscriber[None] | zenoh.ext.AdvancedSubscriber[None]
         if topic.qos_profile.durability == "transient_local":
@@ -117,7 +118,7 @@ class ZenohSubscription:
             return
         try:
             self._check_encoding(str(sample.encoding))
-            value = decode_value(self.topic.msg_type, sample.payload.to_bytes())
+            value = self._decode(sample.payload.to_bytes())
         except Exception as exc:
             self._delivery.reject(exc)
             return
