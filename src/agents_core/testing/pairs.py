@@ -85,12 +85,23 @@ def zenoh_pair() -> Iterator[tuple[Transport, Transport]]:
     from agents_zenoh.transport import ZenohTransport  # noqa: PLC0415 - needs the zenoh extra
 
     port_a = free_tcp_port()
-    a = ZenohTransport(mode="peer", listen=[f"tcp/127.0.0.1:{port_a}"], connect=[], multicast_scouting=False,
-                       zenoh_options=_FAST_OPEN)
+    with _opened_pair(
+        lambda: ZenohTransport(mode="peer", listen=[f"tcp/127.0.0.1:{port_a}"], connect=[],
+                               multicast_scouting=False, zenoh_options=_FAST_OPEN),
+        lambda: ZenohTransport(mode="peer", listen=[f"tcp/127.0.0.1:{free_tcp_port()}"],
+                               connect=[f"tcp/127.0.0.1:{port_a}"], multicast_scouting=False,
+                               zenoh_options=_FAST_OPEN),
+    ) as pair:
+        yield pair
+
+
+@contextlib.contextmanager
+def _opened_pair(open_a: Callable[[], Transport], open_b: Callable[[], Transport]) -> Iterator[tuple[Transport,
+                                                                                                    Transport]]:
+    """Open ``a`` then ``b``; whatever was opened is closed on exit (or when ``b`` fails to open)."""
+    a = open_a()
     try:
-        b = ZenohTransport(mode="peer", listen=[f"tcp/127.0.0.1:{free_tcp_port()}"],
-                           connect=[f"tcp/127.0.0.1:{port_a}"], multicast_scouting=False,
-                           zenoh_options=_FAST_OPEN)
+        b = open_b()
     except BaseException:
         a.close()
         raise
@@ -121,17 +132,8 @@ def ros2_pair() -> Iterator[tuple[Transport, Transport]]:
     from agents_ros2.transport import Ros2Transport  # noqa: PLC0415 - needs the ros2 extra
 
     domain_id = private_ros_environment()
-    a = Ros2Transport(domain_id=domain_id)
-    try:
-        b = Ros2Transport(domain_id=domain_id)
-    except BaseException:
-        a.close()
-        raise
-    try:
-        yield a, b
-    finally:
-        b.close()
-        a.close()
+    with _opened_pair(lambda: Ros2Transport(domain_id=domain_id), lambda: Ros2Transport(domain_id=domain_id)) as pair:
+        yield pair
 
 
 @contextlib.contextmanager
