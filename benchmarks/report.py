@@ -24,6 +24,9 @@ METRICS: dict[str, list[tuple[str, str, str, str]]] = {
     # framework: camera -> Vision component (Zenoh) -> Detections; raw: a direct onnxruntime loop.
     "vision": [("fps", "frames/s", "higher", "fps"), ("latency_p50", "ms", "lower", "latency_ms.p50"),
                ("latency_p99", "ms", "lower", "latency_ms.p99")],
+    # stt: x real time through SpeechToText vs a direct sherpa-onnx loop; tts: first audio of a streamed
+    # answer through TextToSpeech vs synthesizing the whole answer at once.
+    "voice": [("stt_speed", "x realtime", "higher", "speed"), ("first_audio", "ms", "lower", "first_audio_ms")],
 }
 
 #: Above this slowdown (framework cost / raw cost) a latency figure needs a profile note.
@@ -129,7 +132,7 @@ def machine_info() -> dict[str, Any]:
 def versions() -> dict[str, str | None]:
     out: dict[str, str | None] = {}
     for dist in ("agents-core", "eclipse-zenoh", "msgpack", "numpy", "ros-jazzy-rclpy", "llama-cpp-python",
-                 "matplotlib"):
+                 "sherpa-onnx", "matplotlib"):
         try:
             out[dist] = importlib.metadata.version(dist)
         except importlib.metadata.PackageNotFoundError:
@@ -159,7 +162,7 @@ def plot(figures: list[dict[str, Any]], records: list[dict[str, Any]], path: Pat
     fig, (left, right) = plt.subplots(1, 2, figsize=(15, max(5.0, 0.32 * len(shown) + 1.5)),
                                       gridspec_kw={"width_ratios": [3, 2]})
     colors = {"hop": "tab:blue", "throughput": "tab:orange", "startup": "tab:green", "model": "tab:purple",
-              "imports": "tab:brown", "vision": "tab:red"}
+              "imports": "tab:brown", "vision": "tab:red", "voice": "tab:olive"}
     labels = [f["id"] for f in shown]
     values = [f["slowdown"] for f in shown]
     y = list(range(len(shown)))

@@ -33,6 +33,8 @@ __all__ = [
     "MLLMConfig",
     "ModelComponentConfig",
     "SemanticRouterConfig",
+    "SpeechToTextConfig",
+    "TextToSpeechConfig",
     "VLMConfig",
     "VideoMessageMakerConfig",
     "VisionConfig",
@@ -364,3 +366,100 @@ class VideoMessageMakerConfig(BaseComponentConfig):
     threshold: float = field(default=0.5, validator=base_validators.in_range(0.0, 100.0))
     pixel_threshold: int = field(default=25, validator=base_validators.in_range(1, 255))
     max_still_frames: int = field(default=3, validator=base_validators.in_range(0, 100_000))
+
+
+@define(kw_only=True)
+class SpeechToTextConfig(ModelComponentConfig):
+    """Settings of :class:`~agents_core.components.SpeechToText`.
+
+    :param enable_vad: cut the incoming audio stream into utterances with Silero VAD (each becomes
+        one transcript); off: every Audio message is one utterance.
+    :param vad_threshold: speech probability above which audio counts as speech.
+    :param min_silence_duration_ms: the silence that ends an utterance.
+    :param min_speech_duration_ms: shorter bursts (a click, a cough) are not utterances.
+    :param max_speech_duration_s: an utterance is cut (and transcribed) when it gets this long.
+    :param vad_model_path: the ``silero_vad.onnx`` file (None: the one shipped by the PyPI package
+        ``silero-vad``, installed with ``--no-deps``).
+    :param enable_wakeword: transcribe only the utterance that follows a wake word (needs enable_vad).
+    :param wakeword_model: a built-in microWakeWord model (``"hey_jarvis"``, ``"alexa"``,
+        ``"okay_nabu"``, ``"hey_mycroft"``) or a microWakeWord ``.json`` file.
+    :param wakeword_threshold: detection probability (None: the model's own tuned cutoff).
+    :param wakeword_timeout_s: how long after the wake word the command may start.
+    :param max_buffer_s: audio waiting for the worker (while a transcription runs) is kept up to
+        this many seconds; beyond it the oldest chunks are dropped and counted.
+    :param max_chunk_s: a longer single Audio message is refused with an error.
+    :param language: the language hint of multilingual Whisper models.
+    :param stream: the upstream name for partial results; none are produced yet: StreamingString
+        outputs get each transcript as one final chunk (``done=True``) either way.
+    :param enable_microphone: also listen to a local microphone (the ``voice`` extra's sounddevice;
+        without it, or without an input device, configure fails with a clear error).
+    :param device_audio: the microphone (device index or name; None: the default input device).
+    :param ncpu_local_model: CPU threads of the local recognizer (default 2).
+    """
+
+    enable_vad: bool = field(default=True, metadata=AT_CONFIGURE)
+    vad_threshold: float = field(default=0.5, validator=base_validators.in_range(0.01, 0.99), metadata=AT_CONFIGURE)
+    min_silence_duration_ms: int = field(default=500, validator=base_validators.in_range(50, 10_000),
+                                         metadata=AT_CONFIGURE)
+    min_speech_duration_ms: int = field(default=250, validator=base_validators.in_range(10, 10_000),
+                                        metadata=AT_CONFIGURE)
+    max_speech_duration_s: float = field(default=20.0, validator=base_validators.in_range(1.0, 30.0),
+                                         metadata=AT_CONFIGURE)
+    vad_model_path: str | None = field(default=None, validator=_optional_str, metadata=AT_CONFIGURE)
+    enable_wakeword: bool = field(default=False, metadata=AT_CONFIGURE)
+    wakeword_model: str = field(default="hey_jarvis", validator=_non_empty, metadata=AT_CONFIGURE)
+    wakeword_threshold: float | None = field(default=None, metadata=AT_CONFIGURE)
+    wakeword_timeout_s: float = field(default=8.0, validator=base_validators.in_range(0.5, 600.0))
+    max_buffer_s: float = field(default=30.0, validator=base_validators.in_range(1.0, 3600.0))
+    max_chunk_s: float = field(default=10.0, validator=base_validators.in_range(0.01, 600.0))
+    language: str = field(default="en", validator=_non_empty, metadata=AT_CONFIGURE)
+    stream: bool = field(default=False)
+    enable_microphone: bool = field(default=False, metadata=AT_CONFIGURE)
+    device_audio: int | str | None = field(default=None, metadata=AT_CONFIGURE)
+    ncpu_local_model: int = field(default=2, validator=base_validators.gt(0), metadata=AT_CONFIGURE)
+
+    @wakeword_threshold.validator
+    def _check_wakeword_threshold(self, attribute: attrs.Attribute[Any], value: Any) -> None:
+        if value is not None and (isinstance(value, bool) or not isinstance(value, int | float)
+                                  or not 0.0 < value < 1.0):
+            raise ConfigError(f"SpeechToTextConfig.wakeword_threshold must be None or in (0, 1), got {value!r}")
+
+    def __attrs_post_init__(self) -> None:
+        if self.enable_wakeword and not self.enable_vad:
+            raise ConfigError("SpeechToTextConfig: enable_wakeword needs enable_vad (the command after the wake "
+                              "word is the next utterance)")
+
+    def _get_inference_params(self) -> dict[str, Any]:
+        return {"language": self.language}
+
+
+@define(kw_only=True)
+class TextToSpeechConfig(ModelComponentConfig):
+    """Settings of :class:`~agents_core.components.TextToSpeech`.
+
+    :param play_on_device: also play the speech on a local sound device (needs the ``voice``
+        extra's ``sounddevice`` and a device; a clear error at configure otherwise).
+    :param device: the output device (index or name) for playback (None: the default device).
+    :param stream: speak StreamingString input sentence by sentence as it arrives (off: wait for
+        the stream's last chunk and speak the whole text).
+    :param interrupt: a new utterance stops the one being spoken (False: it is queued).
+    :param max_text_chars: longer text is refused with an error (synthesis time grows with it).
+    :param max_queue: the most sentences waiting to be spoken; beyond it the oldest are dropped, counted.
+    :param speaker_id: the speaker of multi-speaker voices.
+    :param speed: speaking rate (1.0: the voice's own).
+    :param chunk_ms: the length of each published Audio message (ms).
+    :param data_dir: the espeak-ng data directory the voice phonemizes with (None: found in the
+        ``voice-gpl`` extra's ``espeakng-loader`` package when installed).
+    """
+
+    play_on_device: bool = field(default=False, metadata=AT_CONFIGURE)
+    device: int | str | None = field(default=None, metadata=AT_CONFIGURE)
+    stream: bool = field(default=True)
+    interrupt: bool = field(default=True)
+    max_text_chars: int = field(default=10_000, validator=base_validators.in_range(1, 10_000_000))
+    max_queue: int = field(default=100, validator=base_validators.in_range(1, 100_000))
+    speaker_id: int = field(default=0, validator=base_validators.in_range(0, 100_000))
+    speed: float = field(default=1.0, validator=base_validators.in_range(0.25, 4.0))
+    chunk_ms: int = field(default=100, validator=base_validators.in_range(10, 10_000))
+    data_dir: str | None = field(default=None, validator=_optional_str, metadata=AT_CONFIGURE)
+    ncpu_local_model: int = field(default=2, validator=base_validators.gt(0), metadata=AT_CONFIGURE)

@@ -15,6 +15,12 @@ the ``answer`` stream chunk by chunk as the model writes it.
 table of what it found and writes each image annotated with its boxes::
 
     python -m agents_core.demo vision --model detector.onnx --images photos/ [--out annotated/]
+
+``voice`` runs the offline voice loop on a WAV file streamed in as a microphone would send it
+(20 ms chunks): SpeechToText (Whisper + Silero VAD) -> LLM -> TextToSpeech; it prints the transcript
+and the answer and writes the spoken answer to a WAV file::
+
+    python -m agents_core.demo voice --wav question.wav [--out answer.wav]
 """
 
 from __future__ import annotations
@@ -248,11 +254,93 @@ def _detect_folder(launcher: Launcher, files: list[Any], out: Any, topics: tuple
         pil_image.fromarray(drawn[name].data).save(out / f"{path.stem}_detections.png")
 
 
+def _voice_demo(argv: list[str]) -> int:
+    """``voice``: a WAV file -> SpeechToText -> LLM -> TextToSpeech -> a WAV file."""
+    parser = argparse.ArgumentParser(prog="python -m agents_core.demo voice",
+                                     description="Transcribe a spoken question, answer it, and speak the answer.")
+    parser.add_argument("--wav", required=True, help="a 16-bit PCM WAV file (any rate, mono or stereo)")
+    parser.add_argument("--out", default="voice-demo-answer.wav", help="where the spoken answer is written")
+    parser.add_argument("--stt-model", default=None, help="a sherpa-onnx speech model directory (default: Whisper "
+                        "tiny.en from the hub)")
+    parser.add_argument("--vad-model", default=None, help="silero_vad.onnx (default: from the silero-vad package)")
+    parser.add_argument("--voice", default=None, help="a sherpa-onnx VITS / Kokoro directory (default: Piper joe)")
+    parser.add_argument("--max-new-tokens", type=int, default=40)
+    parser.add_argument("--timeout", type=float, default=120.0)
+    args = parser.parse_args(argv)
+    logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
+    from .components.speech_to_text import SpeechToText  # noqa: PLC0415
+    from .components.text_to_speech import TextToSpeech  # noqa: PLC0415
+    from .config import SpeechToTextConfig, TextToSpeechConfig  # noqa: PLC0415
+    from .errors import AgentsError  # noqa: PLC0415
+    from .utils.audio import read_wav  # noqa: PLC0415
+
+    data, rate, channels = read_wav(args.wav)
+    seconds = data.size / channels / rate
+    mic, heard, spoken = Topic("mic", "Audio"), Topic("heard", "String"), Topic("spoken", "Audio")
+    stt = SpeechToText(inputs=[mic], outputs=[heard], component_name="ears", config=SpeechToTextConfig(
+        enable_local_model=True, local_model_path=args.stt_model, vad_model_path=args.vad_model,
+        max_buffer_s=seconds + 5.0, log_level="warning"))
+    # The transcript is asked on the LLM's question topic below, so the demo can print both.
+    llm, question, answer = build_agent(max_new_tokens=args.max_new_tokens)
+    tts = TextToSpeech(inputs=[answer], outputs=[spoken], component_name="mouth", config=TextToSpeechConfig(
+        enable_local_model=True, local_model_path=args.voice, log_level="warning"))
+    launcher = Launcher(transport="memory")
+    launcher.add_pkg(components=[stt, llm, tts])
+    try:
+        launcher.start()
+    except AgentsError as exc:
+        print(f"cannot load the voice models: {exc}")
+        print("Point the demo at local models: --stt-model WHISPER_DIR --vad-model silero_vad.onnx --voice VOICE_DIR")
+        return 2
+    try:
+        return _voice_loop(launcher, args, (data, rate, channels), (stt, tts), (mic, heard, spoken, question, answer))
+    finally:
+        launcher.stop()
+
+
+def _voice_loop(launcher: Launcher, args: argparse.Namespace, wav: tuple[Any, int, int], parts: tuple[Any, Any],
+                topics: tuple[Topic, ...]) -> int:
+    """Stream the WAV in, print the transcript and the answer, write the speech (the voice demo's run)."""
+    import numpy as np  # noqa: PLC0415
+
+    from .messages import AudioMsg  # noqa: PLC0415
+    from .utils.audio import write_wav  # noqa: PLC0415
+
+    (data, rate, channels), (stt, tts) = wav, parts
+    mic, heard, spoken, question, answer = topics
+    transcripts: list[str] = []
+    audio: list[Any] = []
+    launcher.transport.create_subscription(heard, transcripts.append, inline=True)
+    launcher.transport.create_subscription(spoken, audio.append, inline=True)  # a burst of chunks
+    publish = launcher.transport.create_publisher(mic).publish
+    step = rate * channels // 50  # 20 ms
+    padded = np.concatenate([data, np.zeros(rate * channels, np.int16)])  # 1 s of silence ends the speech
+    for start in range(0, padded.size, step):
+        publish(AudioMsg(data=padded[start:start + step], sample_rate=rate, channels=channels))
+    deadline = time.monotonic() + args.timeout
+    while stt.busy and time.monotonic() < deadline:
+        time.sleep(0.05)
+    if not transcripts:
+        print(f"Heard nothing in {args.wav} ({data.size / channels / rate:.1f} s).")
+        return 1
+    text = " ".join(transcripts)
+    print(f"Heard: {text}")
+    reply = ask(launcher.transport, question, answer, text, timeout=args.timeout)
+    while (tts.busy or not audio) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    if audio:
+        write_wav(args.out, np.concatenate([a.data for a in audio]), audio[0].sample_rate)
+        print(f"Spoke {sum(a.duration for a in audio):.1f} s of audio for {len(reply)} characters: {args.out}")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the demo (see the module docs)."""
     argv = sys.argv[1:] if argv is None else argv
     if argv[:1] == ["vision"]:
         return _vision_demo(argv[1:])
+    if argv[:1] == ["voice"]:
+        return _voice_demo(argv[1:])
     parser = argparse.ArgumentParser(prog="python -m agents_core.demo", description=__doc__.splitlines()[0])
     parser.add_argument("--question", action="append", help="a question to ask (repeatable); default: two examples")
     parser.add_argument("--transport", choices=["zenoh", "memory", "ros2"], default=None,

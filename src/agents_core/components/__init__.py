@@ -18,6 +18,8 @@ _EXPORTS: dict[str, tuple[str, ...]] = {
     ".model_component": ("ModelComponent",),
     ".run_type": ("ComponentRunType",),
     ".semantic_router": ("Route", "SemanticRouter"),
+    ".speech_to_text": ("SpeechToText",),
+    ".text_to_speech": ("TextToSpeech",),
     ".video_maker": ("VideoMessageMaker",),
     ".vision": ("Vision",),
 }
@@ -29,6 +31,8 @@ if TYPE_CHECKING:
     from .model_component import ModelComponent
     from .run_type import ComponentRunType
     from .semantic_router import Route, SemanticRouter
+    from .speech_to_text import SpeechToText
+    from .text_to_speech import TextToSpeech
     from .video_maker import VideoMessageMaker
     from .vision import Vision
 else:
@@ -44,6 +48,8 @@ __all__ = [
     "ModelComponent",
     "Route",
     "SemanticRouter",
+    "SpeechToText",
+    "TextToSpeech",
     "VideoMessageMaker",
     "Vision",
 ]
