@@ -27,6 +27,8 @@ METRICS: dict[str, list[tuple[str, str, str, str]]] = {
     # stt: x real time through SpeechToText vs a direct sherpa-onnx loop; tts: first audio of a streamed
     # answer through TextToSpeech vs synthesizing the whole answer at once.
     "voice": [("stt_speed", "x realtime", "higher", "speed"), ("first_audio", "ms", "lower", "first_audio_ms")],
+    # layer values written into a local Chroma through MapEncoding vs direct ChromaClient.add calls.
+    "map": [("writes_per_s", "writes/s", "higher", "writes_per_s")],
 }
 
 #: Above this slowdown (framework cost / raw cost) a latency figure needs a profile note.
@@ -162,7 +164,8 @@ def plot(figures: list[dict[str, Any]], records: list[dict[str, Any]], path: Pat
     fig, (left, right) = plt.subplots(1, 2, figsize=(15, max(5.0, 0.32 * len(shown) + 1.5)),
                                       gridspec_kw={"width_ratios": [3, 2]})
     colors = {"hop": "tab:blue", "throughput": "tab:orange", "startup": "tab:green", "model": "tab:purple",
-              "imports": "tab:brown", "vision": "tab:red", "voice": "tab:olive"}
+              "imports": "tab:brown", "vision": "tab:red", "voice": "tab:olive",
+              "map": "tab:cyan"}
     labels = [f["id"] for f in shown]
     values = [f["slowdown"] for f in shown]
     y = list(range(len(shown)))

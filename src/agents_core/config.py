@@ -31,6 +31,7 @@ __all__ = [
     "BaseComponentConfig",
     "LLMConfig",
     "MLLMConfig",
+    "MapConfig",
     "ModelComponentConfig",
     "SemanticRouterConfig",
     "SpeechToTextConfig",
@@ -292,6 +293,30 @@ def _optional_str_list(instance: Any, attribute: attrs.Attribute[Any], value: An
     if value is not None and not (isinstance(value, list) and all(isinstance(v, str) and v for v in value)):
         raise ConfigError(f"{type(instance).__name__}.{attribute.name} must be None or a list of non-empty str, "
                           f"got {value!r:.200}")
+
+
+@define(kw_only=True)
+class MapConfig(BaseComponentConfig):
+    """Settings of the :class:`~agents_core.components.map_encoding.MapEncoding` component.
+
+    :param map_name: the vector database collection the map is written to.
+    :param distance_func: the collection's distance, ``"l2"``, ``"cosine"`` or ``"ip"`` (for a new one).
+    :param position_timeout: a layer value is only placed on the map when the robot's position arrived at
+        most this many seconds before it; older (or no) position: the value is dropped and counted.
+    :param map_wait_timeout: how long (s) configure waits for the first grid map (0: do not wait).
+    :param require_map: without a map after that wait, configure fails (True) or the component starts
+        and drops values (counted) until a map arrives (False).
+    :param buffer_size: the most values kept while the database cannot be written to; when it is full
+        the oldest value is dropped (counted).
+    """
+
+    map_name: str = field(default="map", validator=_non_empty, metadata=AT_CONFIGURE)
+    distance_func: str = field(default="cosine", validator=base_validators.in_(["l2", "cosine", "ip"]),
+                               metadata=AT_CONFIGURE)
+    position_timeout: float = field(default=2.0, validator=base_validators.gt(0.0))
+    map_wait_timeout: float = field(default=10.0, validator=base_validators.in_range(0.0, 3600.0))
+    require_map: bool = field(default=True)
+    buffer_size: int = field(default=1000, validator=base_validators.in_range(1, 10_000_000))
 
 
 @define(kw_only=True)

@@ -14,6 +14,7 @@ from .._lazy import lazy_exports
 _EXPORTS: dict[str, tuple[str, ...]] = {
     ".component_base": ("Component", "ComponentPublisher"),
     ".llm": ("LLM",),
+    ".map_encoding": ("MapEncoding", "MapLayer"),
     ".mllm": ("MLLM", "VLM"),
     ".model_component": ("ModelComponent",),
     ".run_type": ("ComponentRunType",),
@@ -27,6 +28,7 @@ _EXPORTS: dict[str, tuple[str, ...]] = {
 if TYPE_CHECKING:
     from .component_base import Component, ComponentPublisher
     from .llm import LLM
+    from .map_encoding import MapEncoding, MapLayer
     from .mllm import MLLM, VLM
     from .model_component import ModelComponent
     from .run_type import ComponentRunType
@@ -45,6 +47,8 @@ __all__ = [
     "Component",
     "ComponentPublisher",
     "ComponentRunType",
+    "MapEncoding",
+    "MapLayer",
     "ModelComponent",
     "Route",
     "SemanticRouter",

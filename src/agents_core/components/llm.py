@@ -133,6 +133,7 @@ class LLM(ModelComponent):
         self._topic_templates: dict[str, jinja2.Template] = {}
         self._component_template: jinja2.Template | None = None
         self._tools: dict[str, _Tool] = {}
+        self._rag_where: dict[str, Any] | None = None  # a metadata filter for RAG (set_rag_filter)
 
     # -- prompts ------------------------------------------------------------------------------
 
@@ -271,14 +272,25 @@ class LLM(ModelComponent):
         self.db_client.add(db_input)
         return True
 
+    def set_rag_filter(self, where: dict[str, Any] | None) -> bool:
+        """Only use documents whose metadata match ``where`` for RAG (e.g. ``{"layer": "detections"}`` on a
+        MapEncoding collection); None: all documents."""
+        if where is not None and (not isinstance(where, dict) or not where):
+            raise ConfigError(f"component {self.component_name!r}: the RAG filter must be a non-empty dict or None")
+        self._rag_where = dict(where) if where is not None else None
+        return True
+
     def _collection(self) -> str:
         return self.config.collection_name or self.component_name.replace("/", "_")
 
     def _rag_context(self, query: str) -> str | None:
         if not (self.config.enable_rag and self.db_client is not None):
             return None
-        found = self.db_client.query({"collection_name": self._collection(), "query": query,
-                                      "n_results": self.config.n_results})
+        db_input: dict[str, Any] = {"collection_name": self._collection(), "query": query,
+                                    "n_results": self.config.n_results}
+        if self._rag_where is not None:
+            db_input["where"] = self._rag_where
+        found = self.db_client.query(db_input)
         documents = list(found.get("documents") or [])
         metadatas = list(found.get("metadatas") or [None] * len(documents))
         if not documents:

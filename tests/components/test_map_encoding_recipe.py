@@ -1,0 +1,90 @@
+"""The map recipe (map_recipe.py) on a real Chroma server with real llama.cpp embeddings (SmolLM2).
+
+"Where is the cup?" must come back with the cup's coordinates (within one cell), and after the cup
+moved (a temporal layer), with its new place; an LLM with RAG on the map gets the coordinates in
+its context. Memory and zenoh (in this process, one zenoh session) run the same recipe.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import math
+from collections.abc import Callable
+from typing import Any
+
+import pytest
+
+from agents_core import MemoryTransport, Topic
+from agents_core.components import LLM
+from agents_core.config import LLMConfig
+from agents_core.transport.contract import Transport
+
+from ..clients.test_chroma_client import chroma_port  # noqa: F401  (fixtures, used by name)
+from ..clients.test_components_on_real_servers import chroma  # noqa: F401
+from ..clients.test_generic_client import llama_server  # noqa: F401
+from ..conftest import free_tcp_port, wait_for
+from . import map_recipe
+from .scripted_client import ScriptedChatClient
+
+pytestmark = pytest.mark.local_models
+
+
+def _near(match: dict[str, Any], where: tuple[float, float]) -> float:
+    return math.hypot(match["x"] - where[0], match["y"] - where[1])
+
+
+def _recipe_on(transport: Transport, db_factory: Callable[..., Any], collection: str) -> dict[str, Any]:
+    question, answer = Topic("question", "String"), Topic("answer", "String")
+    client = ScriptedChatClient(["It is at the end of the corridor."])
+    llm = LLM(inputs=[question], outputs=[answer], model_client=client, db_client=db_factory(collection),
+              trigger=question, component_name="assistant",
+              config=LLMConfig(enable_rag=True, collection_name=collection, n_results=1, add_metadata=True))
+    llm.set_rag_filter({"layer": "seen"})
+
+    def ask() -> str:
+        answers: list[str] = []
+        sub = transport.create_subscription(answer, answers.append)
+        pub = transport.create_publisher(question)
+        try:
+            pub.publish("cup")
+            assert wait_for(lambda: bool(answers), timeout=30)
+        finally:
+            pub.close()
+            sub.close()
+        return str(client.inputs[0]["query"][-1]["content"])
+
+    return map_recipe.run(transport, db_factory(collection), collection, others=[llm], ask=ask)
+
+
+def _check(found: dict[str, Any]) -> None:
+    cell = map_recipe.RESOLUTION
+    first, chair, later = found["first"][0], found["chair"][0], found["later"][0]
+    assert first["text"] == "cup" and _near(first, map_recipe.CUP) <= cell, found["first"]
+    assert chair["text"] == "chair" and _near(chair, map_recipe.CHAIR) <= cell, found["chair"]
+    # Temporal layer: the old place now holds "nothing", the new place wins.
+    assert later["text"] == "cup" and _near(later, map_recipe.CUP_LATER) <= cell, found["later"]
+    context = found["asked"]
+    assert "- cup (metadata:" in context and f'"x": {map_recipe.CUP_LATER[0]}' in context, context
+    stats = found["mapper"].stats
+    assert stats["written"] == 6 and stats["stale_position"] == stats["outside_map"] == stats["dropped"] == 0, stats
+
+
+def test_where_is_the_cup_on_memory(chroma: Any) -> None:  # noqa: F811
+    transport = MemoryTransport()
+    try:
+        _check(_recipe_on(transport, chroma, "map_memory"))
+    finally:
+        transport.close()
+
+
+def test_where_is_the_cup_on_zenoh(chroma: Any) -> None:  # noqa: F811
+    if importlib.util.find_spec("zenoh") is None:
+        pytest.skip("zenoh transport not available here: the zenoh extra is not installed")
+    from agents_zenoh.transport import ZenohTransport  # noqa: PLC0415  (only with the zenoh extra)
+
+    transport = ZenohTransport(mode="peer", listen=[f"tcp/127.0.0.1:{free_tcp_port()}"], connect=[],
+                               multicast_scouting=False)
+    try:
+        _check(_recipe_on(transport, chroma, "map_zenoh"))
+    finally:
+        transport.close()
