@@ -70,13 +70,25 @@ class _MapServer:
         self._pub.close()
 
 
-def drive(transport: Transport, mapper: MapEncoding, stops: list[tuple[tuple[float, float], list[str]]]) -> None:
-    """Drive to each stop and report what is seen there; returns once each sighting is in the database."""
+def drive(transport: Transport, mapper: MapEncoding, stops: list[tuple[tuple[float, float], list[str]]],
+          send_odometry: Callable[[float, float], None] | None = None) -> None:
+    """Drive to each stop and report what is seen there; returns once each sighting is in the database.
+
+    ``send_odometry(x, y)`` publishes the position another way (a plain ROS node); it is repeated
+    until the mapper has it, as a robot's odometry keeps coming.
+    """
     odom, seen = transport.create_publisher(ODOM), transport.create_publisher(SEEN)
+
+    def at(x: float, y: float) -> bool:
+        if send_odometry is None:
+            odom.publish(OdometryMsg(pose=PoseMsg(position=[x, y, 0.0]), header=Header(frame_id="map")))
+        else:
+            send_odometry(x, y)
+        return mapper._fix is not None and (mapper._fix.x, mapper._fix.y) == (x, y)
+
     try:
         for (x, y), labels in stops:
-            odom.publish(OdometryMsg(pose=PoseMsg(position=[x, y, 0.0]), header=Header(frame_id="map")))
-            _wait(lambda x=x, y=y: mapper._fix is not None and (mapper._fix.x, mapper._fix.y) == (x, y))
+            _wait(lambda x=x, y=y: at(x, y))
             before = mapper.stats["written"]
             seen.publish(DetectionsMsg(boxes=[[0, 0, 5, 5]] * len(labels), labels=labels,
                                        scores=[0.9] * len(labels)))
@@ -87,23 +99,26 @@ def drive(transport: Transport, mapper: MapEncoding, stops: list[tuple[tuple[flo
 
 
 def run(transport: Transport, db_client: DBClient, collection: str, *, others: list[Any] | None = None,
-        ask: Callable[[], Any] | None = None) -> dict[str, Any]:
+        ask: Callable[[], Any] | None = None, send_odometry: Callable[[float, float], None] | None = None,
+        serve_map: bool = True) -> dict[str, Any]:
     """The whole recipe on ``transport`` (with ``others`` components beside the mapper): where the cup was
     found after each drive, the chair, and what ``ask()`` returned at the end (e.g. an LLM's answer)."""
     mapper = build(db_client, collection)
-    server = _MapServer(transport)
+    server = _MapServer(transport) if serve_map else None
     launcher = Launcher(transport)
     launcher.add_pkg(components=[mapper, *(others or [])])
     found: dict[str, Any] = {"mapper": mapper}
     try:
         with launcher:
-            drive(transport, mapper, [((0.0, 0.0), []), (CUP, ["cup"]), ((2.0, 0.0), []), (CHAIR, ["chair"])])
+            drive(transport, mapper, [((0.0, 0.0), []), (CUP, ["cup"]), ((2.0, 0.0), []), (CHAIR, ["chair"])],
+                  send_odometry)
             found["first"] = mapper.run_on_worker(lambda: mapper.find("cup", layer="seen", n=1))
             found["chair"] = mapper.run_on_worker(lambda: mapper.find("chair", layer="seen", n=1))
             # The cup moved: nothing where it was, the cup at the end of the corridor.
-            drive(transport, mapper, [(CUP, []), (CUP_LATER, ["cup"])])
+            drive(transport, mapper, [(CUP, []), (CUP_LATER, ["cup"])], send_odometry)
             found["later"] = mapper.run_on_worker(lambda: mapper.find("cup", layer="seen", n=1))
             found["asked"] = ask() if ask is not None else None
     finally:
-        server.close()
+        if server is not None:
+            server.close()
     return found

@@ -88,3 +88,68 @@ def test_where_is_the_cup_on_zenoh(chroma: Any) -> None:  # noqa: F811
         _check(_recipe_on(transport, chroma, "map_zenoh"))
     finally:
         transport.close()
+
+
+class _PlainRosRobot:
+    """A plain rclpy node in a ROS context of its own (no agents_core): the robot's map server and odometry.
+
+    It publishes nav_msgs/OccupancyGrid (latched) and nav_msgs/Odometry as any ROS 2 stack does.
+    """
+
+    def __init__(self, domain_id: int) -> None:
+        import rclpy  # noqa: PLC0415  (only with the ros2 extra)
+        from nav_msgs.msg import OccupancyGrid, Odometry  # noqa: PLC0415
+        from rclpy.context import Context  # noqa: PLC0415
+        from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: PLC0415
+
+        self._odometry_type = Odometry
+        self._context = Context()
+        rclpy.init(context=self._context, domain_id=domain_id)
+        self._node = rclpy.create_node("plain_robot", context=self._context)
+        latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
+                             reliability=ReliabilityPolicy.RELIABLE)
+        self._map = self._node.create_publisher(OccupancyGrid, "/map", latched)
+        self._odom = self._node.create_publisher(Odometry, "/odom", 10)
+        grid = OccupancyGrid()
+        grid.header.frame_id = "map"
+        grid.info.resolution = map_recipe.RESOLUTION
+        grid.info.width, grid.info.height = map_recipe.SIZE
+        grid.info.origin.position.x, grid.info.origin.position.y = map_recipe.ORIGIN
+        grid.info.origin.orientation.w = 1.0
+        grid.data = [0] * (map_recipe.SIZE[0] * map_recipe.SIZE[1])
+        self._map.publish(grid)
+
+    def send_odometry(self, x: float, y: float) -> None:
+        message = self._odometry_type()
+        message.header.frame_id = "map"
+        message.pose.pose.position.x, message.pose.pose.position.y = x, y
+        message.pose.pose.orientation.w = 1.0
+        self._odom.publish(message)
+
+    def close(self) -> None:
+        self._node.destroy_node()
+        self._context.try_shutdown()
+
+
+@pytest.mark.ros2
+def test_where_is_the_cup_on_ros2(chroma: Any) -> None:  # noqa: F811
+    if importlib.util.find_spec("rclpy") is None:
+        pytest.skip("ros2 transport not available here: the ros2 extra is not installed")
+    from agents_core.testing.pairs import private_ros_environment  # noqa: PLC0415
+    from agents_ros2.transport import Ros2Transport  # noqa: PLC0415  (only with the ros2 extra)
+
+    domain_id = private_ros_environment()
+    robot = _PlainRosRobot(domain_id)
+    transport = Ros2Transport(domain_id=domain_id)
+    try:
+        collection = "map_ros2"
+        found = map_recipe.run(transport, chroma(collection), collection, send_odometry=robot.send_odometry,
+                               serve_map=False)
+        cell = map_recipe.RESOLUTION
+        assert found["first"][0]["text"] == "cup" and _near(found["first"][0], map_recipe.CUP) <= cell, found
+        assert _near(found["chair"][0], map_recipe.CHAIR) <= cell, found["chair"]
+        assert _near(found["later"][0], map_recipe.CUP_LATER) <= cell, found["later"]
+        assert found["mapper"].stats["outside_map"] == found["mapper"].stats["dropped"] == 0
+    finally:
+        transport.close()
+        robot.close()
