@@ -105,7 +105,8 @@ def demo(session: nox.Session) -> None:
 @nox.session
 def bench(session: nox.Session) -> None:
     """Benchmarks: the framework against the raw middleware in one run (``-- --quick`` for CI; benchmarks/README.md)."""
-    _install_with_local_models(session, "zenoh,ros2,local,voice,voice-gpl")
+    # servers: the map suite writes into a local Chroma server.
+    _install_with_local_models(session, "zenoh,ros2,local,voice,voice-gpl,servers")
     session.install("matplotlib")
     _install_ros2_interfaces(session)
     session.run("python", "-m", "benchmarks.run", *session.posargs)
