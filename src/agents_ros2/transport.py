@@ -21,7 +21,8 @@ around :class:`Ros2Driver`, which maps:
 * **request/reply**: services of type ``agents_interfaces/srv/JsonCall`` (JSON text in, JSON text
   or the handler's error out);
 * **presence**: lifecycle services of the component's node; the core publishes
-  ``/<component>/status`` through a publisher on that node.
+  ``/<component>/status`` through a publisher on that node;
+* **discovery**: the rclpy graph API (:mod:`agents_ros2.graph`).
 
 Options (all keyword): ``domain_id`` (default: ``ROS_DOMAIN_ID``), ``shared_memory`` (the 16 MB
 Fast DDS shared-memory profile; default on, ``AGENTS_ROS2_SHM=0`` turns it off),
@@ -71,9 +72,11 @@ from agents_core.topics import Topic
 from agents_core.transport.contract import ServiceHandler, TransitionHandler, TransportCapabilities
 from agents_core.transport.core import DriverTransport
 from agents_core.transport.driver import Lane, Sink
+from agents_core.transport.graph import Graph
 
 from .conversions import RosConversion, conversion_for
 from .executor import OffloadingExecutor
+from .graph import discover_graph
 from .lifecycle import STATUS_QOS, ComponentLifecycle, absolute_name
 from .qos import (
     READER_DEPTH_FLOOR,
@@ -415,6 +418,11 @@ class Ros2Driver:
             raise RequestTimeoutError(f"{transition} of {name!r} got no reply within {timeout:g} s") from None
         return bool(response.success)
 
+    def discover(self, timeout: float) -> Graph:
+        """The ROS graph (plain ROS nodes' topics too) as this transport's node sees it (:mod:`agents_ros2.graph`)."""
+        self._check_open()
+        return discover_graph(self.node, timeout)
+
     def close(self) -> None:
         """Destroy the remaining component nodes, stop the executor, release the ROS context."""
         with self._lock:
@@ -481,8 +489,9 @@ class Ros2Transport(DriverTransport):
 
 if TYPE_CHECKING:
     from agents_core.transport.contract import Transport
-    from agents_core.transport.driver import TransportDriver
+    from agents_core.transport.driver import DiscoveringDriver, TransportDriver
 
     # mypy checks here that the classes satisfy their protocols.
     _driver: TransportDriver = Ros2Driver()
+    _discovering: DiscoveringDriver = Ros2Driver()
     _conforms: Transport = Ros2Transport()

@@ -15,6 +15,7 @@ from agents_core.topics import Topic
 from agents_core.transport.driver import Sink
 
 from .codecs import MSGPACK, CodecError, decoder_for, encode_value
+from .graph import EntityToken
 
 if TYPE_CHECKING:
     from .transport import ZenohDriver
@@ -53,6 +54,8 @@ class ZenohPublisher:
         else:
             self._pub = transport._session.declare_publisher(key, **options)
             self._match_deadline = time.monotonic() + transport.config.match_timeout
+        # For graph discovery (agents_zenoh.graph): who publishes what, seen by any peer.
+        self._token = EntityToken(transport._session, transport.config.namespace, "pub", topic)
 
     def send(self, value: Any) -> None:
         """Encode and put ``value`` (validated by the core)."""
@@ -90,6 +93,7 @@ class ZenohPublisher:
             if self._closed:
                 return
             self._closed = True
+        self._token.close()
         undeclare(self._pub)
 
 
@@ -111,6 +115,7 @@ class ZenohSubscription:
                                                               history=history)
         else:
             self._sub = transport._session.declare_subscriber(key, self._on_sample)
+        self._token = EntityToken(transport._session, transport.config.namespace, "sub", topic)
 
     def _on_sample(self, sample: zenoh.Sample) -> None:
         # Runs on a Zenoh thread: it must never raise, and never block for long.
@@ -137,6 +142,7 @@ class ZenohSubscription:
         if self._closed:
             return
         self._closed = True
+        self._token.close()
         undeclare(self._sub)
 
 

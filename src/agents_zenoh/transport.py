@@ -14,7 +14,8 @@
   a handler's exception goes back as an error reply and is raised as
   :class:`~agents_core.errors.RemoteError`);
 - components to a liveliness token plus two queryables (state, transition), see
-  :mod:`agents_zenoh.keys`.
+  :mod:`agents_zenoh.keys`;
+- graph discovery to a liveliness token per publisher and subscriber (:mod:`agents_zenoh.graph`).
 
 QoS: ``reliable`` -> Zenoh reliable + congestion control *block*; ``best_effort`` -> best
 effort + *drop*; ``depth`` / ``history`` -> the subscriber's BoundedDelivery queue;
@@ -47,10 +48,12 @@ from agents_core.topics import Topic
 from agents_core.transport.contract import ServiceHandler, TransitionHandler, TransportCapabilities
 from agents_core.transport.core import DriverTransport
 from agents_core.transport.driver import Lane, Sink
+from agents_core.transport.graph import Graph
 from agents_core.transport.requests import with_caller_timeout
 
 from .codecs import MSGPACK, CodecError, codec_for, decode_value, pack
 from .config import ZenohConfig
+from .graph import discover_graph
 from .keys import state_key, topic_key, transition_key
 from .pubsub import ZenohPublisher, ZenohSubscription
 from .queryables import ZenohPresence, ZenohService, read_reply
@@ -153,6 +156,11 @@ class ZenohDriver:
             raise TransportError(f"reading the state of {name!r} failed: {exc}") from exc
         return None
 
+    def discover(self, timeout: float) -> Graph:
+        """Topics and components from the liveliness tokens of every reachable session (:mod:`agents_zenoh.graph`)."""
+        self._check_open("discover the graph")
+        return discover_graph(self._session, self.config.namespace, timeout)
+
     def close(self) -> None:
         """Close the session (the core has closed every publisher, subscriber and queryable)."""
         if self._closed:
@@ -203,8 +211,9 @@ class ZenohTransport(DriverTransport):
 
 if TYPE_CHECKING:
     from agents_core.transport.contract import Transport
-    from agents_core.transport.driver import TransportDriver
+    from agents_core.transport.driver import DiscoveringDriver, TransportDriver
 
     # mypy checks here that the classes satisfy their protocols.
     _driver: TransportDriver = ZenohDriver(ZenohConfig())
+    _discovering: DiscoveringDriver = ZenohDriver(ZenohConfig())
     _conforms: Transport = ZenohTransport()

@@ -4,7 +4,7 @@ A component's runtime pieces (its transport, serial worker, presence and service
 private to it; what a launcher needs goes through ``component.runtime``:
 
 - :meth:`ComponentRuntime.bind`: attach to a transport (presence with the status topic, the
-  ``execute_method`` / ``set_param`` services, the serial worker);
+  ``execute_method`` / ``set_param`` / ``describe`` services, the serial worker);
 - :meth:`ComponentRuntime.submit_action`: run an event's action on the component's worker,
   between steps;
 - :meth:`ComponentRuntime.hurry`: stop waiting for a running step (a second Ctrl-C).
@@ -50,7 +50,8 @@ class ComponentRuntime:
         c._worker = StepWorker(c.component_name, c.config.execution_queue_depth, c.config.queue_full_policy)
         c._presence = transport.declare_component(c.component_name, on_transition=self._external_transition,
                                                   pending=lambda: c.worker_statistics().pending)
-        for service, handler in (("execute_method", c._serve_execute_method), ("set_param", c._serve_set_param)):
+        for service, handler in (("execute_method", c._serve_execute_method), ("set_param", c._serve_set_param),
+                                 ("describe", c._serve_describe)):
             c._services.append(transport.create_service(f"{c.component_name}/{service}", handler,
                                                         owner=c.component_name))
         c._report_status()

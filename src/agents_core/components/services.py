@@ -1,8 +1,11 @@
-"""The services every component serves, in one place: ``<name>/execute_method`` and ``<name>/set_param``.
+"""The services every component serves, in one place: ``<name>/execute_method``, ``<name>/set_param``
+and ``<name>/describe``.
 
-``execute_method`` runs a method marked with ``@component_action`` (an allow-list) on the
-component's worker, between steps; ``set_param`` changes validated config fields, live ones at
-once (see :meth:`ComponentServices.set_params`). Both honour the caller's deadline.
+``describe`` answers what the component is (type, run type, state, health, inputs, outputs,
+callable actions), for tools such as the CLI and the web UI. ``execute_method`` runs a method
+marked with ``@component_action`` (an allow-list) on the component's worker, between steps;
+``set_param`` changes validated config fields, live ones at once (see
+:meth:`ComponentServices.set_params`). Both honour the caller's deadline.
 """
 
 from __future__ import annotations
@@ -20,7 +23,10 @@ from ..transport.requests import check_timeout, request_deadline
 from .worker import PeriodicTimer, StepWorker
 
 if TYPE_CHECKING:
+    from ..status import HealthStatus
+    from ..topics import Topic
     from .lifecycle import LifecycleMachine
+    from .run_type import ComponentRunType
 
 __all__ = ["ComponentServices"]
 
@@ -34,6 +40,10 @@ class ComponentServices:
     _worker: StepWorker | None
     _status_timer: PeriodicTimer | None
     _lifecycle: LifecycleMachine
+    inputs: list[Topic]
+    outputs: list[Topic]
+    run_type: ComponentRunType
+    _health: HealthStatus
 
     def _report_status(self) -> None:
         """Publish the current state (implemented by the health mixin, which comes first in the MRO)."""
@@ -48,6 +58,24 @@ class ComponentServices:
             if description is not None:
                 found[name] = description
         return found
+
+    def describe(self) -> dict[str, Any]:
+        """What ``<name>/describe`` answers: name, type, run type, state, health, inputs, outputs, actions."""
+        return {
+            "name": self.component_name,
+            "component_type": type(self).__name__,
+            "run_type": self.run_type.value,
+            "state": self._lifecycle.state.value,
+            "health": self._health.name,
+            "inputs": [{"name": t.name, "msg_type": t.type_name} for t in self.inputs],
+            "outputs": [{"name": t.name, "msg_type": t.type_name} for t in self.outputs],
+            "actions": self.available_actions(),
+        }
+
+    def _serve_describe(self, request: dict[str, Any]) -> dict[str, Any]:
+        # Answered on the request lane, not the worker: a component busy with a long step can
+        # still say what it is (the fields read are each updated atomically).
+        return self.describe()
 
     def _serve_execute_method(self, request: dict[str, Any]) -> dict[str, Any]:
         method_name = request.get("method")

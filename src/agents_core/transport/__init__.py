@@ -14,6 +14,7 @@ from .contract import (
     TransportCapabilities,
 )
 from .delivery import BoundedDelivery, SubscriptionStatistics
+from .graph import Graph, TopicInfo, describe_component
 from .memory import MemoryTransport, TopicStatistics
 from .registry import ENTRY_POINT_GROUP, TRANSPORT_ALIASES, available_transports, resolve_transport
 
@@ -22,6 +23,7 @@ __all__ = [
     "TRANSPORT_ALIASES",
     "BoundedDelivery",
     "ComponentPresence",
+    "Graph",
     "MemoryTransport",
     "Publisher",
     "ServiceHandler",
@@ -29,10 +31,12 @@ __all__ = [
     "Subscription",
     "SubscriptionCallback",
     "SubscriptionStatistics",
+    "TopicInfo",
     "TopicStatistics",
     "TransitionHandler",
     "Transport",
     "TransportCapabilities",
     "available_transports",
+    "describe_component",
     "resolve_transport",
 ]

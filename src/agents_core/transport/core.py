@@ -14,7 +14,8 @@ Every transport (memory, Zenoh, ROS 2, a third party's) is a :class:`DriverTrans
 - the request lanes (one per component) and the caller's deadline
   (:mod:`agents_core.transport.requests`), for services and for transitions asked from outside;
 - each component's status topic ``<name>/status``: :meth:`ComponentPresence.update` is the one
-  path by which a component's state reaches the driver and the topic.
+  path by which a component's state reaches the driver and the topic;
+- graph discovery (:meth:`~DriverTransport.discover`), where the driver has the optional primitive.
 """
 
 from __future__ import annotations
@@ -25,14 +26,15 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from ..errors import TransportClosedError, WiringError
+from ..errors import TransportClosedError, TransportError, WiringError
 from ..messages import ComponentStatusMsg
 from ..status import HealthStatus, LifecycleState
 from ..supported_types import ComponentStatus
 from ..topics import QoSConfig, Topic, validate_topic_name
 from .contract import ServiceHandler, SubscriptionCallback, TransitionHandler
 from .delivery import BoundedDelivery, InlineDelivery, SubscriptionStatistics, TopicCounters, TopicStatistics
-from .driver import Closable, DriverPresence, DriverPublisher, Lane, TransportDriver
+from .driver import Closable, DiscoveringDriver, DriverPresence, DriverPublisher, Lane, TransportDriver
+from .graph import Graph
 from .requests import RequestLanes, check_timeout, serve_with_caller_deadline, with_caller_timeout
 
 __all__ = [
@@ -394,6 +396,23 @@ class DriverTransport:
         timeout = check_timeout(timeout, f"transition of {name!r}")
         self._check_open(f"request a transition of {name!r}")
         return bool(self._driver.observe(name, transition, timeout))
+
+    # -- graph --------------------------------------------------------------------------------
+
+    def discover(self, timeout: float = 1.0) -> Graph:
+        """The topics (type, publisher and subscriber counts) and live components this transport sees.
+
+        Waits at most ``timeout`` seconds for the middleware's discovery. Raises
+        :class:`~agents_core.errors.TransportError` when the driver has no discovery primitive.
+        """
+        timeout = check_timeout(timeout, "discover")
+        self._check_open("discover the graph")
+        if not isinstance(self._driver, DiscoveringDriver):
+            raise TransportError(f"the {self.name} transport does not support discovery "
+                                 f"(its driver {type(self._driver).__name__} has no discover())")
+        graph = self._driver.discover(timeout)
+        self._check_open("discover the graph")
+        return graph
 
     # -- teardown -----------------------------------------------------------------------------
 

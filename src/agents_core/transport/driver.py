@@ -23,6 +23,12 @@ A driver implements :class:`TransportDriver`, seven methods:
    as an outside tool would;
 7. :meth:`~TransportDriver.close`.
 
+One primitive is optional: a driver that can see the whole graph (every topic with its type and
+how many publishers and subscribers it has, and the live components) also implements
+:class:`DiscoveringDriver` (``discover(timeout) -> Graph``). Without it,
+:meth:`DriverTransport.discover() <agents_core.transport.core.DriverTransport.discover>` raises
+a :class:`~agents_core.errors.TransportError` saying the transport does not support discovery.
+
 Errors: a driver raises the core's errors (:class:`~agents_core.errors.RequestTimeoutError`,
 :class:`~agents_core.errors.ServiceUnavailableError`, :class:`~agents_core.errors.RemoteError`,
 :class:`~agents_core.errors.TransportError`), mapping its middleware's own.
@@ -37,9 +43,11 @@ from ..messages import ComponentStatusMsg
 from ..status import HealthStatus, LifecycleState
 from ..topics import Topic
 from .contract import ServiceHandler, TransitionHandler, TransportCapabilities
+from .graph import Graph
 
 __all__ = [
     "Closable",
+    "DiscoveringDriver",
     "DriverPresence",
     "DriverPublisher",
     "Lane",
@@ -136,4 +144,17 @@ class TransportDriver(Protocol):
 
     def close(self) -> None:
         """Release the session, nodes and threads; the core has closed every handle before."""
+        ...
+
+
+@runtime_checkable
+class DiscoveringDriver(Protocol):
+    """The optional discovery primitive (see the module docstring)."""
+
+    def discover(self, timeout: float) -> Graph:
+        """Every topic (name, type, publisher and subscriber counts) and live component this driver sees.
+
+        Waits at most ``timeout`` seconds for the middleware's discovery to settle; what was not
+        seen by then is not in the graph.
+        """
         ...

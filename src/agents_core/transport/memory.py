@@ -30,6 +30,7 @@ from .contract import ServiceHandler, TransitionHandler, TransportCapabilities
 from .core import DriverTransport
 from .delivery import SubscriptionStatistics, TopicStatistics
 from .driver import Lane, Sink
+from .graph import Graph, TopicInfo
 
 __all__ = ["MemoryDriver", "MemoryTransport", "SubscriptionStatistics", "TopicStatistics"]
 
@@ -43,7 +44,8 @@ class _Sender:
         self._driver._deliver(self._topic, value)
 
     def close(self) -> None:
-        """Nothing to release in memory."""
+        """Withdraw from the graph (nothing else to release in memory)."""
+        self._driver._remove_sender(self)
 
 
 class _Receiver:
@@ -128,9 +130,31 @@ class MemoryDriver:
         self._latched: dict[str, collections.deque[Any]] = {}
         self._services: dict[str, _Served] = {}
         self._components: dict[str, _MemoryPresence] = {}
+        self._senders: dict[str, list[_Sender]] = {}
 
     def open_publisher(self, topic: Topic, owner: str | None) -> _Sender:
-        return _Sender(self, topic)
+        sender = _Sender(self, topic)
+        with self._lock:
+            self._senders.setdefault(topic.name, []).append(sender)
+        return sender
+
+    def _remove_sender(self, sender: _Sender) -> None:
+        with self._lock:
+            current = self._senders.get(sender._topic.name, [])
+            if sender in current:
+                current.remove(sender)
+
+    def discover(self, timeout: float) -> Graph:
+        """The topics with open publishers or subscribers, and the declared components (no waiting)."""
+        with self._lock:
+            names = {n for n, s in self._senders.items() if s} | {n for n, r in self._receivers.items() if r}
+            topics = []
+            for name in names:
+                senders, receivers = self._senders.get(name, []), self._receivers.get(name, [])
+                topic = senders[0]._topic if senders else receivers[0].topic
+                topics.append(TopicInfo(name=name.lstrip("/"), msg_type=topic.type_name, publishers=len(senders),
+                                        subscribers=len(receivers)))
+            return Graph(topics=topics, components=list(self._components))
 
     def open_subscriber(self, topic: Topic, sink: Sink, owner: str | None) -> _Receiver:
         receiver = _Receiver(self, topic, sink)
@@ -191,6 +215,7 @@ class MemoryDriver:
     def close(self) -> None:
         with self._lock:
             self._receivers.clear()
+            self._senders.clear()
             self._services.clear()
             self._components.clear()
 
@@ -219,8 +244,9 @@ class MemoryTransport(DriverTransport):
 
 if TYPE_CHECKING:
     from .contract import Transport
-    from .driver import TransportDriver
+    from .driver import DiscoveringDriver, TransportDriver
 
     # mypy checks here that the classes satisfy their protocols.
     _driver: TransportDriver = MemoryDriver()
+    _discovering: DiscoveringDriver = MemoryDriver()
     _conforms: Transport = MemoryTransport()
