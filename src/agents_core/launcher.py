@@ -15,27 +15,44 @@ Non-blocking, for tests and embedding::
 The launcher watches every event used by a component trigger or in ``events_actions`` with one
 subscription per event topic, and runs each action on the worker of the component that owns
 the method (or on the launcher's own action worker for other callables).
+
+With ``add_pkg(..., multiprocessing=True)`` each component runs in a process of its own (see
+:mod:`agents_core.processes`), respawned when it crashes (``on_process_fail``). The launcher
+keeps its own transport to watch events; an action on a component in another process runs
+through that component's services (``<name>/execute_method`` for ``@component_action``
+methods, the lifecycle for ``activate`` / ``deactivate`` / ...).
+
+``Launcher(config_file="robot.yaml")`` reads the transport settings (a ``transport`` section:
+``name`` plus the transport's options) and one section per component name (its config fields)
+from one YAML or TOML file.
 """
 
 from __future__ import annotations
 
+import difflib
 import functools
+import importlib
 import logging
 import os
 import signal
+import sys
 import threading
 from collections.abc import Mapping, Sequence
 from types import FrameType
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from .actions import Action
 from .components.component_base import Component
 from .components.worker import StepWorker
-from .errors import ConfigError, WiringError
+from .config import load_config_file
+from .errors import ComponentError, ConfigError, WiringError
 from .events import Event, EventListener
 from .status import LifecycleState
 from .transport.contract import Subscription, Transport
-from .transport.registry import resolve_transport
+from .transport.registry import TRANSPORT_ENV_VAR, resolve_transport
+
+if TYPE_CHECKING:
+    from .processes.supervisor import Supervisor
 
 __all__ = ["Launcher"]
 
@@ -52,12 +69,25 @@ class Launcher:
     :param transport: a transport name (``"memory"``, ``"zenoh"``, ``"ros2"``), a transport
         object, or None to read ``AGENTS_TRANSPORT``.
     :param transport_options: keyword options for the transport's constructor (with a name).
+    :param config_file: a YAML or TOML file with a ``transport`` section (``name`` and the
+        transport's options; what is passed here explicitly wins) and a section per component
+        name with config fields, applied when the launcher starts.
     """
 
     def __init__(self, transport: str | Transport | None = None, *,
-                 transport_options: Mapping[str, Any] | None = None) -> None:
+                 transport_options: Mapping[str, Any] | None = None,
+                 config_file: str | os.PathLike[str] | None = None) -> None:
+        self._component_sections: dict[str, dict[str, Any]] = {}
+        self._config_file = str(config_file) if config_file is not None else None
+        file_transport: dict[str, Any] = {}
+        if self._config_file is not None:
+            file_transport, self._component_sections = _read_launch_file(self._config_file)
+        file_name = file_transport.pop("name", None)
+        if transport is None and file_name is not None and not os.environ.get(TRANSPORT_ENV_VAR, "").strip():
+            transport = file_name
         self._transport_spec = transport
-        self._transport_options = dict(transport_options or {})
+        self._transport_options = {**(file_transport if isinstance(transport, str | None) else {}),
+                                   **dict(transport_options or {})}
         self._transport: Transport | None = None
         self._owns_transport = False
         self.components: list[Component] = []
@@ -69,7 +99,9 @@ class Launcher:
         self._stop_requested = threading.Event()
         self._hurry = threading.Event()
         self._process_fail_retries: int | None = None
+        self._process_giveup: Action | None = None
         self._multiprocessing = False
+        self._supervisor: Supervisor | None = None
 
     # -- recipe -------------------------------------------------------------------------------
 
@@ -105,9 +137,23 @@ class Launcher:
                     raise WiringError(f"event {event.name!r}: {a!r} is not an Action")
             self.events_actions.setdefault(event, []).extend(action_list)
 
-    def on_process_fail(self, max_retries: int = 3) -> None:
-        """How often to respawn a crashed component process (multiprocessing runs)."""
+    def on_process_fail(self, max_retries: int = 3, on_giveup: Action | None = None) -> None:
+        """Respawn a crashed component process up to ``max_retries`` times (multiprocessing runs).
+
+        Respawns back off (none for the first, then 100 ms doubled per restart, at most 2 s).
+        After the last one the launcher logs the give-up and runs ``on_giveup`` (see :meth:`on_giveup`).
+        """
+        if isinstance(max_retries, bool) or not isinstance(max_retries, int) or max_retries < 0:
+            raise ConfigError(f"on_process_fail: max_retries must be an int >= 0, got {max_retries!r}")
         self._process_fail_retries = max_retries
+        if on_giveup is not None:
+            self.on_giveup(on_giveup)
+
+    def on_giveup(self, action: Action) -> None:
+        """Run ``action`` once a component process has crashed more often than ``on_process_fail`` allows."""
+        if not isinstance(action, Action):
+            raise WiringError(f"on_giveup takes an Action, got {type(action).__name__}")
+        self._process_giveup = action
 
     @property
     def transport(self) -> Transport:
@@ -124,18 +170,17 @@ class Launcher:
             raise ConfigError("the launcher is already started")
         if not self.components:
             raise ConfigError("nothing to launch: call add_pkg(components=[...]) first")
+        _refuse_inside_component_process()
+        self._apply_component_sections()
         self._transport = resolve_transport(self._transport_spec, **self._transport_options)
         self._owns_transport = isinstance(self._transport_spec, str) or self._transport_spec is None
-        if self._multiprocessing:
-            transport = self._transport
+        if self._multiprocessing and not self._transport.capabilities.cross_process:
+            transport, self._transport = self._transport, None
             if self._owns_transport:
                 transport.close()
-            self._transport = None
-            if not transport.capabilities.cross_process:
-                raise ConfigError(f"multiprocessing=True needs a transport that reaches across processes "
-                                  f"(zenoh or ros2); {transport.name!r} lives in one process")
-            raise ConfigError(f"multiprocessing=True is not available yet on {transport.name!r}: run the components "
-                              "in this process (multiprocessing=False)")
+            raise ConfigError(f"multiprocessing=True needs a transport whose capabilities say cross_process "
+                              f"({', '.join(_cross_process_transports()) or 'none installed'}); "
+                              f"{transport.name!r} lives in one process")
         self._started = True
         try:
             self._action_worker = StepWorker("launcher-actions", 1, "drop_newest")
@@ -143,18 +188,93 @@ class Launcher:
                 runner = self._make_event_runner(actions)
                 event.add_listener(runner)
                 self._event_runners.append((event, runner))
-            for c in self.components:
-                c.runtime.bind(self._transport)
-            self._watch_events()
-            for c in self.components:
-                c.configure()
-            for c in self.components:
-                c.activate()
+            if self._multiprocessing:
+                self._start_processes()
+                self._watch_events()
+            else:
+                for c in self.components:
+                    c.runtime.bind(self._transport)
+                self._watch_events()
+                for c in self.components:
+                    c.configure()
+                for c in self.components:
+                    c.activate()
         except BaseException:
             self.stop()
             raise
         logger.info("launched %d component(s) on %s", len(self.components), self._transport.name)
         return self
+
+    def _apply_component_sections(self) -> None:
+        names = [c.component_name for c in self.components]
+        for name in self._component_sections:
+            if name not in names:
+                close = difflib.get_close_matches(name, names, n=1)
+                hint = f"; did you mean {close[0]!r}?" if close else ""
+                raise ConfigError(f"config file {self._config_file}: section {name!r} names no component "
+                                  f"of this launcher{hint} (components: {names})")
+        for c in self.components:
+            section = self._component_sections.get(c.component_name)
+            if section:
+                try:
+                    c.config.update(**section)
+                except ConfigError as exc:
+                    raise ConfigError(f"config file {self._config_file}, section {c.component_name!r}: {exc}") \
+                        from exc
+
+    def _start_processes(self) -> None:
+        from .processes.spec import ComponentSpec, check_rebuild  # noqa: PLC0415
+        from .processes.supervisor import Supervisor  # noqa: PLC0415
+
+        transport = self.transport
+        # A transport may say how another process reaches it (Zenoh: connect to this session's
+        # listening endpoints); by default a child opens it with the same options.
+        peer_options = getattr(transport, "peer_process_options", None)
+        options = peer_options() if callable(peer_options) else dict(self._transport_options)
+        specs = []
+        for c in self.components:
+            spec = ComponentSpec.from_component(c, transport.name, options, os.getpid())
+            check_rebuild(c, spec)
+            specs.append(spec)
+        for event, actions in self.events_actions.items():
+            for action in actions:
+                _check_remote_action(event, action)
+        retries = self._process_fail_retries if self._process_fail_retries is not None else 0
+        self._supervisor = Supervisor(specs, max_retries=retries, on_giveup=self._gave_up_on)
+        self._supervisor.start()
+
+    def _gave_up_on(self, component_name: str) -> None:
+        logger.error("component %r: its process crashed more often than on_process_fail(max_retries=%s) allows; "
+                     "not restarting it", component_name, self._process_fail_retries)
+        action = self._process_giveup
+        if action is not None and self._action_worker is not None:
+            self._action_worker.submit_control(functools.partial(self._run_giveup, action))
+
+    def _run_giveup(self, action: Action) -> None:
+        try:
+            self._call_action(action, {})
+        except Exception:
+            logger.exception("the on_giveup action %s failed", action.name)
+
+    @property
+    def supervisor(self) -> Supervisor | None:
+        """The component processes (pids, states, restarts) of a multiprocessing run, else None."""
+        return self._supervisor
+
+    def _call_action(self, action: Action, values: Mapping[str, Any]) -> Any:
+        """Run ``action`` here, or through the services of its component when that runs in a process."""
+        owner = action.owner
+        if self._supervisor is None or not isinstance(owner, Component):
+            return action(values)
+        args, kwargs = action.resolve(values)
+        name = action.name
+        if name in _LIFECYCLE_METHODS:
+            if not self.transport.request_transition(owner.component_name, name, timeout=10.0):
+                raise ComponentError(f"component {owner.component_name!r} refused the transition {name!r}")
+            return None
+        reply = self.transport.request(f"{owner.component_name}/execute_method",
+                                       {"method": name, "args": list(args), "kwargs": kwargs}, timeout=30.0)
+        return reply.get("result")
 
     def _watch_events(self) -> None:
         events = set(self.events_actions)
@@ -169,17 +289,16 @@ class Launcher:
             for action in actions:
                 owner = action.owner
                 job = functools.partial(self._run_action, event, action, values)
-                if isinstance(owner, Component) and owner.runtime.is_bound:
+                if isinstance(owner, Component) and owner.runtime.is_bound and self._supervisor is None:
                     owner.runtime.submit_action(job)
                 elif self._action_worker is not None:
                     self._action_worker.submit_control(job)
 
         return run
 
-    @staticmethod
-    def _run_action(event: Event, action: Action, values: Mapping[str, Any]) -> None:
+    def _run_action(self, event: Event, action: Action, values: Mapping[str, Any]) -> None:
         try:
-            action(values)
+            self._call_action(action, values)
         except Exception:
             logger.exception("action %s for event %r failed", action.name, event.name)
 
@@ -196,6 +315,9 @@ class Launcher:
             for event, runner in self._event_runners:
                 event.remove_listener(runner)
             self._event_runners.clear()
+            if self._supervisor is not None:
+                supervisor, self._supervisor = self._supervisor, None
+                supervisor.stop()
             for c in reversed(self.components):
                 if not c.runtime.is_bound:
                     continue
@@ -218,7 +340,9 @@ class Launcher:
             c.runtime.hurry()
 
     def all_active(self) -> bool:
-        """True when every component is in the active state."""
+        """True when every component is in the active state (in its own process, if it has one)."""
+        if self._supervisor is not None:
+            return self._supervisor.all_active()
         return all(c.lifecycle_state == LifecycleState.ACTIVE for c in self.components)
 
     def bringup(self) -> None:
@@ -271,3 +395,61 @@ class Launcher:
 
     def __exit__(self, *exc: object) -> None:
         self.stop()
+
+
+_LIFECYCLE_METHODS = frozenset({"configure", "activate", "deactivate", "cleanup", "shutdown"})
+
+
+def _check_remote_action(event: Event, action: Action) -> None:
+    """Refuse, at start, an action on a component process that its services cannot run."""
+    owner = action.owner
+    if not isinstance(owner, Component) or action.name in _LIFECYCLE_METHODS:
+        return
+    if action.name not in owner.available_actions():
+        raise WiringError(f"event {event.name!r}: action {action.name!r} of component {owner.component_name!r} "
+                          "cannot run in the component's process: mark the method @component_action (it then "
+                          "runs through the component's execute_method service)")
+
+
+def _cross_process_transports() -> list[str]:
+    """The built-in transports installed here whose drivers declare cross_process (capabilities, not names)."""
+    from .transport.registry import TRANSPORT_ALIASES  # noqa: PLC0415
+
+    names = []
+    for name, (target, _extra) in TRANSPORT_ALIASES.items():
+        module_name = target.partition(":")[0]
+        try:
+            module = importlib.import_module(module_name)
+        except Exception:  # an extra not installed: not offered
+            continue
+        for value in vars(module).values():
+            caps = getattr(value, "capabilities", None)
+            if isinstance(value, type) and getattr(caps, "cross_process", False) is True:
+                names.append(name)
+                break
+    return names
+
+
+def _refuse_inside_component_process() -> None:
+    """A component process imports the recipe for its classes: the recipe's launcher must not launch again."""
+    child = sys.modules.get("agents_core.processes.child")
+    if child is not None and getattr(child, "importing_recipe", False):
+        raise child.RecipeImportStop
+
+
+def _read_launch_file(path: str) -> tuple[dict[str, Any], dict[str, dict[str, Any]]]:
+    """(transport section, component sections) of a launcher config file."""
+    data = load_config_file(path)
+    transport = data.pop("transport", {})
+    if not isinstance(transport, dict):
+        raise ConfigError(f"config file {path}: 'transport' must be a section (name and options)")
+    name = transport.get("name")
+    if name is not None and not isinstance(name, str):
+        raise ConfigError(f"config file {path}: transport.name must be a str such as 'zenoh'")
+    sections: dict[str, dict[str, Any]] = {}
+    for key, value in data.items():
+        if not isinstance(value, dict):
+            raise ConfigError(f"config file {path}: {key!r} must be a section of config fields for the "
+                              f"component of that name, got {type(value).__name__}")
+        sections[key] = value
+    return dict(transport), sections

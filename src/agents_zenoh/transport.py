@@ -33,6 +33,7 @@ import logging
 import time
 from typing import TYPE_CHECKING, Any
 
+import attrs
 import zenoh
 
 from agents_core.errors import (
@@ -200,6 +201,23 @@ class ZenohTransport(DriverTransport):
     def key_expr(self, topic: Topic | str) -> str:
         """The key expression that carries ``topic`` (a Topic or a topic / service name)."""
         return self._zenoh._key(topic.name if isinstance(topic, Topic) else topic)
+
+    def peer_process_options(self) -> dict[str, Any]:
+        """Options that open, in another process, a transport reaching this one (``multiprocessing=True``).
+
+        A peer listening on fixed endpoints is joined by connecting to them (each child listens
+        on its own OS-chosen loopback port, so that Zenoh's gossip links the children to each
+        other); a client, a config file or the loopback rendezvous are reused as they are.
+        """
+        options = attrs.asdict(self.config, recurse=False)
+        listen = self.config.listen or []
+        if self.config.mode in (None, "peer", "router") and self.config.config_file is None and listen:
+            fixed = [ep for ep in listen if not ep.endswith(":0")]
+            if not fixed:
+                raise ConfigError("multiprocessing on zenoh needs this process to listen on a fixed port "
+                                  f"(listen={listen}); give one, or leave listen/connect unset for the rendezvous")
+            options.update(mode="peer", listen=["tcp/127.0.0.1:0"], connect=[*fixed, *(self.config.connect or [])])
+        return options
 
     def __enter__(self) -> ZenohTransport:
         return self

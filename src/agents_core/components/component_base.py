@@ -112,6 +112,15 @@ class Component(HealthAndFallbacks, ComponentServices):
     #: Subclasses set them on the class, or on the instance before ``super().__init__``.
     allowed_inputs: AllowedTypes | None = None
     allowed_outputs: AllowedTypes | None = None
+    #: The positional and keyword arguments the component was constructed with.
+    _init_arguments: tuple[tuple[Any, ...], dict[str, Any]]
+
+    def __new__(cls, *args: Any, **kwargs: Any) -> Any:
+        # The arguments the recipe built it with: a launcher with multiprocessing=True rebuilds
+        # the component from them in its own process (see agents_core.processes.spec).
+        instance = super().__new__(cls)
+        instance._init_arguments = (args, dict(kwargs))
+        return instance
 
     def __init__(
         self,

@@ -1,0 +1,174 @@
+"""The process of one component: ``python -m agents_core.processes.child --report-fd N``.
+
+It reads its :class:`~agents_core.processes.spec.ComponentSpec` as the first line (JSON) of its
+stdin, never from argv or the environment (a spec may hold an API key). Then it opens its own
+transport, rebuilds the component, configures and activates it, and reports each state to the
+launcher as a JSON line on the inherited pipe ``--report-fd``. Further stdin lines are commands
+(``deactivate``, ``shutdown``).
+
+It never outlives the launcher: ``PR_SET_PDEATHSIG`` sends it SIGTERM when the launcher dies,
+and the end of its stdin (the launcher's end of the pipe closes with the launcher, whatever
+killed it) starts the same shutdown. A shutdown that takes longer than
+:data:`EXIT_DEADLINE_S` ends the process at once.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import ctypes
+import importlib.util
+import json
+import logging
+import os
+import queue
+import signal
+import sys
+import threading
+from typing import IO, Any
+
+__all__ = ["EXIT_DEADLINE_S", "RecipeImportStop", "main", "set_parent_death_signal"]
+
+logger = logging.getLogger("agents_core.processes.child")
+
+#: Longest the shutdown may take once the launcher is gone or asked for it.
+EXIT_DEADLINE_S = 1.5
+#: Longest first line (the spec) read from stdin.
+MAX_SPEC_BYTES = 16 * 1024 * 1024
+_PR_SET_PDEATHSIG = 1
+
+#: True in a component process while the recipe file is imported (see :class:`RecipeImportStop`).
+importing_recipe = False
+
+
+class RecipeImportStop(BaseException):  # a control-flow signal, like SystemExit
+    """Raised by ``Launcher.start()`` while a component process imports the recipe file.
+
+    Recipes often call ``launcher.bringup()`` at the top level; in a component process that
+    call must not launch the recipe again. Everything the recipe defined before it (its
+    component classes) is then available.
+    """
+
+
+def set_parent_death_signal(signum: int = signal.SIGTERM) -> bool:
+    """Ask Linux to send ``signum`` when the parent dies (``prctl(PR_SET_PDEATHSIG)``); False elsewhere."""
+    if not sys.platform.startswith("linux"):
+        return False
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        return int(libc.prctl(_PR_SET_PDEATHSIG, signum, 0, 0, 0)) == 0
+    except (OSError, AttributeError):
+        return False
+
+
+def _import_recipe(path: str) -> None:
+    global importing_recipe  # noqa: PLW0603  # read by Launcher.start() in this process only
+    from .spec import RECIPE_MODULE  # noqa: PLC0415
+
+    module_spec = importlib.util.spec_from_file_location(RECIPE_MODULE, path)
+    if module_spec is None or module_spec.loader is None:
+        raise ImportError(f"cannot import the recipe {path!r}")
+    module = importlib.util.module_from_spec(module_spec)
+    sys.modules[RECIPE_MODULE] = module
+    importing_recipe = True
+    try:
+        module_spec.loader.exec_module(module)
+    except RecipeImportStop:
+        pass
+    finally:
+        importing_recipe = False
+
+
+class _Reporter:
+    def __init__(self, fd: int) -> None:
+        self._file: IO[str] = os.fdopen(fd, "w", buffering=1)
+        self._lock = threading.Lock()
+
+    def send(self, **message: Any) -> None:
+        # The launcher may be gone: the end of stdin stops this process then.
+        with self._lock, contextlib.suppress(OSError, ValueError):
+            self._file.write(json.dumps(message) + "\n")
+
+
+def _read_commands(stdin: IO[bytes], commands: queue.SimpleQueue[str]) -> None:
+    for raw in stdin:
+        commands.put(raw.decode("utf-8", "replace").strip())
+    commands.put("eof")
+
+
+def _exit_soon(code: int) -> None:
+    timer = threading.Timer(EXIT_DEADLINE_S, lambda: os._exit(code))
+    timer.daemon = True
+    timer.start()
+
+
+def run(spec_line: bytes, reporter: _Reporter, stdin: IO[bytes]) -> int:
+    """Build, run and stop the component of ``spec_line``; the process's exit status."""
+    from ..transport.registry import resolve_transport  # noqa: PLC0415
+    from .spec import ComponentSpec, decode_value  # noqa: PLC0415
+
+    spec = ComponentSpec.from_dict(json.loads(spec_line))
+    if spec.parent_pid and os.getppid() != spec.parent_pid:
+        return 1  # the launcher died before PR_SET_PDEATHSIG was set
+    logging.basicConfig(level=logging.INFO, stream=sys.stderr,
+                        format=f"[{spec.component_name} %(process)d] %(levelname)s %(name)s: %(message)s")
+    if spec.recipe_path is not None:
+        _import_recipe(spec.recipe_path)
+    component = spec.build()
+    transport = resolve_transport(spec.transport, **decode_value(spec.transport_options))
+    commands: queue.SimpleQueue[str] = queue.SimpleQueue()
+    for sig in (signal.SIGTERM, signal.SIGINT):
+        signal.signal(sig, lambda *_: commands.put("signal"))
+    threading.Thread(target=_read_commands, args=(stdin, commands), name="launcher-pipe", daemon=True).start()
+    try:
+        component.runtime.bind(transport)
+        component.configure()
+        component.activate()
+        reporter.send(state=component.lifecycle_state.value)
+        while True:
+            command = commands.get()
+            if command == "deactivate":
+                component.deactivate()
+                reporter.send(state=component.lifecycle_state.value)
+            elif command == "shutdown":
+                break
+            elif command in ("eof", "signal"):
+                # The launcher is gone (or a signal came): stop now, and never hang doing it.
+                _exit_soon(0)
+                component.hurry_shutdown()
+                break
+    finally:
+        try:
+            component.shutdown()
+        finally:
+            transport.close()
+    reporter.send(state="finalized")
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m agents_core.processes.child", description=__doc__)
+    parser.add_argument("--report-fd", type=int, required=True, help="inherited pipe to report states on")
+    args = parser.parse_args(argv)
+    set_parent_death_signal(signal.SIGTERM)
+    reporter = _Reporter(args.report_fd)
+    stdin = sys.stdin.buffer
+    spec_line = stdin.readline(MAX_SPEC_BYTES)
+    if not spec_line.endswith(b"\n"):
+        reporter.send(error="no complete component spec on stdin")
+        return 2
+    try:
+        return run(spec_line, reporter, stdin)
+    except Exception as exc:
+        logger.exception("component process failed")
+        reporter.send(error=f"{type(exc).__name__}: {exc}")
+        return 1
+
+
+if __name__ == "__main__":
+    status = main()
+    # The component and its transport are closed; the thread still reading the launcher's pipe
+    # would make a normal interpreter exit wait on stdin's lock, so leave at once.
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(status)

@@ -1,0 +1,329 @@
+"""``ComponentSpec``: everything a child process needs to rebuild one component, as JSON-like data.
+
+A component records the arguments it was constructed with (``Component.__new__``); the spec
+holds its class (``module:qualname``), those arguments encoded through a **value-codec registry**
+(topics, configs, models and other attrs data, model and database clients through their own
+``serialize()``, enums, paths, plain JSON values), the component's config as it is at launch
+(a config file may have changed it), and how to reach the transport. A class defined in the
+recipe itself (the ``__main__`` module) is named ``RECIPE_MODULE:qualname``; the child imports
+the recipe file by path under that module name, so its ``if __name__ == "__main__":`` block
+does not run.
+
+A spec may hold secrets (a client's API key): it travels over a pipe, never in argv, the
+environment or a file. ``SPEC_VERSION`` is checked by the child, so a launcher and a child
+from different releases fail with a clear error instead of building something else.
+"""
+
+from __future__ import annotations
+
+import enum
+import importlib
+import inspect
+import sys
+from collections.abc import Callable, Mapping
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import attrs
+
+from ..config import BaseAttrs
+from ..errors import ConfigError
+from ..registry import Registry
+from ..topics import FixedInput, QoSConfig, Topic
+
+if TYPE_CHECKING:
+    from ..components.component_base import Component
+
+__all__ = [
+    "RECIPE_MODULE",
+    "SPEC_VERSION",
+    "ComponentSpec",
+    "ValueCodec",
+    "check_rebuild",
+    "class_path",
+    "decode_value",
+    "encode_value",
+    "import_class",
+    "register_value_codec",
+]
+
+SPEC_VERSION = 1
+#: The module name a child imports the recipe file under.
+RECIPE_MODULE = "agents_recipe"
+#: Marks an encoded (non-JSON) value: ``{TAG: codec name, "v": data}``.
+TAG = "__agents_value__"
+
+
+def class_path(cls: type) -> str:
+    """``module:qualname`` of ``cls``; classes of the running recipe (``__main__``) get RECIPE_MODULE."""
+    if "<locals>" in cls.__qualname__:
+        raise ConfigError(f"class {cls.__qualname__!r} is defined inside a function: another process cannot "
+                          "import it; define it at the top level of a module or of the recipe")
+    module = RECIPE_MODULE if cls.__module__ == "__main__" else cls.__module__
+    return f"{module}:{cls.__qualname__}"
+
+
+def import_class(path: str) -> Any:
+    """The object named by ``module:qualname`` (the recipe module must be imported first)."""
+    module_name, sep, qualname = path.partition(":")
+    if not sep or not module_name or not qualname:
+        raise ConfigError(f"{path!r} is not a 'module:qualname' class path")
+    try:
+        obj: Any = importlib.import_module(module_name)
+        for part in qualname.split("."):
+            obj = getattr(obj, part)
+    except (ImportError, AttributeError) as exc:
+        raise ConfigError(f"cannot import {path!r}: {exc}") from exc
+    return obj
+
+
+# -- the value codecs -------------------------------------------------------------------------
+
+
+@attrs.define(frozen=True)
+class ValueCodec:
+    """How one kind of value crosses to another process: ``encode(value) -> JSON-like`` and back."""
+
+    name: str
+    kind: type
+    encode: Callable[[Any], Any]
+    decode: Callable[[Any], Any]
+
+
+_codecs: Registry[ValueCodec] = Registry("process value codec", hint="register it with register_value_codec()")
+_by_class: Registry[ValueCodec] = Registry("process value codec")
+
+
+def register_value_codec(codec: ValueCodec) -> ValueCodec:
+    """Make values of ``codec.kind`` (and its subclasses) transferable to component processes."""
+    _codecs.register(codec.name, codec, replace=True)
+    _by_class.register(codec.kind.__name__, codec, replace=True)
+    return codec
+
+
+def encode_value(value: Any, where: str = "value") -> Any:
+    """``value`` as JSON-like data a child process can decode; ConfigError naming ``where`` if it cannot."""
+    if value is None or isinstance(value, bool | int | float | str):
+        return value
+    if isinstance(value, list):
+        return [encode_value(v, f"{where}[{i}]") for i, v in enumerate(value)]
+    if isinstance(value, dict) and all(isinstance(k, str) for k in value) and TAG not in value:
+        return {k: encode_value(v, f"{where}[{k!r}]") for k, v in value.items()}
+    codec = _by_class.find_for_class(type(value))
+    if codec is None:
+        raise ConfigError(f"{where}: a {type(value).__name__} cannot be sent to a component process (known: "
+                          f"JSON values, {', '.join(sorted(_codecs))}); build it in the component instead")
+    return {TAG: codec.name, "v": codec.encode(value)}
+
+
+def decode_value(data: Any) -> Any:
+    """The value :func:`encode_value` encoded."""
+    if isinstance(data, list):
+        return [decode_value(v) for v in data]
+    if isinstance(data, dict):
+        if TAG in data:
+            return _codecs.get(str(data[TAG])).decode(data.get("v"))
+        return {k: decode_value(v) for k, v in data.items()}
+    return data
+
+
+def _encode_topic(topic: Topic) -> dict[str, Any]:
+    out: dict[str, Any] = {"name": topic.name, "msg_type": topic.type_name,
+                           "qos": attrs.asdict(topic.qos_profile)}
+    if isinstance(topic, FixedInput):
+        out["fixed"] = encode_value(topic.fixed, f"FixedInput {topic.name!r}")
+    return out
+
+
+def _decode_topic(data: dict[str, Any]) -> Topic:
+    qos = QoSConfig(**data["qos"])
+    if "fixed" in data:
+        return FixedInput(data["name"], data["msg_type"], fixed=decode_value(data["fixed"]), qos_profile=qos)
+    return Topic(data["name"], data["msg_type"], qos_profile=qos)
+
+
+def _encode_attrs(value: BaseAttrs) -> dict[str, Any]:
+    fields = {a.alias: encode_value(getattr(value, a.name), f"{type(value).__name__}.{a.name}")
+              for a in attrs.fields(type(value)) if a.init}
+    return {"class": class_path(type(value)), "fields": fields}
+
+
+def _decode_attrs(data: dict[str, Any]) -> Any:
+    cls = import_class(data["class"])
+    return cls(**{k: decode_value(v) for k, v in data["fields"].items()})
+
+
+def _encode_client(client: Any) -> dict[str, Any]:
+    return {"class": class_path(type(client)), "spec": client.serialize()}
+
+
+def _decode_client(data: dict[str, Any]) -> Any:
+    from ..clients.client_base import client_from_spec  # noqa: PLC0415  # clients load httpx: only when used
+
+    import_class(data["class"])  # registers a client class defined in the recipe or a user module
+    return client_from_spec(dict(data["spec"]))
+
+
+def _encode_enum(value: enum.Enum) -> dict[str, Any]:
+    return {"class": class_path(type(value)), "name": value.name}
+
+
+def _register_builtin_codecs() -> None:
+    from ..clients.client_base import BaseClient  # noqa: PLC0415
+
+    register_value_codec(ValueCodec("topic", Topic, _encode_topic, _decode_topic))
+    register_value_codec(ValueCodec("attrs", BaseAttrs, _encode_attrs, _decode_attrs))
+    register_value_codec(ValueCodec("client", BaseClient, _encode_client, _decode_client))
+    register_value_codec(ValueCodec("enum", enum.Enum, _encode_enum,
+                                    lambda d: getattr(import_class(d["class"]), d["name"])))
+    register_value_codec(ValueCodec("path", Path, str, Path))
+    register_value_codec(ValueCodec("tuple", tuple, lambda t: [encode_value(v) for v in t],
+                                    lambda d: tuple(decode_value(v) for v in d)))
+
+
+_register_builtin_codecs()
+
+
+# -- the spec ---------------------------------------------------------------------------------
+
+
+@attrs.define(kw_only=True)
+class ComponentSpec:
+    """One component, as a child process rebuilds it (see the module docstring)."""
+
+    component_name: str
+    component_class: str
+    args: list[Any]
+    kwargs: dict[str, Any]
+    transport: str
+    transport_options: dict[str, Any]
+    recipe_path: str | None = None
+    parent_pid: int = 0
+    version: int = SPEC_VERSION
+
+    @classmethod
+    def from_component(cls, component: Component, transport: str, transport_options: Mapping[str, Any],
+                       parent_pid: int) -> ComponentSpec:
+        """The spec of ``component``; ConfigError naming the component for what cannot cross processes."""
+        name = component.component_name
+        where = f"component {name!r}"
+        args, kwargs = getattr(component, "_init_arguments", ((), {}))
+        bound = _bind_config(component, args, kwargs)
+        spec = cls(component_name=name, component_class=class_path(type(component)),
+                   args=[encode_value(a, f"{where}: argument {i}") for i, a in enumerate(bound[0])],
+                   kwargs={k: encode_value(v, f"{where}: argument {k!r}") for k, v in bound[1].items()},
+                   transport=transport,
+                   transport_options={k: encode_value(v, f"transport option {k!r}")
+                                      for k, v in transport_options.items()},
+                   parent_pid=parent_pid)
+        if type(component).__module__ == "__main__" or _mentions_recipe(spec):
+            main_file = getattr(sys.modules.get("__main__"), "__file__", None)
+            if main_file is None:
+                raise ConfigError(f"{where} uses a class defined in an interactive session; multiprocessing "
+                                  "needs it in a module or a recipe file")
+            spec.recipe_path = str(Path(main_file).resolve())
+        return spec
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-like form (what goes down the pipe)."""
+        return attrs.asdict(self)
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> ComponentSpec:
+        """Check the version and the fields; ConfigError on anything unexpected."""
+        if not isinstance(data, Mapping):
+            raise ConfigError("a component spec must be a mapping")
+        if data.get("version") != SPEC_VERSION:
+            raise ConfigError(f"component spec version {data.get('version')!r} is not the supported "
+                              f"{SPEC_VERSION}: the launcher and the child come from different releases")
+        names = {a.name for a in attrs.fields(cls)}
+        unknown = sorted(set(data) - names)
+        if unknown:
+            raise ConfigError(f"component spec: unknown field(s) {unknown}")
+        try:
+            return cls(**data)
+        except TypeError as exc:
+            raise ConfigError(f"component spec: {exc}") from exc
+
+    def build(self) -> Component:
+        """Import the component's class and construct it from the decoded arguments."""
+        from ..components.component_base import Component  # noqa: PLC0415
+
+        component_class = import_class(self.component_class)
+        if not (isinstance(component_class, type) and issubclass(component_class, Component)):
+            raise ConfigError(f"{self.component_class!r} is not a Component class")
+        component: Component = component_class(*decode_value(self.args), **decode_value(self.kwargs))
+        return component
+
+    def __repr__(self) -> str:
+        # Never the arguments: a client's spec may hold an API key.
+        return f"ComponentSpec({self.component_name!r}, {self.component_class!r}, transport={self.transport!r})"
+
+
+def _mentions_recipe(spec: ComponentSpec) -> bool:
+    return f'"{RECIPE_MODULE}:' in repr(spec.to_dict()).replace("'", '"')
+
+
+def _bind_config(component: Component, args: tuple[Any, ...],
+                 kwargs: dict[str, Any]) -> tuple[tuple[Any, ...], dict[str, Any]]:
+    """The constructor arguments with ``config`` replaced by the component's config as it is now.
+
+    A launcher's config file (or code run after construction) may have changed the config; the
+    child must start from what the parent would have run. The arguments are normalised to
+    keywords where the signature allows it.
+    """
+    try:
+        signature = inspect.signature(type(component).__init__)
+        bound = signature.bind(None, *args, **kwargs)
+    except TypeError:
+        return args, kwargs
+    arguments = dict(bound.arguments)
+    arguments.pop(next(iter(signature.parameters)), None)  # self
+    has_config = "config" in signature.parameters or any(
+        p.kind is inspect.Parameter.VAR_KEYWORD for p in signature.parameters.values())
+    positional: list[Any] = []
+    keywords: dict[str, Any] = {}
+    for name, value in arguments.items():
+        param = signature.parameters[name]
+        if param.kind is inspect.Parameter.VAR_POSITIONAL:
+            positional.extend(value)
+        elif param.kind is inspect.Parameter.VAR_KEYWORD:
+            keywords.update(value)
+        elif param.kind is inspect.Parameter.POSITIONAL_ONLY:
+            positional.append(value)
+        else:
+            keywords[name] = value
+    if has_config and "config_file" not in keywords:
+        keywords["config"] = component.config
+    return tuple(positional), keywords
+
+
+def _extra_state(component: Component) -> dict[str, int]:
+    """What a component holds beyond its constructor's doing that a child could not rebuild."""
+    return {"fallbacks": len(component._fallbacks) + len(component._giveup_actions),
+            "publisher pre-processors": sum(len(p._preprocessors) for p in component.publishers_dict.values()),
+            "callback post-processors": sum(len(cb._postprocessors) for cb in
+                                            (*component.callbacks.values(), *component.trig_callbacks.values()))}
+
+
+def check_rebuild(component: Component, spec: ComponentSpec) -> None:
+    """Rebuild ``component`` from ``spec`` here, and refuse state added after construction.
+
+    The child would silently lack fallbacks or processors that the recipe added to the
+    component after building it; this fails in the parent, naming the component, instead.
+    """
+    where = f"component {component.component_name!r}"
+    from ..events import Event  # noqa: PLC0415
+
+    if isinstance(component.trigger, Event):
+        raise ConfigError(f"{where} is triggered by an event, which multiprocessing does not carry yet; trigger it "
+                          "with a topic, or run it with multiprocessing=False")
+    if spec.recipe_path is not None and RECIPE_MODULE not in sys.modules:
+        # In the launcher's process the recipe is __main__: the same module under the child's name.
+        sys.modules[RECIPE_MODULE] = sys.modules["__main__"]
+    rebuilt = spec.build()
+    before, after = _extra_state(component), _extra_state(rebuilt)
+    for what, count in before.items():
+        if count != after[what]:
+            raise ConfigError(f"{where}: {what} added after construction are not carried to a component process; "
+                              "add them in the component's __init__, or run it with multiprocessing=False")

@@ -1,0 +1,319 @@
+"""``Supervisor``: starts one process per component, respawns crashed ones, stops them in order.
+
+Every child is started by the supervisor's own thread (``PR_SET_PDEATHSIG`` fires when the
+*thread* that started a child ends, so that thread lives as long as the supervisor). A child
+that exits while it should run is respawned after a backoff (``backoff_s`` doubled per
+consecutive crash, at most ``max_backoff_s``), up to ``max_retries`` times; then the supervisor
+logs the give-up and calls ``on_giveup(component_name)``. After a crash, the shared-memory
+segments the child had mapped (Zenoh's, Fast DDS's) are unlinked, so none is left in /dev/shm.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import logging
+import os
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Callable, Sequence
+from typing import IO, Any
+
+from ..errors import ComponentError
+from .spec import ComponentSpec
+
+__all__ = ["ChildProcess", "Supervisor"]
+
+logger = logging.getLogger(__name__)
+
+_POLL_S = 0.01
+_SHM_DIR = "/dev/shm/"
+
+
+def _mapped_shm(pid: int) -> set[str]:
+    """The /dev/shm files process ``pid`` maps now (empty when it is gone)."""
+    found: set[str] = set()
+    try:
+        with open(f"/proc/{pid}/maps", encoding="utf-8", errors="replace") as maps:
+            for line in maps:
+                path = line.rstrip("\n").split(maxsplit=5)[-1]
+                if path.startswith(_SHM_DIR) and "/" not in path[len(_SHM_DIR):]:
+                    found.add(path.removesuffix(" (deleted)"))
+    except OSError:
+        pass
+    return found
+
+
+def _still_mapped(paths: set[str]) -> set[str]:
+    """Those of ``paths`` some live process maps (a segment shared with others stays)."""
+    used: set[str] = set()
+    for entry in os.listdir("/proc"):
+        if entry.isdigit():
+            used |= _mapped_shm(int(entry)) & paths
+            if used == paths:
+                break
+    return used
+
+
+class ChildProcess:
+    """One component's process, its reports and its history."""
+
+    def __init__(self, spec: ComponentSpec) -> None:
+        self.spec = spec
+        self.name = spec.component_name
+        self.proc: subprocess.Popen[bytes] | None = None
+        self.state = "unconfigured"
+        self.error: str | None = None
+        self.restarts = 0
+        self.crashes = 0
+        self.gave_up = False
+        self.respawn_at: float | None = None
+        self.shm: set[str] = set()
+        self.state_changed = threading.Condition()
+        self._reader: threading.Thread | None = None
+
+    @property
+    def pid(self) -> int | None:
+        return self.proc.pid if self.proc is not None else None
+
+    def spawn(self) -> None:
+        """Start the process and write its spec (with the launcher's pid) to its stdin."""
+        read_fd, write_fd = os.pipe()
+        try:
+            self.proc = subprocess.Popen(
+                [sys.executable, "-m", "agents_core.processes.child", "--report-fd", str(write_fd)],
+                stdin=subprocess.PIPE, pass_fds=(write_fd,), close_fds=True)
+        finally:
+            os.close(write_fd)
+        with self.state_changed:
+            self.state, self.error = "starting", None
+        self._reader = threading.Thread(target=self._read_reports, args=(os.fdopen(read_fd, "r"),),
+                                        name=f"reports:{self.name}", daemon=True)
+        self._reader.start()
+        self.send(json.dumps(self.spec.to_dict()))
+
+    def send(self, line: str) -> bool:
+        """Write one line to the child's stdin; False when it is gone."""
+        proc = self.proc
+        if proc is None or proc.stdin is None:
+            return False
+        try:
+            proc.stdin.write(line.encode("utf-8") + b"\n")
+            proc.stdin.flush()
+            return True
+        except (BrokenPipeError, OSError, ValueError):
+            return False
+
+    def _read_reports(self, pipe: IO[str]) -> None:
+        with pipe:
+            for line in pipe:
+                try:
+                    report = json.loads(line)
+                except json.JSONDecodeError:
+                    continue
+                with self.state_changed:
+                    if "state" in report:
+                        self.state = str(report["state"])
+                    if "error" in report:
+                        self.error = str(report["error"])[:2000]
+                    self.state_changed.notify_all()
+        with self.state_changed:
+            self.state_changed.notify_all()
+
+    def wait_state(self, states: Sequence[str], timeout: float) -> bool:
+        """Wait until the child reports one of ``states``; False on timeout or when it exits first."""
+        deadline = time.monotonic() + timeout
+        with self.state_changed:
+            while self.state not in states:
+                if self.proc is not None and self.proc.poll() is not None and self.state not in states:
+                    return False
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    return False
+                self.state_changed.wait(min(left, 0.05))
+        return True
+
+    def close_pipes(self) -> None:
+        proc = self.proc
+        if proc is not None and proc.stdin is not None:
+            with contextlib.suppress(OSError):
+                proc.stdin.close()
+
+    def remove_leftover_shm(self) -> None:
+        """Unlink the shared-memory files the dead child mapped and no other process of ours maps."""
+        for path in sorted(self.shm - _still_mapped(self.shm)):
+            try:
+                os.unlink(path)
+                logger.debug("removed %s left by the crashed process of %r", path, self.name)
+            except FileNotFoundError:
+                pass
+            except OSError as exc:
+                logger.warning("could not remove %s left by %r: %s", path, self.name, exc)
+        self.shm.clear()
+
+
+class Supervisor:
+    """Runs ``specs`` as child processes (see the module docstring)."""
+
+    def __init__(self, specs: Sequence[ComponentSpec], *, max_retries: int = 3,
+                 on_giveup: Callable[[str], None] | None = None, backoff_s: float = 0.05,
+                 max_backoff_s: float = 2.0, start_timeout: float = 60.0) -> None:
+        self.children = [ChildProcess(spec) for spec in specs]
+        self.max_retries = max_retries
+        self.backoff_s = backoff_s
+        self.max_backoff_s = max_backoff_s
+        self.start_timeout = start_timeout
+        self._on_giveup = on_giveup
+        self._stopping = threading.Event()
+        self._spawn_requests: list[tuple[ChildProcess, threading.Event]] = []
+        self._lock = threading.Lock()
+        self._thread: threading.Thread | None = None
+
+    def child(self, name: str) -> ChildProcess:
+        for c in self.children:
+            if c.name == name:
+                return c
+        raise ComponentError(f"no component process named {name!r}")
+
+    # -- starting -------------------------------------------------------------------------------
+
+    def start(self) -> None:
+        """Start every child and wait until all are active; ComponentError naming the first that is not."""
+        self._thread = threading.Thread(target=self._run, name="component-supervisor", daemon=True)
+        self._thread.start()
+        for child in self.children:
+            self._spawn_on_thread(child)
+        deadline = time.monotonic() + self.start_timeout
+        for child in self.children:
+            if not child.wait_state(("active",), max(0.0, deadline - time.monotonic())):
+                rc = child.proc.poll() if child.proc is not None else None
+                why = child.error or (f"its process exited with status {rc}" if rc is not None
+                                      else f"not active after {self.start_timeout:g} s")
+                raise ComponentError(f"component {child.name!r} did not start in its process: {why}")
+
+    def _spawn_on_thread(self, child: ChildProcess) -> None:
+        done = threading.Event()
+        with self._lock:
+            self._spawn_requests.append((child, done))
+        if not done.wait(30.0):
+            raise ComponentError(f"component {child.name!r}: the supervisor did not start its process")
+        if child.proc is None:
+            raise ComponentError(f"component {child.name!r}: its process could not be started: {child.error}")
+
+    def all_active(self) -> bool:
+        return all(c.state == "active" for c in self.children)
+
+    # -- the supervisor's thread ----------------------------------------------------------------
+
+    def _run(self) -> None:
+        last_shm_scan = 0.0
+        while not self._stopping.is_set():
+            with self._lock:
+                requests, self._spawn_requests = self._spawn_requests, []
+            for child, done in requests:
+                self._spawn(child)
+                done.set()
+            now = time.monotonic()
+            scan = now - last_shm_scan > 0.5
+            if scan:
+                last_shm_scan = now
+            for child in self.children:
+                self._watch(child, now, scan)
+            time.sleep(_POLL_S)
+        with self._lock:
+            requests, self._spawn_requests = self._spawn_requests, []
+        for _, done in requests:
+            done.set()
+
+    def _spawn(self, child: ChildProcess) -> None:
+        try:
+            child.spawn()
+        except OSError as exc:
+            child.error = f"cannot start a process: {exc}"
+            child.proc = None
+
+    def _watch(self, child: ChildProcess, now: float, scan_shm: bool) -> None:
+        proc = child.proc
+        if proc is None:
+            return
+        if child.respawn_at is not None:
+            if now >= child.respawn_at and not self._stopping.is_set():
+                child.respawn_at = None
+                child.restarts += 1
+                logger.info("respawning the process of %r (restart %d of %d)", child.name, child.restarts,
+                            self.max_retries)
+                self._spawn(child)
+            return
+        code = proc.poll()
+        if code is None:
+            if scan_shm or (child.state == "active" and not child.shm):
+                child.shm |= _mapped_shm(proc.pid)
+            return
+        if child.gave_up or child.state == "finalized" or self._stopping.is_set():
+            return
+        child.crashes += 1
+        child.close_pipes()
+        child.remove_leftover_shm()
+        with child.state_changed:
+            child.state = "crashed"
+            child.state_changed.notify_all()
+        logger.error("the process of component %r (pid %d) exited with status %s", child.name, proc.pid, code)
+        if child.restarts >= self.max_retries:
+            child.gave_up = True
+            logger.error("giving up on component %r after %d restart(s)", child.name, child.restarts)
+            if self._on_giveup is not None:
+                try:
+                    self._on_giveup(child.name)
+                except Exception:
+                    logger.exception("the give-up action for %r failed", child.name)
+            return
+        delay = min(self.backoff_s * 2 ** child.restarts, self.max_backoff_s) if child.restarts else 0.0
+        child.respawn_at = now + delay
+
+    # -- stopping -------------------------------------------------------------------------------
+
+    def stop(self, timeout: float = 10.0) -> None:
+        """Deactivate every child in reverse order, then shut each down; terminate or kill stragglers."""
+        self._stopping.set()
+        if self._thread is not None:
+            self._thread.join(timeout=5.0)
+        running = [c for c in reversed(self.children) if c.proc is not None and c.proc.poll() is None]
+        for child in running:
+            if child.state == "active" and child.send("deactivate"):
+                child.wait_state(("inactive",), timeout)
+        for child in running:
+            child.send("shutdown")
+            self._reap(child, timeout)
+        for child in self.children:
+            if child.proc is not None:
+                self._reap(child, 0.0)
+                child.close_pipes()
+                if child.proc.returncode not in (0, None):
+                    child.remove_leftover_shm()
+                child.shm.clear()
+
+    @staticmethod
+    def _reap(child: ChildProcess, timeout: float) -> None:
+        proc = child.proc
+        assert proc is not None
+        for step, wait in ((None, timeout), (proc.terminate, 2.0), (proc.kill, 5.0)):
+            if step is not None:
+                if proc.poll() is not None:
+                    break
+                step()
+            try:
+                proc.wait(timeout=wait)
+                break
+            except subprocess.TimeoutExpired:
+                continue
+
+    def pids(self) -> dict[str, int | None]:
+        """The current process id of each component."""
+        return {c.name: c.pid for c in self.children}
+
+    def describe(self) -> list[dict[str, Any]]:
+        """Name, pid, state, restarts of each child (for logs and tools)."""
+        return [{"name": c.name, "pid": c.pid, "state": c.state, "restarts": c.restarts, "crashes": c.crashes,
+                 "gave_up": c.gave_up} for c in self.children]
