@@ -55,7 +55,7 @@ def tests(session: nox.Session) -> None:
     Markers select subsets: ``nox -s tests -- -m zenoh``, ``-- -m "not ros2"``, ``-- -m conformance``.
     """
     # voice-gpl (espeak-ng, GPL-3.0) only in this test environment, never in the core install.
-    _install_with_local_models(session, "dev,zenoh,ros2,local,voice,voice-gpl,roboml,servers")
+    _install_with_local_models(session, "dev,zenoh,ros2,local,voice,voice-gpl,roboml,servers,cli")
     _install_ros2_interfaces(session)
     _private_ros_discovery(session)
     session.run("pytest", *(session.posargs or ["tests"]))
@@ -89,7 +89,7 @@ def lint(session: nox.Session) -> None:
 @nox.session
 def types(session: nox.Session) -> None:
     """mypy --strict on src/."""
-    session.install("-e", ".[dev,zenoh]")
+    session.install("-e", ".[dev,zenoh,cli]")
     session.run("mypy", "src")
 
 

@@ -30,6 +30,7 @@ The full wire format is in ``docs/zenoh-wire-format.md``.
 from __future__ import annotations
 
 import logging
+import os
 import time
 from typing import TYPE_CHECKING, Any
 
@@ -60,7 +61,7 @@ from .pubsub import ZenohPublisher, ZenohSubscription
 from .queryables import ZenohPresence, ZenohService, read_reply
 from .session import open_session
 
-__all__ = ["ZenohDriver", "ZenohTransport"]
+__all__ = ["ZenohDriver", "ZenohTransport", "options_from_environment"]
 
 logger = logging.getLogger(__name__)
 
@@ -180,16 +181,44 @@ class ZenohDriver:
         return f"<ZenohDriver mode={self.config.mode or 'peer'} namespace={self.config.namespace!r}>"
 
 
+#: Environment variables read for the options not given explicitly (what ``agentsctl run --connect`` sets).
+MODE_ENV_VAR = "AGENTS_ZENOH_MODE"
+CONNECT_ENV_VAR = "AGENTS_ZENOH_CONNECT"
+LISTEN_ENV_VAR = "AGENTS_ZENOH_LISTEN"
+
+
+def options_from_environment() -> dict[str, Any]:
+    """ZenohConfig fields from ``AGENTS_ZENOH_MODE`` and the comma-separated ``AGENTS_ZENOH_CONNECT`` / ``_LISTEN``.
+
+    So a recipe that says only ``Launcher()`` (or ``Launcher(transport="zenoh")``) can be pointed at a
+    router from outside: ``AGENTS_ZENOH_CONNECT=tcp/10.0.0.2:7447`` makes it a client of that router
+    unless ``AGENTS_ZENOH_MODE`` says otherwise. Explicit options win over these.
+    """
+    found: dict[str, Any] = {}
+    for key, var in (("connect", CONNECT_ENV_VAR), ("listen", LISTEN_ENV_VAR)):
+        raw = os.environ.get(var, "").strip()
+        if raw:
+            found[key] = [ep.strip() for ep in raw.split(",") if ep.strip()]
+    mode = os.environ.get(MODE_ENV_VAR, "").strip()
+    if mode:
+        found["mode"] = mode
+    elif "connect" in found and "listen" not in found:
+        found["mode"] = "client"
+    return found
+
+
 class ZenohTransport(DriverTransport):
     """The core's transport on one Zenoh session (see the module docstring).
 
     :param config: a :class:`ZenohConfig`; or pass its fields as keyword options instead
-        (what ``Launcher(transport="zenoh", transport_options={...})`` does).
+        (what ``Launcher(transport="zenoh", transport_options={...})`` does). With options, the
+        ones not given are read from the environment (:func:`options_from_environment`).
     """
 
     def __init__(self, config: ZenohConfig | None = None, **options: Any) -> None:
         if config is None:
-            config = ZenohConfig.from_dict(options, source="ZenohTransport options")
+            config = ZenohConfig.from_dict({**options_from_environment(), **options},
+                                           source="ZenohTransport options")
         elif options:
             raise ConfigError("pass either config=ZenohConfig(...) or its fields as options, not both")
         elif not isinstance(config, ZenohConfig):

@@ -1,0 +1,84 @@
+"""The ``agentsctl`` command tree: ``run``, ``topics``, ``components``, ``call``, ``router``."""
+
+from __future__ import annotations
+
+import os
+import runpy
+import sys
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from ..errors import ConfigError
+from ..transport.registry import TRANSPORT_ENV_VAR
+from . import components, topics
+from .connection import fail, one_line_errors
+from .output import console, print_json
+
+__all__ = ["app"]
+
+#: Read by ``ZenohTransport`` for options a recipe does not give (see agents_zenoh.transport).
+ZENOH_CONNECT_ENV_VAR = "AGENTS_ZENOH_CONNECT"
+ZENOH_MODE_ENV_VAR = "AGENTS_ZENOH_MODE"
+
+app = typer.Typer(name="agentsctl", no_args_is_help=True, add_completion=False, pretty_exceptions_enable=False,
+                  help="Run agents_core recipes and inspect a live graph on Zenoh or ROS 2.")
+app.add_typer(topics.app, name="topics")
+app.add_typer(components.app, name="components")
+app.command("call")(components.call)
+
+
+@app.command("run", context_settings={"allow_extra_args": True, "ignore_unknown_options": True})
+def run(ctx: typer.Context,
+        recipe: Annotated[Path, typer.Argument(help="the recipe file, run as __main__")],
+        transport: Annotated[str | None, typer.Option(
+            "--transport", "-t", help="memory, zenoh or ros2 (sets AGENTS_TRANSPORT for Launcher())")] = None,
+        connect: Annotated[list[str] | None, typer.Option(
+            "--connect", "-c", help="Zenoh endpoint(s) to connect to, e.g. a router; makes the recipe a client "
+                                    "unless --mode says otherwise")] = None,
+        mode: Annotated[str | None, typer.Option("--mode", help="Zenoh session mode: peer, client or router")] = None,
+        ) -> None:
+    """Run a recipe file as ``__main__`` (extra arguments go to the recipe's ``sys.argv``)."""
+    if not recipe.is_file():
+        raise fail(f"recipe {str(recipe)!r} is not a file")
+    if transport is not None:
+        if transport.strip().lower() not in ("memory", "zenoh", "ros2"):
+            raise fail(f"unknown transport {transport!r}; use memory, zenoh or ros2")
+        os.environ[TRANSPORT_ENV_VAR] = transport.strip().lower()
+    if connect:
+        os.environ[ZENOH_CONNECT_ENV_VAR] = ",".join(connect)
+    if mode is not None:
+        if mode not in ("peer", "client", "router"):
+            raise fail(f"unknown Zenoh mode {mode!r}; use peer, client or router")
+        os.environ[ZENOH_MODE_ENV_VAR] = mode
+    path = str(recipe.resolve())
+    sys.argv = [path, *ctx.args]
+    # The recipe's own imports (a module beside it) work as with `python recipe.py`.
+    sys.path.insert(0, str(recipe.resolve().parent))
+    runpy.run_path(path, run_name="__main__")
+
+
+@app.command("router")
+@one_line_errors
+def router(listen: Annotated[list[str], typer.Option("--listen", "-l", help="endpoint to listen on, e.g. "
+                                                     "tcp/0.0.0.0:7447 (repeatable)")],
+           connect: Annotated[list[str] | None,
+                              typer.Option("--connect", "-c", help="other routers to link to")] = None,
+           json_out: Annotated[bool, typer.Option("--json", help="print the ready line as JSON")] = False) -> None:
+    """Run a Zenoh router (for recipes on several machines) until Ctrl-C or SIGTERM."""
+    try:
+        from agents_zenoh.router import serve_router  # noqa: PLC0415 - needs the zenoh extra
+    except ImportError as exc:
+        raise ConfigError(f"the router needs the 'zenoh' extra ({exc}); pip install 'agents-core[zenoh]'") from None
+
+    def ready(session: object) -> None:
+        zid = str(session.info.zid())  # type: ignore[attr-defined]
+        if json_out:
+            print_json({"router": zid, "listen": listen, "connect": connect or []})
+        else:
+            console.print(f"Zenoh router {zid} listening on {', '.join(listen)}")
+        sys.stdout.flush()
+
+    serve_router(list(listen), list(connect or []), on_ready=ready)
+

@@ -1,0 +1,74 @@
+"""How the CLI opens a transport to look at a running graph, and the one-line error exit."""
+
+from __future__ import annotations
+
+import contextlib
+import functools
+import os
+import sys
+from collections.abc import Callable, Iterator
+from typing import Any, TypeVar
+
+import typer
+
+from ..errors import AgentsError, ConfigError
+from ..transport.contract import Transport
+from ..transport.core import DriverTransport
+from ..transport.registry import TRANSPORT_ENV_VAR, resolve_transport
+
+__all__ = ["DEFAULT_TRANSPORT", "fail", "one_line_errors", "open_transport", "transport_default"]
+
+F = TypeVar("F", bound=Callable[..., Any])
+
+#: What the inspection commands use when neither --transport nor AGENTS_TRANSPORT says.
+DEFAULT_TRANSPORT = "zenoh"
+
+
+def transport_default() -> str:
+    """``AGENTS_TRANSPORT`` if set, else :data:`DEFAULT_TRANSPORT`."""
+    return os.environ.get(TRANSPORT_ENV_VAR, "").strip() or DEFAULT_TRANSPORT
+
+
+def fail(message: str, code: int = 1) -> typer.Exit:
+    """Print ``error: <message>`` (one line) on stderr; the caller raises what this returns."""
+    print(f"error: {' '.join(str(message).split())}", file=sys.stderr)
+    return typer.Exit(code)
+
+
+def one_line_errors(func: F) -> F:
+    """Turn the framework's errors (and bad input) into one line on stderr and exit status 1."""
+
+    @functools.wraps(func)
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        try:
+            return func(*args, **kwargs)
+        except (AgentsError, ValueError, TypeError, LookupError) as exc:
+            raise fail(str(exc) or type(exc).__name__) from None
+
+    return wrapper  # type: ignore[return-value]
+
+
+def zenoh_options(connect: list[str] | None) -> dict[str, Any]:
+    """Options for an observer's Zenoh session: a client of ``connect`` if given, else the loopback default."""
+    options: dict[str, Any] = {"zenoh_options": {"scouting/delay": 100}}
+    if connect:
+        options.update(mode="client", connect=list(connect), listen=[])
+    return options
+
+
+@contextlib.contextmanager
+def open_transport(name: str | None, connect: list[str] | None = None) -> Iterator[DriverTransport]:
+    """Open transport ``name`` (None: :func:`transport_default`) as an observer of other processes' graph."""
+    name = (name or transport_default()).strip().lower()
+    if name == "memory":
+        raise ConfigError("the memory transport lives inside one process, so there is nothing to inspect from "
+                          "outside; use --transport zenoh or --transport ros2")
+    if connect and name != "zenoh":
+        raise ConfigError(f"--connect is a Zenoh option; the {name} transport does not take it")
+    transport: Transport = resolve_transport(name, **(zenoh_options(connect) if name == "zenoh" else {}))
+    try:
+        if not isinstance(transport, DriverTransport):
+            raise ConfigError(f"the {name} transport cannot be inspected by the CLI (it is not a DriverTransport)")
+        yield transport
+    finally:
+        transport.close()

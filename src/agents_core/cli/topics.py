@@ -1,0 +1,176 @@
+"""``agentsctl topics list | echo | pub | hz``."""
+
+from __future__ import annotations
+
+import itertools
+import queue
+import threading
+import time
+from typing import Annotated, Any
+
+import typer
+
+from ..errors import ConfigError, UnknownTypeError
+from ..supported_types import SupportedType, get_type
+from ..topics import Topic, validate_topic_name
+from ..transport.core import DriverTransport
+from .connection import one_line_errors, open_transport
+from .output import console, print_json, print_table
+from .values import parse_value, summarize
+
+__all__ = ["app"]
+
+app = typer.Typer(help="List, print, publish and measure topics.", no_args_is_help=True)
+
+TransportOpt = Annotated[str | None, typer.Option("--transport", "-t", help="zenoh or ros2 (default: "
+                                                                              "AGENTS_TRANSPORT, else zenoh)")]
+ConnectOpt = Annotated[list[str] | None, typer.Option(
+    "--connect", "-c", help="Zenoh endpoint to connect to as a client (e.g. a router's tcp/HOST:7447)")]
+JsonOpt = Annotated[bool, typer.Option("--json", help="print JSON instead of tables")]
+DiscoveryOpt = Annotated[float, typer.Option("--discovery-timeout", help="seconds to wait for discovery", min=0.01)]
+
+
+def _topic_name(name: str) -> str:
+    return validate_topic_name(name.lstrip("/"), "topic")
+
+
+def _resolve_type(transport: DriverTransport, name: str, type_name: str | None, timeout: float) -> type[SupportedType]:
+    """The message type of topic ``name``: ``--type`` if given, else what discovery reports."""
+    if type_name is None:
+        info = transport.discover(timeout=timeout).topic(name)
+        if info is None:
+            raise ConfigError(f"unknown topic {name!r}: no publisher or subscriber of it was found on the "
+                              f"{transport.name} transport (give --type to wait for one anyway)")
+        type_name = info.msg_type
+    try:
+        return get_type(type_name)
+    except UnknownTypeError:
+        raise ConfigError(f"topic {name!r} carries {type_name}, which has no agents_core message type") from None
+
+
+@app.command("list")
+@one_line_errors
+def list_topics(transport: TransportOpt = None, connect: ConnectOpt = None, json_out: JsonOpt = False,
+                timeout: DiscoveryOpt = 1.0) -> None:
+    """Every topic with its type and how many publishers and subscribers it has."""
+    with open_transport(transport, connect) as t:
+        graph = t.discover(timeout=timeout)
+    if json_out:
+        print_json([info.to_dict() for info in graph.topics])
+        return
+    print_table("topics", ["topic", "type", "publishers", "subscribers"],
+                [(i.name, i.msg_type, i.publishers, i.subscribers) for i in graph.topics])
+
+
+@app.command("echo")
+@one_line_errors
+def echo(name: Annotated[str, typer.Argument(help="topic name")], transport: TransportOpt = None,
+         connect: ConnectOpt = None, json_out: JsonOpt = False,
+         count: Annotated[int, typer.Option("--count", "-n", help="stop after N messages (0: no limit)", min=0)] = 0,
+         timeout: Annotated[float, typer.Option("--timeout", help="stop after this many seconds", min=0.01)] = 10.0,
+         type_name: Annotated[str | None, typer.Option("--type", help="message type (default: discovered)")] = None,
+         discovery_timeout: DiscoveryOpt = 1.0) -> None:
+    """Print the messages of a topic (arrays and images as shape and dtype, never raw bytes)."""
+    name = _topic_name(name)
+    received: queue.Queue[Any] = queue.Queue(maxsize=1000)
+    deadline = time.monotonic() + timeout
+    shown = 0
+    with open_transport(transport, connect) as t:
+        msg_type = _resolve_type(t, name, type_name, discovery_timeout)
+        subscription = t.create_subscription(Topic(name, msg_type), received.put)
+        try:
+            while (not count or shown < count) and (left := deadline - time.monotonic()) > 0:
+                try:
+                    value = received.get(timeout=min(left, 0.2))
+                except queue.Empty:
+                    continue
+                doc = summarize(value)
+                if json_out:
+                    print_json({"topic": name, "msg_type": msg_type.type_name(), "value": doc})
+                else:
+                    console.print(f"[bold]{name}[/bold] ({msg_type.type_name()})")
+                    console.print(doc)
+                shown += 1
+        finally:
+            subscription.close()
+    if not shown:
+        raise ConfigError(f"no message on {name!r} within {timeout:g} s")
+
+
+@app.command("pub")
+@one_line_errors
+def pub(name: Annotated[str, typer.Argument(help="topic name")],
+        type_name: Annotated[str, typer.Argument(help="message type, e.g. String")],
+        value: Annotated[str, typer.Argument(help="the value: JSON, or a bare string")],
+        transport: TransportOpt = None, connect: ConnectOpt = None, json_out: JsonOpt = False,
+        count: Annotated[int, typer.Option("--count", "-n", help="how many times to publish", min=1)] = 1,
+        rate: Annotated[float, typer.Option("--rate", "-r", help="messages per second", min=0.001)] = 10.0,
+        wait: Annotated[float, typer.Option("--wait", help="seconds to wait for a subscriber first", min=0.0)] = 2.0,
+        ) -> None:
+    """Publish a value on a topic."""
+    name = _topic_name(name)
+    msg_type = get_type(type_name)
+    message = parse_value(msg_type, value)
+    with open_transport(transport, connect) as t:
+        _wait_for_subscriber(t, name, wait)
+        publisher = t.create_publisher(Topic(name, msg_type))
+        try:
+            for i in range(count):
+                publisher.publish(message)
+                if i + 1 < count:
+                    time.sleep(1.0 / rate)
+        finally:
+            publisher.close()
+        # Give a networked middleware a moment to flush before the session closes.
+        time.sleep(0.2)
+    if json_out:
+        print_json({"topic": name, "msg_type": msg_type.type_name(), "published": count})
+    else:
+        console.print(f"published {count} x {msg_type.type_name()} on {name}")
+
+
+def _wait_for_subscriber(transport: DriverTransport, name: str, wait: float) -> None:
+    deadline = time.monotonic() + wait
+    while time.monotonic() < deadline:
+        info = transport.discover(timeout=min(0.5, max(0.01, deadline - time.monotonic()))).topic(name)
+        if info is not None and info.subscribers > 0:
+            return
+        time.sleep(0.05)
+
+
+@app.command("hz")
+@one_line_errors
+def hz(name: Annotated[str, typer.Argument(help="topic name")], transport: TransportOpt = None,
+       connect: ConnectOpt = None, json_out: JsonOpt = False,
+       window: Annotated[float, typer.Option("--window", "-w", help="seconds to measure over", min=0.1)] = 5.0,
+       type_name: Annotated[str | None, typer.Option("--type", help="message type (default: discovered)")] = None,
+       discovery_timeout: DiscoveryOpt = 1.0) -> None:
+    """Measure a topic's message rate over a window."""
+    name = _topic_name(name)
+    stamps: list[float] = []
+    lock = threading.Lock()
+
+    def on_value(_value: Any) -> None:
+        with lock:
+            stamps.append(time.monotonic())
+
+    with open_transport(transport, connect) as t:
+        msg_type = _resolve_type(t, name, type_name, discovery_timeout)
+        subscription = t.create_subscription(Topic(name, msg_type), on_value)
+        try:
+            time.sleep(window)
+        finally:
+            subscription.close()
+    with lock:
+        times = list(stamps)
+    if len(times) < 2:
+        raise ConfigError(f"fewer than two messages on {name!r} in {window:g} s: no rate to measure")
+    gaps = [b - a for a, b in itertools.pairwise(times)]
+    rate = (len(times) - 1) / (times[-1] - times[0])
+    doc = {"topic": name, "msg_type": msg_type.type_name(), "messages": len(times), "rate_hz": rate,
+           "min_gap_s": min(gaps), "max_gap_s": max(gaps), "window_s": window}
+    if json_out:
+        print_json(doc)
+    else:
+        print_table(f"rate of {name}", ["messages", "rate (Hz)", "min gap (s)", "max gap (s)"],
+                    [(len(times), f"{rate:.2f}", f"{min(gaps):.4f}", f"{max(gaps):.4f}")])
