@@ -10,7 +10,7 @@ import typer
 from ..errors import ConfigError, ServiceUnavailableError
 from ..topics import validate_topic_name
 from ..transport.graph import describe_component
-from .connection import one_line_errors, open_transport
+from .connection import discovery_timeout, one_line_errors, open_transport
 from .output import console, print_json, print_table
 from .topics import ConnectOpt, DiscoveryOpt, JsonOpt, TransportOpt
 from .values import parse_call_argument, summarize
@@ -31,11 +31,11 @@ def _component_name(name: str) -> str:
 @app.command("list")
 @one_line_errors
 def list_components(transport: TransportOpt = None, connect: ConnectOpt = None, json_out: JsonOpt = False,
-                    timeout: DiscoveryOpt = 1.0) -> None:
+                    timeout: DiscoveryOpt = None) -> None:
     """Every live agents_core component with its lifecycle state and health."""
     rows: list[dict[str, Any]] = []
     with open_transport(transport, connect) as t:
-        for name in t.discover(timeout=timeout).components:
+        for name in t.discover(timeout=discovery_timeout(t, timeout)).components:
             status = t.get_component_state(name, timeout=2.0)
             rows.append({"name": name, "state": status.lifecycle_state if status else "unknown",
                          "health": status.health if status else "unknown"})

@@ -16,7 +16,7 @@ from ..transport.contract import Transport
 from ..transport.core import DriverTransport
 from ..transport.registry import TRANSPORT_ENV_VAR, resolve_transport
 
-__all__ = ["DEFAULT_TRANSPORT", "fail", "one_line_errors", "open_transport", "transport_default"]
+__all__ = ["DEFAULT_TRANSPORT", "discovery_timeout", "fail", "one_line_errors", "open_transport", "transport_default"]
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -46,6 +46,15 @@ def one_line_errors(func: F) -> F:
             raise fail(str(exc) or type(exc).__name__) from None
 
     return wrapper  # type: ignore[return-value]
+
+
+#: How long discovery may wait by default: DDS takes up to ~2 s to show a new participant the graph.
+DISCOVERY_TIMEOUTS = {"ros2": 4.0}
+
+
+def discovery_timeout(transport: DriverTransport, given: float | None) -> float:
+    """``given``, else the transport's default discovery wait (1 s, more on ROS 2)."""
+    return given if given is not None else DISCOVERY_TIMEOUTS.get(transport.name, 1.0)
 
 
 def zenoh_options(connect: list[str] | None) -> dict[str, Any]:

@@ -14,7 +14,7 @@ from ..errors import ConfigError, UnknownTypeError
 from ..supported_types import SupportedType, get_type
 from ..topics import Topic, validate_topic_name
 from ..transport.core import DriverTransport
-from .connection import one_line_errors, open_transport
+from .connection import discovery_timeout, one_line_errors, open_transport
 from .output import console, print_json, print_table
 from .values import parse_value, summarize
 
@@ -27,17 +27,19 @@ TransportOpt = Annotated[str | None, typer.Option("--transport", "-t", help="zen
 ConnectOpt = Annotated[list[str] | None, typer.Option(
     "--connect", "-c", help="Zenoh endpoint to connect to as a client (e.g. a router's tcp/HOST:7447)")]
 JsonOpt = Annotated[bool, typer.Option("--json", help="print JSON instead of tables")]
-DiscoveryOpt = Annotated[float, typer.Option("--discovery-timeout", help="seconds to wait for discovery", min=0.01)]
+DiscoveryOpt = Annotated[float | None, typer.Option(
+    "--discovery-timeout", help="seconds to wait for discovery (default: 1, on ROS 2: 4)", min=0.01)]
 
 
 def _topic_name(name: str) -> str:
     return validate_topic_name(name.lstrip("/"), "topic")
 
 
-def _resolve_type(transport: DriverTransport, name: str, type_name: str | None, timeout: float) -> type[SupportedType]:
+def _resolve_type(transport: DriverTransport, name: str, type_name: str | None,
+                  timeout: float | None) -> type[SupportedType]:
     """The message type of topic ``name``: ``--type`` if given, else what discovery reports."""
     if type_name is None:
-        info = transport.discover(timeout=timeout).topic(name)
+        info = transport.discover(timeout=discovery_timeout(transport, timeout)).topic(name)
         if info is None:
             raise ConfigError(f"unknown topic {name!r}: no publisher or subscriber of it was found on the "
                               f"{transport.name} transport (give --type to wait for one anyway)")
@@ -51,10 +53,10 @@ def _resolve_type(transport: DriverTransport, name: str, type_name: str | None, 
 @app.command("list")
 @one_line_errors
 def list_topics(transport: TransportOpt = None, connect: ConnectOpt = None, json_out: JsonOpt = False,
-                timeout: DiscoveryOpt = 1.0) -> None:
+                timeout: DiscoveryOpt = None) -> None:
     """Every topic with its type and how many publishers and subscribers it has."""
     with open_transport(transport, connect) as t:
-        graph = t.discover(timeout=timeout)
+        graph = t.discover(timeout=discovery_timeout(t, timeout))
     if json_out:
         print_json([info.to_dict() for info in graph.topics])
         return
@@ -69,14 +71,14 @@ def echo(name: Annotated[str, typer.Argument(help="topic name")], transport: Tra
          count: Annotated[int, typer.Option("--count", "-n", help="stop after N messages (0: no limit)", min=0)] = 0,
          timeout: Annotated[float, typer.Option("--timeout", help="stop after this many seconds", min=0.01)] = 10.0,
          type_name: Annotated[str | None, typer.Option("--type", help="message type (default: discovered)")] = None,
-         discovery_timeout: DiscoveryOpt = 1.0) -> None:
+         discovery_wait: DiscoveryOpt = None) -> None:
     """Print the messages of a topic (arrays and images as shape and dtype, never raw bytes)."""
     name = _topic_name(name)
     received: queue.Queue[Any] = queue.Queue(maxsize=1000)
     deadline = time.monotonic() + timeout
     shown = 0
     with open_transport(transport, connect) as t:
-        msg_type = _resolve_type(t, name, type_name, discovery_timeout)
+        msg_type = _resolve_type(t, name, type_name, discovery_wait)
         subscription = t.create_subscription(Topic(name, msg_type), received.put)
         try:
             while (not count or shown < count) and (left := deadline - time.monotonic()) > 0:
@@ -105,7 +107,7 @@ def pub(name: Annotated[str, typer.Argument(help="topic name")],
         transport: TransportOpt = None, connect: ConnectOpt = None, json_out: JsonOpt = False,
         count: Annotated[int, typer.Option("--count", "-n", help="how many times to publish", min=1)] = 1,
         rate: Annotated[float, typer.Option("--rate", "-r", help="messages per second", min=0.001)] = 10.0,
-        wait: Annotated[float, typer.Option("--wait", help="seconds to wait for a subscriber first", min=0.0)] = 2.0,
+        wait: Annotated[float, typer.Option("--wait", help="seconds to wait for a subscriber first", min=0.0)] = 5.0,
         ) -> None:
     """Publish a value on a topic."""
     name = _topic_name(name)
@@ -144,7 +146,7 @@ def hz(name: Annotated[str, typer.Argument(help="topic name")], transport: Trans
        connect: ConnectOpt = None, json_out: JsonOpt = False,
        window: Annotated[float, typer.Option("--window", "-w", help="seconds to measure over", min=0.1)] = 5.0,
        type_name: Annotated[str | None, typer.Option("--type", help="message type (default: discovered)")] = None,
-       discovery_timeout: DiscoveryOpt = 1.0) -> None:
+       discovery_wait: DiscoveryOpt = None) -> None:
     """Measure a topic's message rate over a window."""
     name = _topic_name(name)
     stamps: list[float] = []
@@ -155,7 +157,7 @@ def hz(name: Annotated[str, typer.Argument(help="topic name")], transport: Trans
             stamps.append(time.monotonic())
 
     with open_transport(transport, connect) as t:
-        msg_type = _resolve_type(t, name, type_name, discovery_timeout)
+        msg_type = _resolve_type(t, name, type_name, discovery_wait)
         subscription = t.create_subscription(Topic(name, msg_type), on_value)
         try:
             time.sleep(window)
