@@ -123,3 +123,24 @@ def test_memory_graph_forgets_closed_publishers(memory: MemoryTransport) -> None
     assert memory.discover().topic("temp") == TopicInfo(name="temp", msg_type="Float32", publishers=1)
     pub.close()
     assert memory.discover().topic("temp") is None
+
+
+def test_describe_service_is_not_a_components_own_describe_method(memory: MemoryTransport) -> None:
+    """MLLM has a ``describe(question)`` action: the service must still describe the component."""
+    from agents_core.actions import component_action  # noqa: PLC0415
+
+    class Describer(Relay):
+        @component_action
+        def describe(self, question: str = "what is it?") -> str:
+            """Describe a picture."""
+            return "a picture"
+
+    component = Describer(inputs=[Topic("d_in", "String")], outputs=[], trigger=Topic("d_in", "String"),
+                          component_name="describer")
+    launcher = Launcher(transport=memory)
+    launcher.add_pkg([component])
+    with launcher:
+        described = describe_component(memory, "describer")
+        assert described["name"] == "describer" and "describe" in described["actions"]
+        reply = memory.request("describer/execute_method", {"method": "describe", "args": ["q"]})
+        assert reply == {"result": "a picture"}

@@ -59,7 +59,7 @@ class ComponentServices:
                 found[name] = description
         return found
 
-    def describe(self) -> dict[str, Any]:
+    def component_description(self) -> dict[str, Any]:
         """What ``<name>/describe`` answers: name, type, run type, state, health, inputs, outputs, actions."""
         return {
             "name": self.component_name,
@@ -75,7 +75,7 @@ class ComponentServices:
     def _serve_describe(self, request: dict[str, Any]) -> dict[str, Any]:
         # Answered on the request lane, not the worker: a component busy with a long step can
         # still say what it is (the fields read are each updated atomically).
-        return self.describe()
+        return self.component_description()
 
     def _serve_execute_method(self, request: dict[str, Any]) -> dict[str, Any]:
         method_name = request.get("method")
