@@ -102,6 +102,7 @@ class Launcher:
         self._process_giveup: Action | None = None
         self._multiprocessing = False
         self._supervisor: Supervisor | None = None
+        self._stopped_supervisor: Supervisor | None = None
 
     # -- recipe -------------------------------------------------------------------------------
 
@@ -318,6 +319,7 @@ class Launcher:
             if self._supervisor is not None:
                 supervisor, self._supervisor = self._supervisor, None
                 supervisor.stop()
+                self._stopped_supervisor = supervisor
             for c in reversed(self.components):
                 if not c.runtime.is_bound:
                     continue
@@ -331,6 +333,10 @@ class Launcher:
         finally:
             if self._transport is not None and self._owns_transport:
                 self._transport.close()
+            if self._stopped_supervisor is not None:
+                # This process may have mapped a crashed child's segment until its transport closed.
+                self._stopped_supervisor.remove_orphan_shm()
+                self._stopped_supervisor = None
             self._started = False
 
     def hurry(self) -> None:

@@ -90,8 +90,29 @@ class _Reporter:
             self._file.write(json.dumps(message) + "\n")
 
 
-def _read_commands(stdin: IO[bytes], commands: queue.SimpleQueue[str]) -> None:
-    for raw in stdin:
+class _PipeLines:
+    """Lines of a pipe read with ``os.read``: no buffered file object, whose lock a thread blocked
+    in a read would hold at interpreter exit (and the exit would then abort)."""
+
+    def __init__(self, fd: int) -> None:
+        self._fd = fd
+        self._buffer = b""
+
+    def readline(self, limit: int) -> bytes | None:
+        """The next line with its newline; None at the end of the pipe or past ``limit`` bytes."""
+        while b"\n" not in self._buffer:
+            if len(self._buffer) > limit:
+                return None
+            chunk = os.read(self._fd, 65536)
+            if not chunk:
+                return None
+            self._buffer += chunk
+        line, _, self._buffer = self._buffer.partition(b"\n")
+        return line + b"\n"
+
+
+def _read_commands(lines: _PipeLines, commands: queue.SimpleQueue[str]) -> None:
+    while (raw := lines.readline(4096)) is not None:
         commands.put(raw.decode("utf-8", "replace").strip())
     commands.put("eof")
 
@@ -102,7 +123,7 @@ def _exit_soon(code: int) -> None:
     timer.start()
 
 
-def run(spec_line: bytes, reporter: _Reporter, stdin: IO[bytes]) -> int:
+def run(spec_line: bytes, reporter: _Reporter, stdin: _PipeLines) -> int:
     """Build, run and stop the component of ``spec_line``; the process's exit status."""
     from ..transport.registry import resolve_transport  # noqa: PLC0415
     from .spec import ComponentSpec, decode_value  # noqa: PLC0415
@@ -152,9 +173,9 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     set_parent_death_signal(signal.SIGTERM)
     reporter = _Reporter(args.report_fd)
-    stdin = sys.stdin.buffer
+    stdin = _PipeLines(sys.stdin.fileno())
     spec_line = stdin.readline(MAX_SPEC_BYTES)
-    if not spec_line.endswith(b"\n"):
+    if spec_line is None:
         reporter.send(error="no complete component spec on stdin")
         return 2
     try:
@@ -166,9 +187,6 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    status = main()
-    # The component and its transport are closed; the thread still reading the launcher's pipe
-    # would make a normal interpreter exit wait on stdin's lock, so leave at once.
-    sys.stdout.flush()
-    sys.stderr.flush()
-    os._exit(status)
+    # A normal exit (not os._exit): Zenoh removes its shared-memory segments from /dev/shm in
+    # its exit handlers.
+    sys.exit(main())

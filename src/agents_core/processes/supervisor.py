@@ -4,8 +4,12 @@ Every child is started by the supervisor's own thread (``PR_SET_PDEATHSIG`` fire
 *thread* that started a child ends, so that thread lives as long as the supervisor). A child
 that exits while it should run is respawned after a backoff (``backoff_s`` doubled per
 consecutive crash, at most ``max_backoff_s``), up to ``max_retries`` times; then the supervisor
-logs the give-up and calls ``on_giveup(component_name)``. After a crash, the shared-memory
-segments the child had mapped (Zenoh's, Fast DDS's) are unlinked, so none is left in /dev/shm.
+logs the give-up and calls ``on_giveup(component_name)``.
+
+A child killed by a signal cannot remove its shared-memory segments (Zenoh's, Fast DDS's) from
+/dev/shm. The supervisor notes the segments each child maps while it runs; after a crash, each
+of them is unlinked as soon as no live process maps it any more (peers that received from the
+dead child keep its segment mapped until they let go of it).
 """
 
 from __future__ import annotations
@@ -46,15 +50,52 @@ def _mapped_shm(pid: int) -> set[str]:
     return found
 
 
+def _open_shm(pid: int) -> set[str]:
+    """The /dev/shm files process ``pid`` holds open."""
+    found: set[str] = set()
+    try:
+        fds = os.listdir(f"/proc/{pid}/fd")
+    except OSError:
+        return found
+    for fd in fds:
+        try:
+            target = os.readlink(f"/proc/{pid}/fd/{fd}")
+        except OSError:
+            continue
+        if target.startswith(_SHM_DIR):
+            found.add(target)
+    return found
+
+
 def _still_mapped(paths: set[str]) -> set[str]:
-    """Those of ``paths`` some live process maps (a segment shared with others stays)."""
+    """Those of ``paths`` some live process maps or holds open (a segment shared with others stays)."""
     used: set[str] = set()
     for entry in os.listdir("/proc"):
         if entry.isdigit():
-            used |= _mapped_shm(int(entry)) & paths
+            used |= (_mapped_shm(int(entry)) | _open_shm(int(entry))) & paths
             if used == paths:
                 break
     return used
+
+
+def _segments_since(started: float) -> set[str]:
+    """Zenoh and Fast DDS segments created since ``started`` (wall clock), shared port segments excepted.
+
+    A child killed just after it created a segment may not have been seen mapping it; any such
+    segment that no live process uses is its leftover (or another crashed process's).
+    """
+    found: set[str] = set()
+    try:
+        names = os.listdir(_SHM_DIR)
+    except OSError:
+        return found
+    for name in names:
+        if not (name.endswith(".zenoh") or (name.startswith("fastrtps_") and "port" not in name)):
+            continue
+        with contextlib.suppress(OSError):
+            if os.stat(_SHM_DIR + name).st_ctime >= started - 1.0:
+                found.add(_SHM_DIR + name)
+    return found
 
 
 class ChildProcess:
@@ -71,6 +112,7 @@ class ChildProcess:
         self.gave_up = False
         self.respawn_at: float | None = None
         self.shm: set[str] = set()
+        self.spawned_at = 0.0
         self.state_changed = threading.Condition()
         self._reader: threading.Thread | None = None
 
@@ -81,6 +123,7 @@ class ChildProcess:
     def spawn(self) -> None:
         """Start the process and write its spec (with the launcher's pid) to its stdin."""
         read_fd, write_fd = os.pipe()
+        self.spawned_at = time.time()
         try:
             self.proc = subprocess.Popen(
                 [sys.executable, "-m", "agents_core.processes.child", "--report-fd", str(write_fd)],
@@ -141,17 +184,21 @@ class ChildProcess:
             with contextlib.suppress(OSError):
                 proc.stdin.close()
 
-    def remove_leftover_shm(self) -> None:
-        """Unlink the shared-memory files the dead child mapped and no other process of ours maps."""
-        for path in sorted(self.shm - _still_mapped(self.shm)):
-            try:
-                os.unlink(path)
-                logger.debug("removed %s left by the crashed process of %r", path, self.name)
-            except FileNotFoundError:
-                pass
-            except OSError as exc:
-                logger.warning("could not remove %s left by %r: %s", path, self.name, exc)
-        self.shm.clear()
+
+def remove_unmapped(paths: set[str]) -> set[str]:
+    """Unlink those of ``paths`` that no live process maps; returns the ones still in use."""
+    if not paths:
+        return set()
+    in_use = _still_mapped(paths)
+    for path in sorted(paths - in_use):
+        try:
+            os.unlink(path)
+            logger.debug("removed %s, left by a crashed component process", path)
+        except FileNotFoundError:
+            pass
+        except OSError as exc:
+            logger.warning("could not remove %s, left by a crashed component process: %s", path, exc)
+    return in_use
 
 
 class Supervisor:
@@ -167,9 +214,13 @@ class Supervisor:
         self.start_timeout = start_timeout
         self._on_giveup = on_giveup
         self._stopping = threading.Event()
+        # The thread ends only after every child has: PR_SET_PDEATHSIG fires when the thread that
+        # started a child ends, which would signal the children in the middle of an ordered stop.
+        self._finished = threading.Event()
         self._spawn_requests: list[tuple[ChildProcess, threading.Event]] = []
         self._lock = threading.Lock()
         self._thread: threading.Thread | None = None
+        self._orphan_shm: set[str] = set()
 
     def child(self, name: str) -> ChildProcess:
         for c in self.children:
@@ -209,7 +260,7 @@ class Supervisor:
 
     def _run(self) -> None:
         last_shm_scan = 0.0
-        while not self._stopping.is_set():
+        while not self._finished.is_set():
             with self._lock:
                 requests, self._spawn_requests = self._spawn_requests, []
             for child, done in requests:
@@ -219,6 +270,7 @@ class Supervisor:
             scan = now - last_shm_scan > 0.5
             if scan:
                 last_shm_scan = now
+                self.remove_orphan_shm()
             for child in self.children:
                 self._watch(child, now, scan)
             time.sleep(_POLL_S)
@@ -255,7 +307,9 @@ class Supervisor:
             return
         child.crashes += 1
         child.close_pipes()
-        child.remove_leftover_shm()
+        self._orphan_shm |= child.shm | _segments_since(child.spawned_at)
+        child.shm = set()
+        self.remove_orphan_shm()
         with child.state_changed:
             child.state = "crashed"
             child.state_changed.notify_all()
@@ -277,8 +331,6 @@ class Supervisor:
     def stop(self, timeout: float = 10.0) -> None:
         """Deactivate every child in reverse order, then shut each down; terminate or kill stragglers."""
         self._stopping.set()
-        if self._thread is not None:
-            self._thread.join(timeout=5.0)
         running = [c for c in reversed(self.children) if c.proc is not None and c.proc.poll() is None]
         for child in running:
             if child.state == "active" and child.send("deactivate"):
@@ -291,8 +343,17 @@ class Supervisor:
                 self._reap(child, 0.0)
                 child.close_pipes()
                 if child.proc.returncode not in (0, None):
-                    child.remove_leftover_shm()
-                child.shm.clear()
+                    self._orphan_shm |= child.shm
+                child.shm = set()
+        self._finished.set()
+        if self._thread is not None:
+            self._thread.join(timeout=5.0)
+        self.remove_orphan_shm()
+
+    def remove_orphan_shm(self) -> None:
+        """Unlink the segments of crashed children that no process maps any more (see the module doc)."""
+        with self._lock:
+            self._orphan_shm = remove_unmapped(self._orphan_shm)
 
     @staticmethod
     def _reap(child: ChildProcess, timeout: float) -> None:
