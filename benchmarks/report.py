@@ -29,6 +29,10 @@ METRICS: dict[str, list[tuple[str, str, str, str]]] = {
     "voice": [("stt_speed", "x realtime", "higher", "speed"), ("first_audio", "ms", "lower", "first_audio_ms")],
     # layer values written into a local Chroma through MapEncoding vs direct ChromaClient.add calls.
     "map": [("writes_per_s", "writes/s", "higher", "writes_per_s")],
+    # framework: the five-stage recipe with multiprocessing=True; raw: the same recipe in one process.
+    # respawn: SIGKILL of a component process -> its new process active (multiprocessing only).
+    "processes": [("start_to_active", "ms", "lower", "median_ms"),
+                  ("respawn_to_active", "ms", "lower", "respawn_median_ms")],
 }
 
 #: Above this slowdown (framework cost / raw cost) a latency figure needs a profile note.
@@ -165,7 +169,7 @@ def plot(figures: list[dict[str, Any]], records: list[dict[str, Any]], path: Pat
                                       gridspec_kw={"width_ratios": [3, 2]})
     colors = {"hop": "tab:blue", "throughput": "tab:orange", "startup": "tab:green", "model": "tab:purple",
               "imports": "tab:brown", "vision": "tab:red", "voice": "tab:olive",
-              "map": "tab:cyan"}
+              "map": "tab:cyan", "processes": "tab:pink"}
     labels = [f["id"] for f in shown]
     values = [f["slowdown"] for f in shown]
     y = list(range(len(shown)))
