@@ -34,10 +34,11 @@ def ros_env(monkeypatch: pytest.MonkeyPatch) -> dict[str, str]:
 
 @pytest.fixture
 def graph(ros_env: dict[str, str]) -> Iterator[Any]:
-    import agents_ros2.conversions  # noqa: F401, PLC0415  # imports rosidl's parser with its warning silenced
     import rclpy  # noqa: PLC0415
     from rclpy.context import Context  # noqa: PLC0415
     from rclpy.signals import SignalHandlerOptions  # noqa: PLC0415
+
+    import agents_ros2.conversions  # noqa: F401, PLC0415  # imports rosidl's parser with its warning silenced
 
     context = Context()
     rclpy.init(context=context, domain_id=DOMAIN, signal_handler_options=SignalHandlerOptions.NO)
