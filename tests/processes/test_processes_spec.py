@@ -157,3 +157,31 @@ def test_config_file_errors_name_the_section(tmp_path: Path) -> None:
     path.write_text("transport: zenoh\n")
     with pytest.raises(ConfigError, match="'transport' must be a section"):
         Launcher(config_file=path)
+
+
+def _run_child(stdin: bytes) -> tuple[int, list[dict[str, Any]]]:
+    read_fd, write_fd = os.pipe()
+    proc = subprocess.Popen([sys.executable, "-m", "agents_core.processes.child", "--report-fd", str(write_fd)],
+                            stdin=subprocess.PIPE, stderr=subprocess.DEVNULL, pass_fds=(write_fd,))
+    os.close(write_fd)
+    proc.communicate(stdin, timeout=30)
+    with os.fdopen(read_fd) as reports:
+        return proc.returncode, [json.loads(line) for line in reports]
+
+
+@pytest.mark.parametrize(("stdin", "status", "error"), [
+    (b"", 2, "no complete component spec"),
+    (b'{"version": 1', 2, "no complete component spec"),  # no newline: the launcher died while writing
+    (b"not json\n", 1, "JSONDecodeError"),
+    (b"[1, 2]\n", 1, "must be a mapping"),
+])
+def test_child_refuses_bad_input_on_its_pipe(stdin: bytes, status: int, error: str) -> None:
+    code, reports = _run_child(stdin)
+    assert code == status
+    assert any(error in r.get("error", "") for r in reports), reports
+
+
+def test_child_exits_when_its_launcher_pid_is_not_its_parent() -> None:
+    data = ComponentSpec.from_component(_shout(), "memory", {}, parent_pid=1).to_dict()
+    code, reports = _run_child(json.dumps(data).encode() + b"\n")
+    assert code == 1 and reports == []
