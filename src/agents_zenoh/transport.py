@@ -185,10 +185,11 @@ class ZenohDriver:
 MODE_ENV_VAR = "AGENTS_ZENOH_MODE"
 CONNECT_ENV_VAR = "AGENTS_ZENOH_CONNECT"
 LISTEN_ENV_VAR = "AGENTS_ZENOH_LISTEN"
+NAMESPACE_ENV_VAR = "AGENTS_ZENOH_NAMESPACE"
 
 
 def options_from_environment() -> dict[str, Any]:
-    """ZenohConfig fields from ``AGENTS_ZENOH_MODE`` and the comma-separated ``AGENTS_ZENOH_CONNECT`` / ``_LISTEN``.
+    """ZenohConfig fields from ``AGENTS_ZENOH_MODE``, ``_NAMESPACE`` and the comma-separated ``_CONNECT`` / ``_LISTEN``.
 
     So a recipe that says only ``Launcher()`` (or ``Launcher(transport="zenoh")``) can be pointed at a
     router from outside: ``AGENTS_ZENOH_CONNECT=tcp/10.0.0.2:7447`` makes it a client of that router
@@ -199,6 +200,9 @@ def options_from_environment() -> dict[str, Any]:
         raw = os.environ.get(var, "").strip()
         if raw:
             found[key] = [ep.strip() for ep in raw.split(",") if ep.strip()]
+    namespace = os.environ.get(NAMESPACE_ENV_VAR, "").strip()
+    if namespace:
+        found["namespace"] = namespace
     mode = os.environ.get(MODE_ENV_VAR, "").strip()
     if mode:
         found["mode"] = mode

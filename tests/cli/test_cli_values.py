@@ -65,6 +65,7 @@ def test_zenoh_options_from_the_environment(monkeypatch: pytest.MonkeyPatch) -> 
     from agents_zenoh.transport import options_from_environment  # noqa: PLC0415
 
     monkeypatch.delenv("AGENTS_ZENOH_MODE", raising=False)
+    monkeypatch.delenv("AGENTS_ZENOH_NAMESPACE", raising=False)
     monkeypatch.delenv("AGENTS_ZENOH_LISTEN", raising=False)
     monkeypatch.setenv("AGENTS_ZENOH_CONNECT", "tcp/10.0.0.2:7447, tcp/10.0.0.3:7447")
     assert options_from_environment() == {"connect": ["tcp/10.0.0.2:7447", "tcp/10.0.0.3:7447"], "mode": "client"}
@@ -72,4 +73,6 @@ def test_zenoh_options_from_the_environment(monkeypatch: pytest.MonkeyPatch) -> 
     assert options_from_environment() == {"connect": ["tcp/10.0.0.2:7447", "tcp/10.0.0.3:7447"],
                                           "listen": ["tcp/127.0.0.1:7600"]}
     monkeypatch.setenv("AGENTS_ZENOH_MODE", "peer")
+    monkeypatch.setenv("AGENTS_ZENOH_NAMESPACE", "robot1")
     assert options_from_environment()["mode"] == "peer"
+    assert options_from_environment()["namespace"] == "robot1"

@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-import itertools
+import contextlib
+import math
 import queue
 import threading
 import time
@@ -79,7 +80,7 @@ def echo(name: Annotated[str, typer.Argument(help="topic name")], transport: Tra
     shown = 0
     with open_transport(transport, connect) as t:
         msg_type = _resolve_type(t, name, type_name, discovery_wait)
-        subscription = t.create_subscription(Topic(name, msg_type), received.put)
+        subscription = t.create_subscription(Topic(name, msg_type), lambda v: _offer(received, v))
         try:
             while (not count or shown < count) and (left := deadline - time.monotonic()) > 0:
                 try:
@@ -131,6 +132,12 @@ def pub(name: Annotated[str, typer.Argument(help="topic name")],
         console.print(f"published {count} x {msg_type.type_name()} on {name}")
 
 
+def _offer(received: queue.Queue[Any], value: Any) -> None:
+    # Never blocks the delivery thread: when printing falls behind, newer values are dropped.
+    with contextlib.suppress(queue.Full):
+        received.put_nowait(value)
+
+
 def _wait_for_subscriber(transport: DriverTransport, name: str, wait: float) -> None:
     deadline = time.monotonic() + wait
     while time.monotonic() < deadline:
@@ -138,6 +145,34 @@ def _wait_for_subscriber(transport: DriverTransport, name: str, wait: float) -> 
         if info is not None and info.subscribers > 0:
             return
         time.sleep(0.05)
+
+
+class _RateMeter:
+    """Counts arrivals in constant memory: count, first and last time, shortest and longest gap."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self.count = 0
+        self.first = self.last = 0.0
+        self.min_gap, self.max_gap = math.inf, 0.0
+
+    def tick(self, _value: Any) -> None:
+        now = time.monotonic()
+        with self._lock:
+            if self.count:
+                gap = now - self.last
+                self.min_gap, self.max_gap = min(self.min_gap, gap), max(self.max_gap, gap)
+            else:
+                self.first = now
+            self.last = now
+            self.count += 1
+
+    def result(self) -> tuple[int, float, float, float]:
+        """(messages, rate in Hz, shortest gap, longest gap); rate 0 below two messages."""
+        with self._lock:
+            if self.count < 2:
+                return self.count, 0.0, 0.0, 0.0
+            return self.count, (self.count - 1) / (self.last - self.first), self.min_gap, self.max_gap
 
 
 @app.command("hz")
@@ -149,30 +184,21 @@ def hz(name: Annotated[str, typer.Argument(help="topic name")], transport: Trans
        discovery_wait: DiscoveryOpt = None) -> None:
     """Measure a topic's message rate over a window."""
     name = _topic_name(name)
-    stamps: list[float] = []
-    lock = threading.Lock()
-
-    def on_value(_value: Any) -> None:
-        with lock:
-            stamps.append(time.monotonic())
-
+    meter = _RateMeter()
     with open_transport(transport, connect) as t:
         msg_type = _resolve_type(t, name, type_name, discovery_wait)
-        subscription = t.create_subscription(Topic(name, msg_type), on_value)
+        subscription = t.create_subscription(Topic(name, msg_type), meter.tick)
         try:
             time.sleep(window)
         finally:
             subscription.close()
-    with lock:
-        times = list(stamps)
-    if len(times) < 2:
+    count, rate, min_gap, max_gap = meter.result()
+    if count < 2:
         raise ConfigError(f"fewer than two messages on {name!r} in {window:g} s: no rate to measure")
-    gaps = [b - a for a, b in itertools.pairwise(times)]
-    rate = (len(times) - 1) / (times[-1] - times[0])
-    doc = {"topic": name, "msg_type": msg_type.type_name(), "messages": len(times), "rate_hz": rate,
-           "min_gap_s": min(gaps), "max_gap_s": max(gaps), "window_s": window}
+    doc = {"topic": name, "msg_type": msg_type.type_name(), "messages": count, "rate_hz": rate,
+           "min_gap_s": min_gap, "max_gap_s": max_gap, "window_s": window}
     if json_out:
         print_json(doc)
     else:
         print_table(f"rate of {name}", ["messages", "rate (Hz)", "min gap (s)", "max gap (s)"],
-                    [(len(times), f"{rate:.2f}", f"{min(gaps):.4f}", f"{max(gaps):.4f}")])
+                    [(count, f"{rate:.2f}", f"{min_gap:.4f}", f"{max_gap:.4f}")])
