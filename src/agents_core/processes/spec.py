@@ -109,7 +109,7 @@ def encode_value(value: Any, where: str = "value") -> Any:
         return [encode_value(v, f"{where}[{i}]") for i, v in enumerate(value)]
     if isinstance(value, dict) and all(isinstance(k, str) for k in value) and TAG not in value:
         return {k: encode_value(v, f"{where}[{k!r}]") for k, v in value.items()}
-    codec = _by_class.find_for_class(type(value))
+    codec = _by_class.find_for_class(type(value)) or _client_codec_for(value)
     if codec is None:
         raise ConfigError(f"{where}: a {type(value).__name__} cannot be sent to a component process (known: "
                           f"JSON values, {', '.join(sorted(_codecs))}); build it in the component instead")
@@ -168,12 +168,20 @@ def _encode_enum(value: enum.Enum) -> dict[str, Any]:
     return {"class": class_path(type(value)), "name": value.name}
 
 
-def _register_builtin_codecs() -> None:
-    from ..clients.client_base import BaseClient  # noqa: PLC0415
+def _client_codec_for(value: Any) -> ValueCodec | None:
+    """The client codec for a model or database client. Looked up by module, not imported here: the
+    clients load httpx, which a component process without clients should not pay for at start."""
+    module = sys.modules.get("agents_core.clients.client_base")
+    if module is None or not isinstance(value, module.BaseClient):
+        return None
+    return _codecs.get("client")
 
+
+def _register_builtin_codecs() -> None:
     register_value_codec(ValueCodec("topic", Topic, _encode_topic, _decode_topic))
     register_value_codec(ValueCodec("attrs", BaseAttrs, _encode_attrs, _decode_attrs))
-    register_value_codec(ValueCodec("client", BaseClient, _encode_client, _decode_client))
+    # Decoding by name only; encoding finds clients through _client_codec_for.
+    _codecs.register("client", ValueCodec("client", object, _encode_client, _decode_client))
     register_value_codec(ValueCodec("enum", enum.Enum, _encode_enum,
                                     lambda d: getattr(import_class(d["class"]), d["name"])))
     register_value_codec(ValueCodec("path", Path, str, Path))
