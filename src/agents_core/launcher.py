@@ -245,8 +245,12 @@ class Launcher:
         self._supervisor.start()
 
     def _gave_up_on(self, component_name: str) -> None:
-        logger.error("component %r: its process crashed more often than on_process_fail(max_retries=%s) allows; "
-                     "not restarting it", component_name, self._process_fail_retries)
+        if self._process_fail_retries is None:
+            logger.error("component %r: its process crashed; not restarting it (launcher.on_process_fail("
+                         "max_retries) respawns crashed components)", component_name)
+        else:
+            logger.error("component %r: its process crashed more often than on_process_fail(max_retries=%d) "
+                         "allows; not restarting it", component_name, self._process_fail_retries)
         action = self._process_giveup
         if action is not None and self._action_worker is not None:
             self._action_worker.submit_control(functools.partial(self._run_giveup, action))
