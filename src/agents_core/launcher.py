@@ -103,6 +103,8 @@ class Launcher:
         self._multiprocessing = False
         self._supervisor: Supervisor | None = None
         self._stopped_supervisor: Supervisor | None = None
+        self._ui_options: dict[str, Any] | None = None
+        self._ui: Any = None
 
     # -- recipe -------------------------------------------------------------------------------
 
@@ -137,6 +139,23 @@ class Launcher:
                 if not isinstance(a, Action):
                     raise WiringError(f"event {event.name!r}: {a!r} is not an Action")
             self.events_actions.setdefault(event, []).extend(action_list)
+
+    def enable_ui(self, inputs: Sequence[Any] | None = None, outputs: Sequence[Any] | None = None,
+                  port: int = 5001, **settings: Any) -> None:
+        """Serve the web UI (``agents_core.ui``, the ``ui`` extra) while the recipe runs.
+
+        ``inputs`` / ``outputs``: the topics the page may publish on and shows (None: the recipe's
+        unfed inputs / every output). Other keywords are :class:`agents_core.ui.UISettings` fields
+        (``host``, ``token``, ``max_upload_bytes``, ...); it binds 127.0.0.1 unless told otherwise.
+        """
+        from .ui.settings import UISettings  # noqa: PLC0415  (the UI is optional)
+
+        self._ui_options = {"inputs": inputs, "outputs": outputs, "settings": UISettings(port=port, **settings)}
+
+    @property
+    def ui(self) -> Any:
+        """The running :class:`agents_core.ui.UIServer` (its ``url``, ``port``), or None."""
+        return self._ui
 
     def on_process_fail(self, max_retries: int = 3, on_giveup: Action | None = None) -> None:
         """Respawn a crashed component process up to ``max_retries`` times (multiprocessing runs).
@@ -200,6 +219,10 @@ class Launcher:
                     c.configure()
                 for c in self.components:
                     c.activate()
+            if self._ui_options is not None:
+                from .ui.launch import start_ui  # noqa: PLC0415  (the UI is optional)
+
+                self._ui = start_ui(self.components, self._transport, **self._ui_options)
         except BaseException:
             self.stop()
             raise
@@ -314,6 +337,9 @@ class Launcher:
         interrupt): its threads and shared-memory segments must not outlive the recipe.
         """
         try:
+            ui, self._ui = self._ui, None
+            if ui is not None:
+                ui.stop()
             for sub in self._event_subscriptions:
                 sub.close()
             self._event_subscriptions.clear()

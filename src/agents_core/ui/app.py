@@ -1,0 +1,366 @@
+"""The UI's HTTP and WebSocket API (Starlette), front-end agnostic, with the page on top.
+
+==========================================================  =========================================
+``GET  /api/health``                                          liveness, transport, client counters
+``GET  /api/interfaces``                                      components (type, lifecycle, health,
+                                                              inputs, outputs, actions) and the
+                                                              inputs / outputs the UI shows
+``POST /api/inputs/<topic>``                                  publish (see :mod:`.inputs`)
+``WS   /api/outputs[?topics=a,b]``                            frames (see :mod:`.frames`)
+``POST /api/components/<name>/transition``                    ``{"transition": "deactivate"}``
+``POST /api/components/<name>/actions/<action>``              ``{"args": [...], "kwargs": {...}}``,
+                                                              ``@component_action`` methods only
+``POST /api/login``                                           ``{"token": ...}`` sets the cookie
+``GET  /``                                                    the page (``static/``)
+==========================================================  =========================================
+
+Errors are JSON ``{"error": "..."}`` with a 4xx/5xx status. Requests from another origin (a web
+page elsewhere that a browser would happily send to 127.0.0.1) are refused, and so are Host
+names other than loopback ones while bound to loopback (DNS rebinding).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import hmac
+import json
+import logging
+from collections.abc import AsyncIterator, Awaitable, Callable
+from contextlib import asynccontextmanager
+from pathlib import Path
+from typing import Any
+from urllib.parse import urlsplit
+
+import anyio
+from starlette.applications import Starlette
+from starlette.concurrency import run_in_threadpool
+from starlette.requests import HTTPConnection, Request
+from starlette.responses import FileResponse, JSONResponse, Response
+from starlette.routing import Mount, Route, WebSocketRoute
+from starlette.staticfiles import StaticFiles
+from starlette.websockets import WebSocket, WebSocketDisconnect
+
+from ..errors import AgentsError, RemoteError, RequestTimeoutError, ServiceUnavailableError
+from ..status import TRANSITIONS
+from ..topics import Topic
+from .hub import OutputHub
+from .inputs import InputRejected, input_widget, read_bounded_body, value_for_topic
+from .recipe_view import RecipeView
+from .settings import UISettings, is_loopback
+
+__all__ = ["COOKIE_NAME", "UIState", "create_app"]
+
+logger = logging.getLogger(__name__)
+
+STATIC = Path(__file__).resolve().parent / "static"
+COOKIE_NAME = "agents_ui_token"
+#: The largest JSON body of a transition / action / login request.
+_SMALL_BODY = 64 * 1024
+
+
+class UIState:
+    """What the endpoints share: the recipe view, the transport, the shown topics and the hub."""
+
+    def __init__(self, view: RecipeView, transport: Any, inputs: list[Topic], outputs: list[Topic],
+                 settings: UISettings) -> None:
+        self.view = view
+        self.transport = transport
+        self.settings = settings
+        self.inputs = {t.name: t for t in inputs}
+        self.outputs = {t.name: t for t in outputs}
+        self.hub = OutputHub(transport, outputs, view.component_names(), image_format=settings.image_format,
+                             client_queue=settings.client_queue)
+        self._publishers: dict[str, Any] = {}
+
+    def publisher(self, topic: Topic) -> Any:
+        """The (cached) publisher of an input topic."""
+        pub = self._publishers.get(topic.name)
+        if pub is None:
+            pub = self._publishers[topic.name] = self.transport.create_publisher(topic)
+        return pub
+
+    def close(self) -> None:
+        self.hub.stop()
+        publishers, self._publishers = self._publishers, {}
+        for pub in publishers.values():
+            try:
+                pub.close()
+            except AgentsError as exc:
+                logger.debug("closing the UI publisher on %s: %s", pub.topic.name, exc)
+
+
+def _error(status: int, message: str) -> JSONResponse:
+    return JSONResponse({"error": message}, status_code=status)
+
+
+# -- the guard: token, origin, host ------------------------------------------------------------
+
+
+def _presented_token(conn: HTTPConnection) -> str | None:
+    auth = conn.headers.get("authorization", "")
+    if auth.lower().startswith("bearer "):
+        return auth[7:].strip()
+    return conn.cookies.get(COOKIE_NAME)
+
+
+def _refusal(conn: HTTPConnection, settings: UISettings, needs_token: bool = True) -> tuple[int, str] | None:
+    """Why ``conn`` may not use the API (status, message), or None."""
+    host = conn.headers.get("host", "")
+    hostname = urlsplit(f"//{host}").hostname or ""
+    if is_loopback(settings.host) and not is_loopback(hostname):
+        return 403, "this UI is bound to loopback: use http://127.0.0.1 (the Host header names another machine)"
+    origin = conn.headers.get("origin")
+    if origin is not None and urlsplit(origin).netloc != host:
+        return 403, "requests from another origin are refused"
+    if needs_token and settings.token is not None:
+        presented = _presented_token(conn)
+        if presented is None or not hmac.compare_digest(presented.encode(), settings.token.encode()):
+            return 401, "a token is needed (Authorization: Bearer <token>, or POST /api/login)"
+    return None
+
+
+Endpoint = Callable[[Request], Awaitable[Response]]
+
+
+def _guarded(state: UIState, endpoint: Endpoint, needs_token: bool = True) -> Endpoint:
+    async def guarded(request: Request) -> Response:
+        refused = _refusal(request, state.settings, needs_token)
+        if refused is not None:
+            return _error(*refused)
+        try:
+            return await endpoint(request)
+        except InputRejected as exc:
+            return _error(exc.status, exc.message)
+
+    return guarded
+
+
+async def _json_body(request: Request) -> dict[str, Any]:
+    body = await read_bounded_body(request, _SMALL_BODY)
+    if not body.strip():
+        return {}
+    try:
+        document = json.loads(body)
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise InputRejected(400, f"the body is not JSON ({exc})") from None
+    if not isinstance(document, dict):
+        raise InputRejected(422, "the body must be a JSON object")
+    return document
+
+
+# -- endpoints --------------------------------------------------------------------------------
+
+
+def _topic_entry(topic: Topic) -> dict[str, Any]:
+    return {"name": topic.name, "msg_type": topic.msg_type.type_name(), "widget": input_widget(topic.msg_type)}
+
+
+def _routes(state: UIState) -> list[Any]:  # noqa: PLR0915  (one closure per endpoint, over one state)
+    settings = state.settings
+
+    async def health(request: Request) -> Response:
+        hub = state.hub
+        return JSONResponse({"ok": True, "transport": state.transport.name, "components": len(hub.components),
+                             "clients": hub.client_count, "frames_sent": hub.frames_sent,
+                             "dropped_clients": hub.dropped_clients, "encode_errors": hub.encode_errors})
+
+    def _describe_all() -> list[dict[str, Any]]:
+        described = []
+        for name in state.view.component_names():
+            try:
+                entry = dict(state.view.describe(name))
+            except (AgentsError, KeyError) as exc:
+                entry = {"name": name, "error": str(exc), "inputs": [], "outputs": [], "actions": {}}
+            latest = state.hub.latest_status(name)
+            if latest is not None:  # newer than a describe reply that crossed the network
+                entry.update(state=latest["state"], health=latest["health"], message=latest["message"])
+            described.append(entry)
+        return described
+
+    async def interfaces(request: Request) -> Response:
+        components = await run_in_threadpool(_describe_all)
+        return JSONResponse({"transport": state.transport.name, "components": components,
+                             "inputs": [_topic_entry(t) for t in state.inputs.values()],
+                             "outputs": [_topic_entry(t) for t in state.outputs.values()],
+                             "max_upload_bytes": settings.max_upload_bytes})
+
+    async def publish_input(request: Request) -> Response:
+        name = request.path_params["topic"]
+        topic = state.inputs.get(name)
+        if topic is None:
+            return _error(404, f"topic {name!r} is not an input of this UI; inputs: {sorted(state.inputs)}")
+        content_type = request.headers.get("content-type", "")
+        body = await read_bounded_body(request, settings.max_upload_bytes)
+        upload: bytes | None = None
+        if content_type.startswith("multipart/form-data"):
+            upload = await _uploaded_file(request, body, topic.name)
+        value = value_for_topic(topic, content_type, body, upload)
+        try:
+            await run_in_threadpool(state.publisher(topic).publish, value)
+        except AgentsError as exc:
+            return _error(422 if isinstance(exc, TypeError | ValueError) else 503, f"topic {name!r}: {exc}")
+        return JSONResponse({"ok": True, "topic": name, "msg_type": topic.msg_type.type_name()})
+
+    def _known_component(name: str) -> dict[str, Any] | None:
+        if name not in state.view.component_names():
+            return None
+        return state.view.describe(name)
+
+    async def transition(request: Request) -> Response:
+        name = request.path_params["name"]
+        document = await _json_body(request)
+        wanted = document.get("transition")
+        if wanted not in TRANSITIONS:
+            return _error(422, f"'transition' must be one of {sorted(TRANSITIONS)}, got {wanted!r}")
+        if await run_in_threadpool(_known_component, name) is None:
+            return _error(404, f"no component {name!r}; components: {state.view.component_names()}")
+        try:
+            ok = await run_in_threadpool(state.transport.request_transition, name, wanted,
+                                         timeout=settings.request_timeout)
+        except AgentsError as exc:
+            return _error(*_transport_error(exc, f"component {name!r}"))
+        described = await run_in_threadpool(_known_component, name)
+        now = described["state"] if described else None
+        if not ok:
+            return _error(409, f"component {name!r} did not {wanted} (it is {now})")
+        return JSONResponse({"ok": True, "component": name, "transition": wanted, "state": now})
+
+    async def action(request: Request) -> Response:
+        name, method = request.path_params["name"], request.path_params["action"]
+        document = await _json_body(request)
+        described = await run_in_threadpool(_known_component, name)
+        if described is None:
+            return _error(404, f"no component {name!r}; components: {state.view.component_names()}")
+        if method not in described.get("actions", {}):
+            return _error(404, f"{method!r} is not a component action of {name!r}; actions: "
+                               f"{sorted(described.get('actions', {}))}")
+        args, kwargs = document.get("args", []), document.get("kwargs", {})
+        if not isinstance(args, list) or not isinstance(kwargs, dict):
+            return _error(422, "'args' must be a list and 'kwargs' an object")
+        payload = {"method": method, "args": args, "kwargs": kwargs, "timeout": settings.request_timeout}
+        try:
+            reply = await run_in_threadpool(state.transport.request, f"{name}/execute_method", payload,
+                                            timeout=settings.request_timeout + 1.0)
+        except AgentsError as exc:
+            return _error(*_transport_error(exc, f"{name}.{method}"))
+        return JSONResponse({"ok": True, "component": name, "action": method, "result": reply.get("result")})
+
+    async def login(request: Request) -> Response:
+        document = await _json_body(request)
+        token = document.get("token")
+        if settings.token is None:
+            return JSONResponse({"ok": True, "token_needed": False})
+        if not isinstance(token, str) or not hmac.compare_digest(token.encode(), settings.token.encode()):
+            return _error(401, "wrong token")
+        response = JSONResponse({"ok": True, "token_needed": True})
+        response.set_cookie(COOKIE_NAME, token, httponly=True, samesite="strict",
+                            secure=request.url.scheme == "https")
+        return response
+
+    async def page(request: Request) -> Response:
+        return FileResponse(STATIC / "index.html", headers={"Cache-Control": "no-store"})
+
+    return [
+        Route("/", page),
+        Route("/api/health", _guarded(state, health)),
+        Route("/api/interfaces", _guarded(state, interfaces)),
+        Route("/api/inputs/{topic:path}", _guarded(state, publish_input), methods=["POST"]),
+        Route("/api/components/{name:path}/transition", _guarded(state, transition), methods=["POST"]),
+        Route("/api/components/{name:path}/actions/{action}", _guarded(state, action), methods=["POST"]),
+        Route("/api/login", _guarded(state, login, needs_token=False), methods=["POST"]),
+        WebSocketRoute("/api/outputs", _outputs_socket(state)),
+        Mount("/static", StaticFiles(directory=STATIC), name="static"),
+    ]
+
+
+async def _uploaded_file(request: Request, body: bytes, topic: str) -> bytes:
+    """The bytes of the multipart field ``file`` of an already read (bounded) ``body``."""
+    sent = False
+
+    async def replay() -> dict[str, Any]:
+        nonlocal sent
+        if sent:
+            return {"type": "http.disconnect"}
+        sent = True
+        return {"type": "http.request", "body": body, "more_body": False}
+
+    try:
+        async with Request(request.scope, replay).form(max_files=1, max_fields=8) as form:
+            upload = form.get("file")
+            if upload is None or isinstance(upload, str):
+                raise InputRejected(422, f"topic {topic!r}: the multipart body has no 'file' field")
+            return await upload.read()
+    except InputRejected:
+        raise
+    except Exception as exc:  # python-multipart's parse errors, a malformed boundary
+        raise InputRejected(400, f"topic {topic!r}: the multipart body does not parse ({exc})") from None
+
+
+def _transport_error(exc: AgentsError, what: str) -> tuple[int, str]:
+    if isinstance(exc, RequestTimeoutError):
+        return 504, f"{what}: no answer in time ({exc})"
+    if isinstance(exc, ServiceUnavailableError):
+        return 503, f"{what}: not reachable ({exc})"
+    if isinstance(exc, RemoteError):
+        return 422, f"{what}: {exc}"
+    return 500, f"{what}: {exc}"
+
+
+def _outputs_socket(state: UIState) -> Callable[[WebSocket], Awaitable[None]]:
+    async def outputs(websocket: WebSocket) -> None:
+        refused = _refusal(websocket, state.settings)
+        if refused is not None:
+            await websocket.close(code=1008, reason=refused[1][:120])
+            return
+        wanted = websocket.query_params.get("topics")
+        topics = [t for t in wanted.split(",") if t] if wanted else None
+        unknown = sorted(set(topics or []) - set(state.outputs))
+        await websocket.accept()
+        if unknown:
+            await websocket.close(code=1008, reason=f"not outputs of this UI: {unknown}"[:120])
+            return
+        client = state.hub.connect(topics)
+        try:
+            # Two tasks, the first to end stops both: pump sends frames until the client is dropped,
+            # listen notices a client that goes away (what it sends is ignored).
+            async with anyio.create_task_group() as group:
+
+                async def pump() -> None:
+                    while (text := await client.queue.get()) is not None:
+                        await websocket.send_text(text)
+                    group.cancel_scope.cancel()
+
+                async def listen() -> None:
+                    try:
+                        while (await websocket.receive())["type"] != "websocket.disconnect":
+                            pass
+                    except (WebSocketDisconnect, RuntimeError):
+                        pass
+                    group.cancel_scope.cancel()
+
+                group.start_soon(pump)
+                group.start_soon(listen)
+        finally:
+            state.hub.disconnect(client)
+        if client.dropped:
+            with anyio.move_on_after(1.0):  # the socket may be stuck; the handler ends either way
+                try:
+                    await websocket.close(code=1013, reason="too slow: frames were not read")
+                except Exception as exc:
+                    logger.debug("closing a dropped UI client: %s", exc)
+
+    return outputs
+
+
+def create_app(state: UIState) -> Starlette:
+    """The Starlette application of ``state``: the hub subscribes at startup and closes at shutdown."""
+
+    @asynccontextmanager
+    async def lifespan(app: Starlette) -> AsyncIterator[None]:
+        state.hub.start(asyncio.get_running_loop())
+        try:
+            yield
+        finally:
+            state.close()
+
+    return Starlette(routes=_routes(state), lifespan=lifespan)

@@ -1,0 +1,167 @@
+"""Output values as WebSocket frames: what ``WS /api/outputs`` sends for each type.
+
+Every frame is one JSON object with ``"kind"``, ``"topic"``, ``"msg_type"`` and ``"stamp_ns"``
+(when the value has a header), so any front end can dispatch on ``kind``:
+
+==================  ==========================================================================
+kind                fields
+==================  ==========================================================================
+``text``            ``text`` (String)
+``stream``          ``text`` (this chunk), ``stream``, ``done`` (StreamingString)
+``image``           ``mime`` (``image/jpeg`` or ``image/png``), ``data`` (base64), ``width``,
+                    ``height``
+``detections``      ``boxes`` ([[x1, y1, x2, y2], ...] in image pixels), ``labels``, ``scores``,
+                    ``ids`` (Trackings only), ``image`` (an ``image`` frame's fields, or null)
+``audio``           ``mime`` (``audio/wav``), ``data`` (base64 WAV), ``sample_rate``,
+                    ``channels``, ``seconds``
+``status``          ``component``, ``state``, ``health``, ``message``
+``value``           ``value``: JSON of anything else (numbers, arrays, attrs messages), arrays
+                    longer than :data:`MAX_LIST_ITEMS` cut and flagged with ``truncated``
+==================  ==========================================================================
+
+Encoding runs once per value, on the subscription's delivery thread, whatever the number of
+connected clients.
+"""
+
+from __future__ import annotations
+
+import base64
+import io
+import math
+import wave
+from typing import Any
+
+import attrs
+import numpy as np
+
+from ..messages import (
+    AudioMsg,
+    ComponentStatusMsg,
+    CompressedImageMsg,
+    DetectionsMsg,
+    ImageMsg,
+    StreamingStringMsg,
+    TrackingsMsg,
+)
+
+__all__ = ["MAX_LIST_ITEMS", "encode_audio_wav", "encode_image", "frame_for", "jsonable"]
+
+#: The longest array / list a ``value`` frame carries (a LaserScan or a map would be megabytes).
+MAX_LIST_ITEMS = 4096
+_MAX_DEPTH = 8
+_MIME = {"jpeg": "image/jpeg", "jpg": "image/jpeg", "png": "image/png"}
+
+
+def _b64(data: bytes) -> str:
+    return base64.b64encode(data).decode("ascii")
+
+
+def encode_image(image: ImageMsg | CompressedImageMsg, image_format: str = "jpeg") -> dict[str, Any]:
+    """An ``image`` frame's fields for ``image``: compressed images as they are, raw ones as JPEG or PNG.
+
+    Depth and 16-bit images are scaled to 8 bits for display (the frame is for eyes, not for maths).
+    """
+    if isinstance(image, CompressedImageMsg):
+        fmt = image.format.lower()
+        mime = _MIME.get(fmt, f"image/{fmt}")
+        return {"mime": mime, "data": _b64(image.data), "width": None, "height": None}
+    from PIL import Image as PILImage  # noqa: PLC0415  (Pillow is the ui extra's; imported when an image comes)
+
+    pixels = image.to_rgb()
+    if pixels.dtype != np.uint8:
+        finite = pixels[np.isfinite(pixels)] if pixels.dtype.kind == "f" else pixels
+        top = float(finite.max()) if finite.size else 1.0
+        pixels = np.clip(np.nan_to_num(pixels.astype(np.float32)) * (255.0 / (top or 1.0)), 0, 255).astype(np.uint8)
+    if pixels.ndim == 3 and pixels.shape[2] == 1:
+        pixels = pixels[:, :, 0]
+    picture = PILImage.fromarray(np.ascontiguousarray(pixels))
+    out = io.BytesIO()
+    if image_format == "png":
+        picture.save(out, format="PNG", compress_level=1)
+    else:
+        picture.save(out, format="JPEG", quality=85)
+    return {"mime": "image/png" if image_format == "png" else "image/jpeg", "data": _b64(out.getvalue()),
+            "width": image.width, "height": image.height}
+
+
+def encode_audio_wav(audio: AudioMsg) -> bytes:
+    """``audio`` as a 16-bit PCM WAV file (float samples in [-1, 1] are scaled)."""
+    samples = audio.data
+    if samples.dtype != np.int16:
+        samples = (np.clip(samples, -1.0, 1.0) * 32767.0).astype(np.int16)
+    out = io.BytesIO()
+    with wave.open(out, "wb") as w:
+        w.setnchannels(audio.channels)
+        w.setsampwidth(2)
+        w.setframerate(audio.sample_rate)
+        w.writeframes(samples.astype("<i2").tobytes())
+    return out.getvalue()
+
+
+def jsonable(value: Any, depth: int = 0) -> Any:
+    """``value`` as JSON-ready data: attrs messages as mappings, arrays as (bounded) lists, NaN as null."""
+    if depth > _MAX_DEPTH:
+        return "..."
+    if value is None or isinstance(value, bool | int | str):
+        return value
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, np.generic):
+        return jsonable(value.item(), depth)
+    if isinstance(value, bytes | bytearray):
+        return {"bytes": len(value)}
+    if isinstance(value, np.ndarray):
+        flat = value.reshape(-1)[:MAX_LIST_ITEMS]
+        items = [jsonable(v, depth + 1) for v in flat.tolist()]
+        out: dict[str, Any] = {"shape": list(value.shape), "dtype": str(value.dtype), "data": items}
+        if value.size > MAX_LIST_ITEMS:
+            out["truncated"] = True
+        return out
+    if attrs.has(type(value)):
+        return {f.name: jsonable(getattr(value, f.name), depth + 1) for f in attrs.fields(type(value))}
+    if isinstance(value, dict):
+        return {str(k): jsonable(v, depth + 1) for k, v in list(value.items())[:MAX_LIST_ITEMS]}
+    if isinstance(value, list | tuple):
+        return [jsonable(v, depth + 1) for v in value[:MAX_LIST_ITEMS]]
+    return repr(value)[:1000]
+
+
+def _detections(value: DetectionsMsg | TrackingsMsg, image_format: str) -> dict[str, Any]:
+    frame: dict[str, Any] = {
+        "kind": "detections",
+        "boxes": np.asarray(value.boxes, dtype=np.float64).round(2).tolist(),
+        "labels": list(value.labels),
+        "scores": np.asarray(getattr(value, "scores", np.zeros(0)), dtype=np.float64).round(4).tolist(),
+        "image": encode_image(value.image, image_format) if value.image is not None else None,
+    }
+    if isinstance(value, TrackingsMsg):
+        frame["ids"] = value.ids.tolist()
+    return frame
+
+
+def frame_for(topic: str, msg_type: str, value: Any, image_format: str = "jpeg") -> dict[str, Any]:
+    """The frame sent to clients for ``value`` received on ``topic`` (see the module docstring)."""
+    frame: dict[str, Any]
+    if isinstance(value, StreamingStringMsg):
+        frame = {"kind": "stream", "text": value.data, "stream": value.stream, "done": value.done}
+    elif isinstance(value, str):
+        frame = {"kind": "text", "text": value}
+    elif isinstance(value, ImageMsg | CompressedImageMsg):
+        frame = {"kind": "image", **encode_image(value, image_format)}
+    elif isinstance(value, DetectionsMsg | TrackingsMsg):
+        frame = _detections(value, image_format)
+    elif isinstance(value, list) and value and all(isinstance(v, DetectionsMsg | TrackingsMsg) for v in value):
+        # The multi-source types: one frame per source would interleave; the first source is shown,
+        # the others are counted so the front end can say so.
+        frame = {**_detections(value[0], image_format), "sources": len(value)}
+    elif isinstance(value, AudioMsg):
+        frame = {"kind": "audio", "mime": "audio/wav", "data": _b64(encode_audio_wav(value)),
+                 "sample_rate": value.sample_rate, "channels": value.channels, "seconds": round(value.duration, 3)}
+    elif isinstance(value, ComponentStatusMsg):
+        frame = {"kind": "status", "component": value.component, "state": value.lifecycle_state,
+                 "health": value.health, "message": value.message}
+    else:
+        frame = {"kind": "value", "value": jsonable(value)}
+    header = getattr(value, "header", None)
+    frame.update(topic=topic, msg_type=msg_type, stamp_ns=getattr(header, "stamp_ns", None))
+    return frame

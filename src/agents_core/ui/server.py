@@ -1,0 +1,121 @@
+"""``UIServer``: the UI's uvicorn server on a background thread, started and stopped with a recipe."""
+
+from __future__ import annotations
+
+import logging
+import socket
+import threading
+import time
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
+
+from ..errors import ConfigError
+from ..topics import Topic
+from .app import UIState, create_app
+from .recipe_view import RecipeView, default_topics, topic_from_description
+from .settings import UISettings
+
+if TYPE_CHECKING:
+    from ..transport.contract import Transport
+
+__all__ = ["UIServer", "resolve_topics"]
+
+logger = logging.getLogger(__name__)
+
+
+def resolve_topics(view: RecipeView, inputs: Sequence[Topic] | None, outputs: Sequence[Topic] | None,
+                   known: dict[str, Topic] | None = None) -> tuple[list[Topic], list[Topic]]:
+    """The topics the UI shows: those given, else :func:`~.recipe_view.default_topics` of the recipe.
+
+    ``known`` maps names to the recipe's own Topic objects (with their QoS) in-process.
+    """
+    if inputs is not None and outputs is not None:
+        return list(inputs), list(outputs)
+    described = [view.describe(n) for n in view.component_names()]
+    default_in, default_out = default_topics(described)
+
+    def topics(entries: list[dict[str, Any]]) -> list[Topic]:
+        found = [(known or {}).get(e["name"]) or topic_from_description(e) for e in entries]
+        return [t for t in found if t is not None]
+
+    return (list(inputs) if inputs is not None else topics(default_in),
+            list(outputs) if outputs is not None else topics(default_out))
+
+
+class UIServer:
+    """Serves the UI of ``view`` over ``transport`` until :meth:`stop`.
+
+    :param inputs: topics the UI may publish on; None: the recipe's inputs that no component feeds.
+    :param outputs: topics the UI shows; None: every component output.
+    """
+
+    def __init__(self, view: RecipeView, transport: Transport, *, inputs: Sequence[Topic] | None = None,
+                 outputs: Sequence[Topic] | None = None, settings: UISettings | None = None,
+                 known_topics: dict[str, Topic] | None = None) -> None:
+        self.settings = settings or UISettings()
+        shown_in, shown_out = resolve_topics(view, inputs, outputs, known_topics)
+        self.state = UIState(view, transport, shown_in, shown_out, self.settings)
+        self.app = create_app(self.state)
+        self._server: Any = None
+        self._thread: threading.Thread | None = None
+        self._socket: socket.socket | None = None
+        self.port: int = self.settings.port
+
+    @property
+    def url(self) -> str:
+        """Where the page is (the bind address; 127.0.0.1 for a wildcard bind)."""
+        host = "127.0.0.1" if self.settings.host in ("0.0.0.0", "::") else self.settings.host
+        return f"http://{host}:{self.port}/"
+
+    def start(self, timeout: float = 10.0) -> UIServer:
+        """Bind and serve on a daemon thread; returns once the server accepts connections."""
+        import uvicorn  # noqa: PLC0415  (the ui extra, only when a UI starts)
+
+        family = socket.AF_INET6 if ":" in self.settings.host else socket.AF_INET
+        sock = socket.socket(family, socket.SOCK_STREAM)
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            sock.bind((self.settings.host, self.settings.port))
+        except OSError as exc:
+            sock.close()
+            raise ConfigError(f"the UI cannot listen on {self.settings.host}:{self.settings.port}: {exc}") from exc
+        sock.listen(64)
+        self._socket = sock
+        self.port = int(sock.getsockname()[1])
+        # websockets-sansio: no deprecated legacy code path; access log off (paths only, but quiet).
+        config = uvicorn.Config(self.app, log_level="warning", access_log=False, ws="websockets-sansio",
+                                lifespan="on", timeout_graceful_shutdown=2)
+        self._server = uvicorn.Server(config)
+        self._thread = threading.Thread(target=self._server.run, kwargs={"sockets": [sock]},
+                                        name="agents-ui", daemon=True)
+        self._thread.start()
+        deadline = time.monotonic() + timeout
+        while not self._server.started:
+            if not self._thread.is_alive() or time.monotonic() > deadline:
+                self.stop()
+                raise ConfigError(f"the UI server did not start on {self.settings.host}:{self.port}")
+            time.sleep(0.01)
+        logger.info("UI at %s", self.url)
+        return self
+
+    def stop(self, timeout: float = 5.0) -> None:
+        """Close every client and subscription and stop serving; idempotent."""
+        server, self._server = self._server, None
+        if server is not None:
+            server.should_exit = True
+        thread, self._thread = self._thread, None
+        if thread is not None:
+            thread.join(timeout)
+            if thread.is_alive() and server is not None:
+                server.force_exit = True
+                thread.join(timeout)
+        sock, self._socket = self._socket, None
+        if sock is not None:
+            sock.close()
+        self.state.close()
+
+    def __enter__(self) -> UIServer:
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()

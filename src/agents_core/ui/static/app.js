@@ -1,0 +1,268 @@
+// The agents_core UI page: plain JavaScript over the JSON / WebSocket API (see docs/ui.md).
+"use strict";
+
+const $ = (sel, root = document) => root.querySelector(sel);
+const el = (tag, attrs = {}, ...children) => {
+  const node = document.createElement(tag);
+  for (const [k, v] of Object.entries(attrs)) {
+    if (k === "class") node.className = v; else if (k.startsWith("on")) node.addEventListener(k.slice(2), v);
+    else node.setAttribute(k, v);
+  }
+  for (const c of children) node.append(c);
+  return node;
+};
+const BOX_COLOURS = ["#ff1744", "#00e676", "#2979ff", "#ffea00", "#d500f9", "#00e5ff"];
+const streaming = {};   // topic -> the chat bubble being written
+let socket = null;
+
+function toast(text) {
+  const t = $("#toast"); t.textContent = text; t.classList.add("show");
+  clearTimeout(toast.timer); toast.timer = setTimeout(() => t.classList.remove("show"), 4000);
+}
+
+async function api(path, options = {}) {
+  const response = await fetch(path, { credentials: "same-origin", ...options });
+  let body = null;
+  try { body = await response.json(); } catch (e) { body = { error: response.statusText }; }
+  if (!response.ok) { const err = new Error(body.error || response.statusText); err.status = response.status; throw err; }
+  return body;
+}
+const postJSON = (path, doc) => api(path, { method: "POST", headers: { "Content-Type": "application/json" },
+                                            body: JSON.stringify(doc) });
+
+// -- chat -------------------------------------------------------------------------------------
+function bubble(kind, text, topic) {
+  const b = el("div", { class: `msg ${kind}`, "data-topic": topic || "" });
+  if (topic) b.append(el("span", { class: "topic" }, topic));
+  const body = el("span", { class: "text" }, text);
+  b.append(body);
+  $("#chat").append(b); $("#chat").scrollTop = $("#chat").scrollHeight;
+  return b;
+}
+
+function onText(frame) { bubble("agent", frame.text, frame.topic); }
+
+function onStream(frame) {
+  let b = streaming[frame.topic];
+  if (!b) { b = streaming[frame.topic] = bubble("agent streaming", "", frame.topic); b.dataset.chunks = "0"; }
+  $(".text", b).textContent += frame.text;
+  b.dataset.chunks = String(Number(b.dataset.chunks) + 1);
+  $("#chat").scrollTop = $("#chat").scrollHeight;
+  if (frame.done) { b.classList.remove("streaming"); b.dataset.done = "true"; delete streaming[frame.topic]; }
+}
+
+// -- output panels ----------------------------------------------------------------------------
+function panel(topic, msgType) {
+  let p = document.querySelector(`.panel[data-topic="${CSS.escape(topic)}"]`);
+  if (!p) {
+    p = el("div", { class: "panel", "data-topic": topic }, el("h3", {}, `${topic} (${msgType})`));
+    $("#panels").append(p);
+  }
+  return p;
+}
+
+function loadImage(image) {
+  return new Promise((resolve, reject) => {
+    const img = new Image();
+    img.onload = () => resolve(img); img.onerror = reject;
+    img.src = `data:${image.mime};base64,${image.data}`;
+  });
+}
+
+function onImage(frame) {
+  const p = panel(frame.topic, frame.msg_type);
+  let img = $("img", p);
+  if (!img) { img = el("img", { alt: frame.topic }); p.append(img); }
+  img.src = `data:${frame.mime};base64,${frame.data}`;
+  p.dataset.frames = String(Number(p.dataset.frames || 0) + 1);
+}
+
+async function onDetections(frame) {
+  const p = panel(frame.topic, frame.msg_type);
+  let canvas = $("canvas", p), list = $("ul", p);
+  if (!canvas) { canvas = el("canvas", { "data-topic": frame.topic }); list = el("ul"); p.append(canvas, list); }
+  const ctx = canvas.getContext("2d");
+  if (frame.image) {
+    const img = await loadImage(frame.image);
+    canvas.width = img.naturalWidth; canvas.height = img.naturalHeight;
+    ctx.drawImage(img, 0, 0);
+  } else if (!canvas.width) { canvas.width = 640; canvas.height = 480; }
+  ctx.lineWidth = Math.max(2, canvas.width / 200);
+  ctx.font = `${Math.max(12, canvas.width / 40)}px sans-serif`;
+  list.replaceChildren();
+  frame.boxes.forEach((box, i) => {
+    const colour = BOX_COLOURS[i % BOX_COLOURS.length];
+    const [x1, y1, x2, y2] = box;
+    ctx.strokeStyle = colour; ctx.strokeRect(x1, y1, x2 - x1, y2 - y1);
+    const label = `${frame.ids ? "#" + frame.ids[i] + " " : ""}${frame.labels[i] || ""} ${frame.scores[i] !== undefined ? frame.scores[i].toFixed(2) : ""}`;
+    ctx.fillStyle = colour; ctx.fillText(label, x1 + 3, Math.max(y1 - 4, 12));
+    list.append(el("li", { class: "detection" }, label));
+  });
+  canvas.dataset.boxes = String(frame.boxes.length);
+  p.dataset.frames = String(Number(p.dataset.frames || 0) + 1);
+}
+
+function onAudio(frame) {
+  const p = panel(frame.topic, frame.msg_type);
+  const audio = el("audio", { controls: "", src: `data:${frame.mime};base64,${frame.data}` });
+  const old = $("audio", p); if (old) old.replaceWith(audio); else p.append(audio);
+  audio.play().catch(() => {});  // autoplay may be refused until the user clicks somewhere
+}
+
+function onValue(frame) {
+  const p = panel(frame.topic, frame.msg_type);
+  let pre = $("pre", p); if (!pre) { pre = el("pre"); p.append(pre); }
+  pre.textContent = JSON.stringify(frame.value, null, 1);
+}
+
+function onStatus(frame) {
+  const card = document.querySelector(`.component[data-name="${CSS.escape(frame.component)}"]`);
+  if (!card) return;
+  const state = $(".state", card), health = $(".health", card);
+  state.textContent = frame.state; state.className = `state ${frame.state}`;
+  health.textContent = frame.health; health.className = `health ${frame.health}`;
+  card.dataset.state = frame.state;
+}
+
+const HANDLERS = { text: onText, stream: onStream, image: onImage, detections: onDetections, audio: onAudio,
+                   status: onStatus, value: onValue };
+
+// -- components -------------------------------------------------------------------------------
+async function transition(name, which) {
+  try { const r = await postJSON(`/api/components/${name}/transition`, { transition: which }); toast(`${name}: ${r.state}`); }
+  catch (e) { toast(e.message); }
+}
+
+async function runAction(name, action, description) {
+  const params = (description.parameters || description.function?.parameters || {}).properties || {};
+  let kwargs = {};
+  if (Object.keys(params).length) {
+    const answer = prompt(`${action}: arguments as JSON (${Object.keys(params).join(", ")})`, "{}");
+    if (answer === null) return;
+    try { kwargs = JSON.parse(answer); } catch (e) { toast("not JSON"); return; }
+  }
+  try { const r = await postJSON(`/api/components/${name}/actions/${action}`, { kwargs });
+        toast(`${name}.${action} → ${JSON.stringify(r.result)}`); }
+  catch (e) { toast(e.message); }
+}
+
+function componentCard(c) {
+  const card = el("div", { class: "component", "data-name": c.name, "data-state": c.state || "" },
+    el("div", {}, el("span", { class: "name" }, c.name), " ", el("span", { class: "type" }, c.component_type || "")),
+    el("div", {}, "state ", el("span", { class: `state ${c.state}` }, c.state || "?"),
+       " · health ", el("span", { class: `health ${c.health}` }, c.health || "?")));
+  if (c.error) card.append(el("div", { class: "error" }, c.error));
+  const io = (c.inputs || []).map(t => `← ${t.name}: ${t.msg_type}`).concat((c.outputs || []).map(t => `→ ${t.name}: ${t.msg_type}`));
+  card.append(el("div", { class: "type" }, io.join("\n")));
+  const buttons = el("div");
+  for (const t of ["configure", "activate", "deactivate", "cleanup"]) {
+    buttons.append(el("button", { "data-transition": t, onclick: () => transition(c.name, t) }, t));
+  }
+  for (const [action, description] of Object.entries(c.actions || {})) {
+    const text = (description.description || description.function?.description || action);
+    buttons.append(el("button", { class: "action", "data-action": action, title: text,
+                                  onclick: () => runAction(c.name, action, description) }, action));
+  }
+  card.append(buttons);
+  return card;
+}
+
+// -- inputs -----------------------------------------------------------------------------------
+async function sendValue(topic, value) {
+  try { await postJSON(`/api/inputs/${topic}`, { value }); } catch (e) { toast(e.message); }
+}
+
+async function sendFile(topic, blob, filename) {
+  const form = new FormData(); form.append("file", blob, filename);
+  try { await api(`/api/inputs/${topic}`, { method: "POST", body: form }); toast(`sent ${filename} to ${topic}`); }
+  catch (e) { toast(e.message); }
+}
+
+function wav16(samples, rate) {   // Float32 mono samples -> a 16-bit PCM WAV blob
+  const view = new DataView(new ArrayBuffer(44 + samples.length * 2));
+  const text = (o, s) => [...s].forEach((ch, i) => view.setUint8(o + i, ch.charCodeAt(0)));
+  text(0, "RIFF"); view.setUint32(4, 36 + samples.length * 2, true); text(8, "WAVEfmt ");
+  view.setUint32(16, 16, true); view.setUint16(20, 1, true); view.setUint16(22, 1, true);
+  view.setUint32(24, rate, true); view.setUint32(28, rate * 2, true); view.setUint16(32, 2, true);
+  view.setUint16(34, 16, true); text(36, "data"); view.setUint32(40, samples.length * 2, true);
+  samples.forEach((s, i) => view.setInt16(44 + i * 2, Math.max(-1, Math.min(1, s)) * 32767, true));
+  return new Blob([view], { type: "audio/wav" });
+}
+
+function recorder(topic) {
+  let stream = null, context = null, node = null, chunks = [];
+  const button = el("button", { "data-record": topic }, "● record");
+  button.onclick = async () => {
+    if (!stream) {
+      try { stream = await navigator.mediaDevices.getUserMedia({ audio: true }); }
+      catch (e) { toast(`no microphone: ${e.message}`); return; }
+      context = new AudioContext(); chunks = [];
+      const source = context.createMediaStreamSource(stream);
+      node = context.createScriptProcessor(4096, 1, 1);
+      node.onaudioprocess = (ev) => chunks.push(new Float32Array(ev.inputBuffer.getChannelData(0)));
+      source.connect(node); node.connect(context.destination);
+      button.textContent = "■ stop";
+    } else {
+      node.disconnect(); stream.getTracks().forEach(t => t.stop());
+      const all = new Float32Array(chunks.reduce((n, c) => n + c.length, 0));
+      let at = 0; for (const c of chunks) { all.set(c, at); at += c.length; }
+      const rate = context.sampleRate; await context.close(); stream = null;
+      button.textContent = "● record";
+      await sendFile(topic, wav16(all, rate), "recording.wav");
+    }
+  };
+  return button;
+}
+
+function inputControl(t) {
+  const row = el("div", { class: "input", "data-topic": t.name }, el("label", {}, `${t.name}`));
+  if (t.widget === "text") {
+    const box = el("input", { type: "text", "data-topic": t.name, placeholder: `${t.msg_type} on ${t.name}` });
+    const send = () => { if (!box.value) return; bubble("user", box.value, t.name); sendValue(t.name, box.value); box.value = ""; };
+    box.addEventListener("keydown", (ev) => { if (ev.key === "Enter") send(); });
+    row.append(box, el("button", { onclick: send }, "Send"));
+  } else if (t.widget === "image" || t.widget === "audio") {
+    const file = el("input", { type: "file", "data-topic": t.name,
+                               accept: t.widget === "image" ? "image/png,image/jpeg" : "audio/wav,.wav" });
+    file.addEventListener("change", () => { if (file.files[0]) sendFile(t.name, file.files[0], file.files[0].name); });
+    row.append(file);
+    if (t.widget === "audio") row.append(recorder(t.name));
+  } else {
+    const box = el("input", { type: "text", "data-topic": t.name, placeholder: t.widget === "bool" ? "true / false" : `${t.msg_type} (JSON)` });
+    const send = () => { let v; try { v = JSON.parse(box.value); } catch (e) { toast("not JSON"); return; } sendValue(t.name, v); };
+    row.append(box, el("button", { onclick: send }, "Publish"));
+  }
+  return row;
+}
+
+// -- start ------------------------------------------------------------------------------------
+function connect() {
+  const scheme = location.protocol === "https:" ? "wss" : "ws";
+  socket = new WebSocket(`${scheme}://${location.host}/api/outputs`);
+  socket.onopen = () => { $("#connection").textContent = "live"; $("#connection").className = "badge ok"; };
+  socket.onmessage = (ev) => { const frame = JSON.parse(ev.data); const h = HANDLERS[frame.kind]; if (h) h(frame); };
+  socket.onclose = (ev) => {
+    $("#connection").textContent = `disconnected (${ev.code})`; $("#connection").className = "badge bad";
+    setTimeout(connect, 2000);
+  };
+}
+
+async function start() {
+  try { await api("/api/health"); }
+  catch (e) { if (e.status === 401) { $("#login").hidden = false; return; } toast(e.message); return; }
+  $("#login").hidden = true;
+  const info = await api("/api/interfaces");
+  $("#transport").textContent = `transport: ${info.transport}`;
+  $("#components").replaceChildren(...info.components.map(componentCard));
+  $("#inputs").replaceChildren(...info.inputs.map(inputControl));
+  $("#main").hidden = false;
+  document.body.dataset.ready = "true";
+  connect();
+}
+
+$("#login-form").addEventListener("submit", async (ev) => {
+  ev.preventDefault();
+  try { await postJSON("/api/login", { token: $("#token").value }); $("#token").value = ""; start(); }
+  catch (e) { $("#login-error").textContent = e.message; }
+});
+start();
