@@ -185,3 +185,24 @@ def test_child_exits_when_its_launcher_pid_is_not_its_parent() -> None:
     data = ComponentSpec.from_component(_shout(), "memory", {}, parent_pid=1).to_dict()
     code, reports = _run_child(json.dumps(data).encode() + b"\n")
     assert code == 1 and reports == []
+
+
+def test_fallbacks_on_the_components_own_methods_are_carried() -> None:
+    component = _shout()
+    component.on_component_fail(Action(component.set_suffix, args=("!!",)), max_retries=2)
+    component.on_giveup(Action(component.deactivate))
+    spec = ComponentSpec.from_component(component, "zenoh", {}, os.getpid())
+    check_rebuild(component, spec)
+    rebuilt = ComponentSpec.from_dict(json.loads(json.dumps(spec.to_dict()))).build()
+    fallback = rebuilt._fallbacks["COMPONENT_FAILURE"]
+    assert fallback.max_retries == 2
+    assert fallback.actions[0].method.__self__ is rebuilt and fallback.actions[0].args == ("!!",)
+    assert rebuilt._giveup_actions[0].name == "deactivate"
+
+
+def test_a_fallback_on_another_object_is_refused() -> None:
+    component = _shout()
+    other = _shout()
+    component.on_any_fail(Action(other.set_suffix, args=("x",)))
+    with pytest.raises(ConfigError, match="fallback action 'set_suffix' is not a method of the component"):
+        ComponentSpec.from_component(component, "zenoh", {}, os.getpid())

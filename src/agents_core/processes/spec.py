@@ -4,7 +4,8 @@ A component records the arguments it was constructed with (``Component.__new__``
 holds its class (``module:qualname``), those arguments encoded through a **value-codec registry**
 (topics, configs, models and other attrs data, model and database clients through their own
 ``serialize()``, enums, paths, plain JSON values), the component's config as it is at launch
-(a config file may have changed it), and how to reach the transport. A class defined in the
+(a config file may have changed it), its fallbacks and give-up actions (the component's own
+methods, with JSON-like arguments), and how to reach the transport. A class defined in the
 recipe itself (the ``__main__`` module) is named ``RECIPE_MODULE:qualname``; the child imports
 the recipe file by path under that module name, so its ``if __name__ == "__main__":`` block
 does not run.
@@ -207,6 +208,9 @@ class ComponentSpec:
     transport_options: dict[str, Any]
     recipe_path: str | None = None
     parent_pid: int = 0
+    #: Fallbacks and give-up actions the recipe set on the component: its own methods only.
+    fallbacks: dict[str, Any] = attrs.field(factory=dict)
+    giveup: list[Any] = attrs.field(factory=list)
     version: int = SPEC_VERSION
 
     @classmethod
@@ -223,7 +227,11 @@ class ComponentSpec:
                    transport=transport,
                    transport_options={k: encode_value(v, f"transport option {k!r}")
                                       for k, v in transport_options.items()},
-                   parent_pid=parent_pid)
+                   parent_pid=parent_pid,
+                   fallbacks={kind: {"actions": [_encode_own_action(component, a) for a in fallback.actions],
+                                     "max_retries": fallback.max_retries}
+                              for kind, fallback in component._fallbacks.items()},
+                   giveup=[_encode_own_action(component, a) for a in component._giveup_actions])
         if type(component).__module__ == "__main__" or _mentions_recipe(spec):
             main_file = getattr(sys.modules.get("__main__"), "__file__", None)
             if main_file is None:
@@ -261,7 +269,21 @@ class ComponentSpec:
         if not (isinstance(component_class, type) and issubclass(component_class, Component)):
             raise ConfigError(f"{self.component_class!r} is not a Component class")
         component: Component = component_class(*decode_value(self.args), **decode_value(self.kwargs))
+        self._restore_fallbacks(component)
         return component
+
+    def _restore_fallbacks(self, component: Component) -> None:
+        from ..actions import Action, Fallback  # noqa: PLC0415
+
+        def action(data: dict[str, Any]) -> Action:
+            return Action(getattr(component, data["method"]), args=decode_value(data["args"]),
+                          kwargs=decode_value(data["kwargs"]))
+
+        # Replaced, not added to: what the constructor set is part of what the parent had.
+        for kind, data in self.fallbacks.items():
+            component._fallbacks[kind] = Fallback([action(a) for a in data["actions"]], data["max_retries"])
+        if self.giveup:
+            component._giveup_actions = [action(a) for a in self.giveup]
 
     def __repr__(self) -> str:
         # Never the arguments: a client's spec may hold an API key.
@@ -304,6 +326,16 @@ def _bind_config(component: Component, args: tuple[Any, ...],
     if has_config and "config_file" not in keywords:
         keywords["config"] = component.config
     return tuple(positional), keywords
+
+
+def _encode_own_action(component: Component, action: Any) -> dict[str, Any]:
+    """A fallback action as data: a method of the component itself, with JSON-like arguments."""
+    where = f"component {component.component_name!r}: fallback action {action.name!r}"
+    if action.owner is not component:
+        raise ConfigError(f"{where} is not a method of the component; in a component process a fallback can "
+                          "only run the component's own methods")
+    return {"method": action.name, "args": encode_value(list(action.args), where),
+            "kwargs": encode_value(dict(action.kwargs), where)}
 
 
 def _extra_state(component: Component) -> dict[str, int]:
