@@ -382,8 +382,8 @@ def test_multiprocessing_is_refused_on_a_transport_that_lives_in_one_process() -
     relay = Relay(inputs=[Topic("words", "String")], trigger=Topic("words", "String"), component_name="relay")
     launcher = Launcher(transport="memory")
     launcher.add_pkg(components=[relay], multiprocessing=True)
-    with pytest.raises(ConfigError, match=r"multiprocessing=True needs a transport that reaches across processes "
-                                          r"\(zenoh or ros2\); 'memory' lives in one process"):
+    with pytest.raises(ConfigError, match=r"multiprocessing=True needs a transport whose capabilities say "
+                                          r"cross_process \(zenoh, ros2\); 'memory' lives in one process"):
         launcher.start()
 
 

@@ -216,6 +216,8 @@ class Ros2Driver:
     """The rclpy primitives under :class:`Ros2Transport` (options: see :class:`Ros2Transport`)."""
 
     name = "ros2"
+    # On the class, like the other drivers': what the driver offers is known before it is opened.
+    capabilities = TransportCapabilities(cross_process=True, actions=False)
 
     def __init__(self, *, domain_id: int | None = None, shared_memory: bool | None = None,
                  executor: ExecutorKind = "single", reader_depth_floor: int = READER_DEPTH_FLOOR,
@@ -224,7 +226,6 @@ class Ros2Driver:
             raise ConfigError(f"executor must be 'single' or 'events', got {executor!r}")
         #: Whether large messages between processes on this host go through shared memory.
         self.shared_memory = shared_memory_wanted(shared_memory) and enable_shared_memory_profile()
-        self.capabilities = TransportCapabilities(cross_process=True, actions=False)
         self._reader_depth_floor = reader_depth_floor
         self._first_publish_wait = first_publish_wait
         self._lock = threading.RLock()
