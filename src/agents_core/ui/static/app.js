@@ -99,6 +99,7 @@ async function onDetections(frame) {
     list.append(el("li", { class: "detection" }, label));
   });
   canvas.dataset.boxes = String(frame.boxes.length);
+  canvas.dataset.boxList = JSON.stringify(frame.boxes);
   p.dataset.frames = String(Number(p.dataset.frames || 0) + 1);
 }
 
