@@ -7,6 +7,7 @@ Python (and ``pip install nox``) can run every one of them.
 from __future__ import annotations
 
 import os
+import shutil
 from pathlib import Path
 
 import nox
@@ -48,6 +49,24 @@ def _private_ros_discovery(session: nox.Session) -> None:
     session.env["ROS_DOMAIN_ID"] = str(1 + os.getpid() % 100)
 
 
+def _install_browser(session: nox.Session) -> None:
+    """Playwright, driving Debian's Chromium for the web UI tests (its own browser download is not used).
+
+    Chromium comes from apt when this runs as root with apt and it is missing; otherwise the browser
+    tests skip, saying so.
+    """
+    session.install("playwright>=1.40")
+    if Path("/usr/bin/chromium").is_file():
+        return
+    if hasattr(os, "geteuid") and os.geteuid() == 0 and shutil.which("apt-get"):
+        session.log("installing Debian's chromium for the web UI browser tests")
+        session.run("apt-get", "update", "-qq", external=True)
+        session.run("apt-get", "install", "-y", "-qq", "chromium", external=True,
+                    env={"DEBIAN_FRONTEND": "noninteractive"})
+    else:
+        session.log("no /usr/bin/chromium and no root apt: the web UI browser tests will skip")
+
+
 @nox.session
 def tests(session: nox.Session) -> None:
     """Everything: unit tests, the conformance suite on memory, Zenoh and ROS 2, interop, real servers, local models.
@@ -55,8 +74,9 @@ def tests(session: nox.Session) -> None:
     Markers select subsets: ``nox -s tests -- -m zenoh``, ``-- -m "not ros2"``, ``-- -m conformance``.
     """
     # voice-gpl (espeak-ng, GPL-3.0) only in this test environment, never in the core install.
-    _install_with_local_models(session, "dev,zenoh,ros2,local,voice,voice-gpl,roboml,servers,cli")
+    _install_with_local_models(session, "dev,zenoh,ros2,local,voice,voice-gpl,roboml,servers,cli,ui")
     _install_ros2_interfaces(session)
+    _install_browser(session)
     _private_ros_discovery(session)
     session.run("pytest", *(session.posargs or ["tests"]))
 
