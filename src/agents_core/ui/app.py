@@ -338,6 +338,8 @@ def _outputs_socket(state: UIState) -> Callable[[WebSocket], Awaitable[None]]:
                         pass
                     group.cancel_scope.cancel()
 
+                # A dropped client's send may be stuck on a full socket: stop waiting for it.
+                client.on_drop = group.cancel_scope.cancel
                 group.start_soon(pump)
                 group.start_soon(listen)
         finally:

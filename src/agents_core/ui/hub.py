@@ -14,7 +14,7 @@ import contextlib
 import json
 import logging
 import threading
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from typing import TYPE_CHECKING, Any
 
 from ..transport.core import status_topic
@@ -38,6 +38,8 @@ class OutputClient:
         self.queue: asyncio.Queue[str | None] = asyncio.Queue(maxsize=depth + 1)  # + 1 for the drop marker
         self.depth = depth
         self.dropped = False
+        #: Called on the event loop when the client is dropped (its handler stops a send that is stuck).
+        self.on_drop: Callable[[], object] | None = None
 
     def wants(self, topic: str, kind: str) -> bool:
         return kind == "status" or self.topics is None or topic in self.topics
@@ -127,6 +129,8 @@ class OutputHub:
         while not client.queue.empty():
             client.queue.get_nowait()
         client.queue.put_nowait(None)
+        if client.on_drop is not None:
+            client.on_drop()
         logger.warning("a UI client fell %d frames behind and was dropped", client.depth)
 
     # -- clients ------------------------------------------------------------------------------

@@ -83,7 +83,7 @@ class UIServer:
         self._socket = sock
         self.port = int(sock.getsockname()[1])
         # websockets-sansio: no deprecated legacy code path; access log off (paths only, but quiet).
-        config = uvicorn.Config(self.app, log_level="warning", access_log=False, ws="websockets-sansio",
+        config = uvicorn.Config(self.app, log_level="warning", access_log=False, ws="websockets-sansio", loop="asyncio",
                                 lifespan="on", timeout_graceful_shutdown=2)
         self._server = uvicorn.Server(config)
         self._thread = threading.Thread(target=self._server.run, kwargs={"sockets": [sock]},
