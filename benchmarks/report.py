@@ -33,6 +33,8 @@ METRICS: dict[str, list[tuple[str, str, str, str]]] = {
     # respawn: SIGKILL of a component process -> its new process active (multiprocessing only).
     "processes": [("start_to_active", "ms", "lower", "median_ms"),
                   ("respawn_to_active", "ms", "lower", "respawn_median_ms")],
+    # framework: a topic value -> the web UI's WebSocket client; raw: a plain subscription's callback.
+    "ui": [("latency_p50", "ms", "lower", "latency_ms.p50"), ("latency_p99", "ms", "lower", "latency_ms.p99")],
 }
 
 #: Above this slowdown (framework cost / raw cost) a latency figure needs a profile note.
@@ -169,7 +171,7 @@ def plot(figures: list[dict[str, Any]], records: list[dict[str, Any]], path: Pat
                                       gridspec_kw={"width_ratios": [3, 2]})
     colors = {"hop": "tab:blue", "throughput": "tab:orange", "startup": "tab:green", "model": "tab:purple",
               "imports": "tab:brown", "vision": "tab:red", "voice": "tab:olive",
-              "map": "tab:cyan", "processes": "tab:pink"}
+              "map": "tab:cyan", "processes": "tab:pink", "ui": "tab:gray"}
     labels = [f["id"] for f in shown]
     values = [f["slowdown"] for f in shown]
     y = list(range(len(shown)))

@@ -21,7 +21,7 @@ from pathlib import Path
 from types import FrameType
 from typing import Any
 
-from . import hop, imports, model, processes, report, startup, vision, voice
+from . import hop, imports, model, processes, report, startup, ui, vision, voice
 from . import map as map_suite  # the module name is the suite name; "map" alone would hide the builtin
 from .common import IMAGE_SHAPE, REPO, STRING_BYTES, Children, available
 from .throughput import WINDOW
@@ -33,15 +33,15 @@ SETTINGS: dict[str, dict[str, Any]] = {
               "throughput_seconds": 1.5, "latency_max_seconds": 30.0, "startup_reps": 2,
               "model_reps": 2, "model_max_tokens": 64, "model_threads": 1, "rounds": 1, "import_reps": 5,
               "vision_frames": 20, "vision_seconds": 3.0, "voice_reps": 1, "map_values": 100, "map_reps": 1,
-              "processes_reps": 2, "processes_respawns": 3},
+              "processes_reps": 2, "processes_respawns": 3, "ui_count": 100, "ui_warmup": 10},
     "full": {"string_warmup": 200, "string_count": 2000, "image_warmup": 30, "image_count": 300,
              "throughput_seconds": 5.0, "latency_max_seconds": 120.0, "startup_reps": 5,
              "model_reps": 8, "model_max_tokens": 64, "model_threads": 1, "rounds": 3, "import_reps": 15,
              "vision_frames": 100, "vision_seconds": 10.0, "voice_reps": 3, "map_values": 300,
-             "map_reps": 3, "processes_reps": 5, "processes_respawns": 10},
+             "map_reps": 3, "processes_reps": 5, "processes_respawns": 10, "ui_count": 1000, "ui_warmup": 50},
 }
 
-SUITES = ("hop", "startup", "model", "imports", "vision", "voice", "map", "processes")
+SUITES = ("hop", "startup", "model", "imports", "vision", "voice", "map", "processes", "ui")
 
 
 def transport_unavailable(name: str) -> str | None:
@@ -125,6 +125,10 @@ def run_suites(transports: list[str], suites: list[str], settings: dict[str, Any
             skipped += lost
         if "processes" in suites:
             got, lost = processes.run_suite(transports, settings, children, ros_domain, progress)
+            records += got
+            skipped += lost
+        if "ui" in suites and "memory" in transports:
+            got, lost = ui.run_suite(settings, progress)
             records += got
             skipped += lost
     finally:

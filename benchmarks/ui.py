@@ -1,0 +1,114 @@
+"""Web UI: latency from a topic value to a WebSocket client of the UI, against a raw subscription.
+
+In one process on the memory transport: a value is published on a topic, and the time until it
+arrives is measured, one value at a time, two ways:
+
+- ``framework``: through the UI (``agents_core.ui``, a real uvicorn server on 127.0.0.1): the
+  hub's subscription encodes the frame (JSON; a JPEG for an image), the event loop fans it out,
+  and a WebSocket client (the ``websockets`` library) receives and parses it;
+- ``raw``: a plain transport subscription's callback receives the value.
+
+Payloads: ``string`` (a short String) and ``image`` (a 640x480 rgb8 Image, sent to the client as
+JPEG). The ratio shows what serving a browser costs over reading the topic in-process.
+
+``python -m benchmarks.ui --count N`` prints the records.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import threading
+import time
+from collections.abc import Callable
+from typing import Any
+
+from .common import available, emit, image_pixels, percentile
+
+PAYLOADS = ("string", "image")
+
+
+def _value(payload: str, seq: int) -> Any:
+    if payload == "string":
+        return f"hello robot {seq}"
+    pixels = image_pixels().copy()
+    pixels[0, 0, 0] = seq % 256
+    return pixels
+
+
+def _latencies(payload: str, count: int, warmup: int) -> dict[str, list[float]]:
+    from websockets.sync.client import connect  # noqa: PLC0415
+
+    from agents_core import Topic  # noqa: PLC0415
+    from agents_core.transport import MemoryTransport  # noqa: PLC0415
+    from agents_core.ui import LocalRecipe, UISettings  # noqa: PLC0415
+    from agents_core.ui.server import UIServer  # noqa: PLC0415
+
+    topic = Topic("bench", "String" if payload == "string" else "Image")
+    transport = MemoryTransport()
+    got = threading.Event()
+    raw_sub = transport.create_subscription(topic, lambda _: got.set())
+    server = UIServer(LocalRecipe([]), transport, inputs=[], outputs=[topic], settings=UISettings(port=0)).start()
+    publisher = transport.create_publisher(topic)
+    out: dict[str, list[float]] = {"framework": [], "raw": []}
+    try:
+        with connect(f"ws://127.0.0.1:{server.port}/api/outputs?topics=bench", max_size=None,
+                     open_timeout=10) as ws:
+            for seq in range(warmup + count):
+                value = _value(payload, seq)
+                got.clear()
+                start = time.perf_counter()
+                publisher.publish(value)
+                if not got.wait(10):
+                    raise RuntimeError("the raw subscription got nothing in 10 s")
+                raw = time.perf_counter() - start
+                json.loads(ws.recv(timeout=10))
+                through_ui = time.perf_counter() - start
+                if seq >= warmup:
+                    out["raw"].append(raw * 1000)
+                    out["framework"].append(through_ui * 1000)
+    finally:
+        server.stop()
+        raw_sub.close()
+        transport.close()
+    return out
+
+
+def measure(count: int, warmup: int, progress: Callable[[str], None]) -> list[dict[str, Any]]:
+    """The records of every payload, framework and raw."""
+    records = []
+    for payload in PAYLOADS:
+        samples = _latencies(payload, count if payload == "string" else max(5, count // 4), warmup)
+        for mode, values in samples.items():
+            records.append({"suite": "ui", "transport": "memory", "mode": mode, "payload": payload,
+                            "n": len(values), "latency_ms": {"p50": percentile(values, 50),
+                                                             "p99": percentile(values, 99)}})
+        fw, raw = (next(r for r in records if r["mode"] == m and r["payload"] == payload)
+                   for m in ("framework", "raw"))
+        progress(f"{'ui':<10} {payload:<10} value -> WebSocket client p50 {fw['latency_ms']['p50']:.3f} ms vs raw "
+                 f"subscription {raw['latency_ms']['p50']:.3f} ms (n={fw['n']})")
+    return records
+
+
+def run_suite(settings: dict[str, Any], progress: Callable[[str], None]) -> tuple[list[dict[str, Any]],
+                                                                                   list[dict[str, str]]]:
+    """The UI figures; (records, skipped)."""
+    missing = [m for m in ("starlette", "uvicorn", "PIL") if not available(m)]
+    if missing:
+        reason = f"the ui extra is not installed (missing {missing}): pip install 'agents-core[ui]'"
+        return [], [{"suite": "ui", "transport": "memory", "mode": "both", "reason": reason}]
+    return measure(int(settings["ui_count"]), int(settings["ui_warmup"]), progress), []
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--count", type=int, default=200)
+    args = parser.parse_args(argv)
+    for record in measure(args.count, 20, lambda line: print(line, file=sys.stderr, flush=True)):
+        emit(record)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
