@@ -468,9 +468,9 @@ def _cross_process_transports() -> list[str]:
 
 def _refuse_inside_component_process() -> None:
     """A component process imports the recipe for its classes: the recipe's launcher must not launch again."""
-    child = sys.modules.get("agents_core.processes.child")
-    if child is not None and getattr(child, "importing_recipe", False):
-        raise child.RecipeImportStop
+    recipe_import = sys.modules.get("agents_core.processes.recipe_import")
+    if recipe_import is not None and recipe_import.importing_recipe():
+        raise recipe_import.RecipeImportStop
 
 
 def _read_launch_file(path: str) -> tuple[dict[str, Any], dict[str, dict[str, Any]]]:

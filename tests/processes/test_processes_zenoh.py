@@ -229,3 +229,69 @@ status_rate = 5.0
         time.sleep(2.0)
         sub.close()
         assert len(got) >= 6, len(got)  # the default 1 Hz would give about 2
+
+
+UNGUARDED_RECIPE = '''
+import os
+from typing import Any
+
+from agents_core import Component, Topic
+from agents_core.launcher import Launcher
+from agents_core.supported_types import String
+
+
+class Echo(Component):
+    def __init__(self, component_name: str) -> None:
+        self.allowed_inputs = {"Required": [String]}
+        self.allowed_outputs = {"Required": [String]}
+        source = Topic("ug/in", "String")
+        super().__init__(inputs=[source], outputs=[Topic("ug/out", "String")], trigger=source,
+                         component_name=component_name)
+
+    def _execution_step(self, **kwargs: Any) -> None:
+        text = self.trig_callbacks["ug/in"].get_output()
+        self.publishers_dict["ug/out"].publish(f"{text}:{os.getpid()}")
+
+
+# No `if __name__ == "__main__":` guard, as many upstream recipes: the component process imports
+# this file for Echo, and its Launcher must not launch the recipe again there.
+launcher = Launcher(transport="zenoh", transport_options={
+    "mode": "peer", "listen": ["tcp/127.0.0.1:PORT"], "connect": [], "multicast_scouting": False})
+launcher.add_pkg(components=[Echo("echo")], multiprocessing=True)
+launcher.bringup()
+'''
+
+
+def test_a_recipe_without_main_guard_is_not_launched_again_in_its_component_process(
+        tmp_path: Path, observer_factory) -> None:
+    import subprocess  # noqa: PLC0415
+    import sys  # noqa: PLC0415
+
+    from .helpers import REPO, child_pids, free_tcp_port  # noqa: PLC0415
+
+    port = free_tcp_port()
+    recipe = tmp_path / "unguarded.py"
+    recipe.write_text(UNGUARDED_RECIPE.replace("PORT", str(port)))
+    log = (tmp_path / "log").open("wb")
+    proc = subprocess.Popen([sys.executable, str(recipe)], cwd=REPO, stdout=log, stderr=subprocess.STDOUT)
+    try:
+        observer = observer_factory(port)
+        wait_for(lambda: _all_active(observer, ("echo",)), timeout=30.0, what="echo active")
+        kids = child_pids(proc.pid)
+        assert len(kids) == 1  # one component process, which started no launcher of its own
+        assert child_pids(kids[0]) == []
+        got: list[str] = []
+        sub = observer.create_subscription(Topic("ug/out", "String"), got.append)
+        pub = observer.create_publisher(Topic("ug/in", "String"))
+        wait_for(lambda: pub.publish("hi") or got, timeout=10.0, what="an echo", step=0.2)
+        assert got[0] == f"hi:{kids[0]}"
+        sub.close()
+        pub.close()
+        proc.send_signal(signal.SIGTERM)
+        assert proc.wait(timeout=20.0) == 0
+        assert not alive(kids[0])
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait(timeout=5.0)
+        log.close()

@@ -17,7 +17,6 @@ from __future__ import annotations
 import argparse
 import contextlib
 import ctypes
-import importlib.util
 import json
 import logging
 import os
@@ -27,7 +26,7 @@ import sys
 import threading
 from typing import IO, Any
 
-__all__ = ["EXIT_DEADLINE_S", "RecipeImportStop", "main", "set_parent_death_signal"]
+__all__ = ["EXIT_DEADLINE_S", "main", "set_parent_death_signal"]
 
 logger = logging.getLogger("agents_core.processes.child")
 
@@ -36,19 +35,6 @@ EXIT_DEADLINE_S = 1.5
 #: Longest first line (the spec) read from stdin.
 MAX_SPEC_BYTES = 16 * 1024 * 1024
 _PR_SET_PDEATHSIG = 1
-
-#: True in a component process while the recipe file is imported (see :class:`RecipeImportStop`).
-importing_recipe = False
-
-
-class RecipeImportStop(BaseException):  # a control-flow signal, like SystemExit
-    """Raised by ``Launcher.start()`` while a component process imports the recipe file.
-
-    Recipes often call ``launcher.bringup()`` at the top level; in a component process that
-    call must not launch the recipe again. Everything the recipe defined before it (its
-    component classes) is then available.
-    """
-
 
 def set_parent_death_signal(signum: int = signal.SIGTERM) -> bool:
     """Ask Linux to send ``signum`` when the parent dies (``prctl(PR_SET_PDEATHSIG)``); False elsewhere."""
@@ -59,24 +45,6 @@ def set_parent_death_signal(signum: int = signal.SIGTERM) -> bool:
         return int(libc.prctl(_PR_SET_PDEATHSIG, signum, 0, 0, 0)) == 0
     except (OSError, AttributeError):
         return False
-
-
-def _import_recipe(path: str) -> None:
-    global importing_recipe  # noqa: PLW0603  # read by Launcher.start() in this process only
-    from .spec import RECIPE_MODULE  # noqa: PLC0415
-
-    module_spec = importlib.util.spec_from_file_location(RECIPE_MODULE, path)
-    if module_spec is None or module_spec.loader is None:
-        raise ImportError(f"cannot import the recipe {path!r}")
-    module = importlib.util.module_from_spec(module_spec)
-    sys.modules[RECIPE_MODULE] = module
-    importing_recipe = True
-    try:
-        module_spec.loader.exec_module(module)
-    except RecipeImportStop:
-        pass
-    finally:
-        importing_recipe = False
 
 
 class _Reporter:
@@ -126,7 +94,8 @@ def _exit_soon(code: int) -> None:
 def run(spec_line: bytes, reporter: _Reporter, stdin: _PipeLines) -> int:
     """Build, run and stop the component of ``spec_line``; the process's exit status."""
     from ..transport.registry import resolve_transport  # noqa: PLC0415
-    from .spec import ComponentSpec, decode_value  # noqa: PLC0415
+    from .recipe_import import import_recipe  # noqa: PLC0415
+    from .spec import RECIPE_MODULE, ComponentSpec, decode_value  # noqa: PLC0415
 
     spec = ComponentSpec.from_dict(json.loads(spec_line))
     if spec.parent_pid and os.getppid() != spec.parent_pid:
@@ -134,7 +103,7 @@ def run(spec_line: bytes, reporter: _Reporter, stdin: _PipeLines) -> int:
     logging.basicConfig(level=logging.INFO, stream=sys.stderr,
                         format=f"[{spec.component_name} %(process)d] %(levelname)s %(name)s: %(message)s")
     if spec.recipe_path is not None:
-        _import_recipe(spec.recipe_path)
+        import_recipe(spec.recipe_path, RECIPE_MODULE)
     component = spec.build()
     transport = resolve_transport(spec.transport, **decode_value(spec.transport_options))
     commands: queue.SimpleQueue[str] = queue.SimpleQueue()
