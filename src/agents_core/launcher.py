@@ -150,6 +150,8 @@ class Launcher:
         """
         from .ui.settings import UISettings  # noqa: PLC0415  (the UI is optional)
 
+        if self._started:
+            raise ConfigError("enable_ui() must be called before the launcher starts")
         self._ui_options = {"inputs": inputs, "outputs": outputs, "settings": UISettings(port=port, **settings)}
 
     @property

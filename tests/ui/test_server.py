@@ -132,3 +132,13 @@ def test_attach_finds_the_components_by_discovery() -> None:
             assert reply.json()["result"] == 2
         finally:
             server.stop()
+
+
+def test_enable_ui_is_refused_after_start_and_off_loopback_without_a_token(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.delenv("AGENTS_UI_TOKEN", raising=False)
+    launcher = Launcher("memory")
+    launcher.add_pkg(components=[shouter()])
+    with pytest.raises(ConfigError, match="give it a token"):
+        launcher.enable_ui(host="0.0.0.0")
+    with launcher, pytest.raises(ConfigError, match="before the launcher starts"):
+        launcher.enable_ui(port=0)

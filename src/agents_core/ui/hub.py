@@ -141,7 +141,7 @@ class OutputHub:
         self._clients.add(client)
         with self._lock:
             known = list(self._status.values())
-        for frame in known:  # the current status of each component, first
+        for frame in known[: client.depth]:  # the current status of each component, first
             client.queue.put_nowait(json.dumps(frame, separators=(",", ":")))
         return client
 

@@ -1,0 +1,78 @@
+"""What WS /api/outputs sends for each type (agents_core.ui.frames), without a server."""
+
+from __future__ import annotations
+
+import base64
+import io
+import json
+import wave
+
+import numpy as np
+import pytest
+
+pytest.importorskip("PIL", reason="Pillow (the ui extra) is not installed")
+
+from agents_core.messages import (
+    AudioMsg,
+    CompressedImageMsg,
+    DetectionsMsg,
+    ImageMsg,
+    LaserScanMsg,
+    StreamingStringMsg,
+    TrackingsMsg,
+)
+from agents_core.ui.frames import MAX_LIST_ITEMS, frame_for
+
+
+def _decoded(frame: dict) -> np.ndarray:
+    from PIL import Image  # noqa: PLC0415
+
+    return np.asarray(Image.open(io.BytesIO(base64.b64decode(frame["data"]))))
+
+
+def test_streamed_chunks_keep_their_flags() -> None:
+    frame = frame_for("answer", "StreamingString", StreamingStringMsg(data=" Paris", stream=True, done=False))
+    assert (frame["kind"], frame["text"], frame["stream"], frame["done"]) == ("stream", " Paris", True, False)
+    assert isinstance(frame["stamp_ns"], int)
+
+
+def test_raw_images_become_jpeg_or_png_and_compressed_ones_pass_through() -> None:
+    pixels = np.zeros((10, 12, 3), np.uint8)
+    pixels[:, :, 2] = 255
+    bgr = ImageMsg(data=pixels, encoding="bgr8")  # blue in BGR order is red in RGB
+    png = frame_for("cam", "Image", bgr, image_format="png")
+    assert png["mime"] == "image/png" and (png["width"], png["height"]) == (12, 10)
+    assert _decoded(png)[0, 0].tolist() == [255, 0, 0]
+    depth = frame_for("depth", "Image", ImageMsg(data=np.full((4, 4), 1000, np.uint16), encoding="16UC1"))
+    assert depth["mime"] == "image/jpeg" and _decoded(depth).shape == (4, 4)
+    packed = frame_for("c", "CompressedImage", CompressedImageMsg(data=b"\x89PNG....", format="png"))
+    assert packed["mime"] == "image/png" and base64.b64decode(packed["data"]) == b"\x89PNG...."
+
+
+def test_detections_and_trackings_carry_boxes_labels_and_their_image() -> None:
+    image = ImageMsg(data=np.zeros((8, 8, 3), np.uint8))
+    det = frame_for("d", "Detections", DetectionsMsg(boxes=[[1, 2, 3, 4]], labels=["cup"], scores=[0.9], image=image))
+    assert det["kind"] == "detections" and det["boxes"] == [[1.0, 2.0, 3.0, 4.0]] and det["labels"] == ["cup"]
+    assert det["scores"] == [0.9] and det["image"]["width"] == 8
+    tracks = frame_for("t", "Trackings", TrackingsMsg(ids=[7], labels=["cat"], boxes=[[0, 0, 2, 2]],
+                                                      centroids=[[1, 1]], estimated_velocities=[[0, 0]]))
+    assert tracks["ids"] == [7] and tracks["image"] is None
+    multi = frame_for("m", "DetectionsMultiSource", [DetectionsMsg(labels=["a"], boxes=[[0, 0, 1, 1]], scores=[1]),
+                                                     DetectionsMsg()])
+    assert multi["sources"] == 2 and multi["labels"] == ["a"]
+
+
+def test_audio_becomes_a_wav_file_float_samples_scaled() -> None:
+    frame = frame_for("voice", "Audio", AudioMsg(data=np.array([0.0, 0.5, -1.0], np.float32), sample_rate=22050))
+    with wave.open(io.BytesIO(base64.b64decode(frame["data"]))) as w:
+        assert w.getframerate() == 22050 and w.getsampwidth() == 2
+        assert np.frombuffer(w.readframes(3), "<i2").tolist() == [0, 16383, -32767]
+
+
+def test_other_values_are_bounded_json() -> None:
+    scan = LaserScanMsg(ranges=np.full(MAX_LIST_ITEMS + 10, np.inf, np.float32))
+    frame = frame_for("scan", "LaserScan", scan)
+    ranges = frame["value"]["ranges"]
+    assert ranges["truncated"] is True and len(ranges["data"]) == MAX_LIST_ITEMS and ranges["data"][0] is None
+    json.dumps(frame, allow_nan=False)  # infinities became null
+    assert frame_for("n", "Float64", 2.5)["value"] == 2.5
