@@ -1,0 +1,59 @@
+"""Goals on Zenoh from a plain zenoh + msgpack client in another process (docs/zenoh-wire-format.md)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+pytest.importorskip("zenoh")
+
+from agents_core.testing.helpers import free_tcp_port
+from agents_core.transport.goals import GoalHandle
+from agents_zenoh.transport import ZenohTransport
+
+REPO = Path(__file__).resolve().parents[2]
+
+
+def execute(handle: GoalHandle) -> dict[str, Any]:
+    step = 0
+    while step < handle.goal["max_steps"] and not handle.wait_for_cancel(0.02):
+        step += 1
+        handle.publish_feedback({"step": step, "action": [0.25 * step, -1.0], "status": "moving"})
+    return {"success": not handle.cancel_requested, "message": handle.goal["task"], "steps": step}
+
+
+def test_plain_zenoh_client_sends_cancels_and_reads_results() -> None:
+    port = free_tcp_port()
+    server_side = ZenohTransport(mode="peer", listen=[f"tcp/127.0.0.1:{port}"], connect=[],
+                                 multicast_scouting=False)
+    proc = None
+    try:
+        server = server_side.create_action_server("arm_goal", "VisionLanguageAction", execute)
+        proc = subprocess.Popen(
+            [sys.executable, str(REPO / "tests" / "zenoh_adapter" / "raw_goal_client.py"),
+             "--connect", f"tcp/127.0.0.1:{port}", "--action", "arm_goal"],
+            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=REPO)
+        out, err = proc.communicate(timeout=60)
+        assert proc.returncode == 0, err
+        seen = json.loads(out.strip().splitlines()[-1])
+        assert seen["project_modules"] == []
+        assert seen["accepted"] == {"accepted": True, "reason": ""}
+        assert [f["step"] for f in seen["feedback"]] == [1, 2, 3]
+        assert seen["feedback"][1] == {"step": 2, "action": [0.5, -1.0], "status": "moving"}
+        assert seen["result"] == {"status": 4, "result": {"success": True, "message": "reach", "steps": 3}}
+        assert 2 in seen["statuses"] and 4 in seen["statuses"]  # EXECUTING, then SUCCEEDED
+        assert seen["cancel"] == {"accepted": True}
+        assert seen["cancel_result"]["status"] == 5 and seen["cancel_result"]["result"]["success"] is False
+        assert seen["garbage_ok"] is False and "did not decode" in seen["garbage"]["error"]
+        stats = server.statistics()
+        assert stats.decode_errors == 1 and stats.succeeded == 1 and stats.canceled == 1
+    finally:
+        if proc is not None and proc.poll() is None:
+            proc.kill()
+            proc.wait(5)
+        server_side.close()
