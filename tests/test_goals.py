@@ -17,8 +17,7 @@ from agents_core.errors import (
     TypeValidationError,
     UnknownTypeError,
 )
-from agents_core.transport import MemoryTransport
-from agents_core.transport import goal_serving
+from agents_core.transport import MemoryTransport, goal_serving
 from agents_core.transport.goals import (
     ACTION_TYPES,
     ActionType,
@@ -121,7 +120,7 @@ def test_result_timeout_and_closed_transport() -> None:
     t = MemoryTransport()
     server = t.create_action_server("slow", VLA, lambda h: (release.wait(5.0), {"success": True})[1])
     goal = t.send_goal("slow", VLA, {"task": "x"})
-    with pytest.raises(RequestTimeoutError, match="no result within 0.05 s"):
+    with pytest.raises(RequestTimeoutError, match=r"no result within 0\.05 s"):
         goal.result(0.05)
     release.set()
     assert goal.result(5.0)[0] == GoalStatus.SUCCEEDED
