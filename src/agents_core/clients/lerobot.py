@@ -97,6 +97,9 @@ class LeRobotClient(PolicyClient):
         self.max_message_bytes = max_message_bytes
         self._channel: Any = None
         self._calls: dict[str, Callable[..., Any]] = {}
+        # Set when the server could not be reached: a restarted server has no policy loaded, so the
+        # next inference says Ready and sends the policy again first.
+        self._needs_setup = False
 
     # -- connection -------------------------------------------------------------------------------
 
@@ -131,6 +134,7 @@ class LeRobotClient(PolicyClient):
             if code == grpc.StatusCode.DEADLINE_EXCEEDED:
                 raise InferenceTimeoutError(f"{where} timed out after {timeout:.3g} s") from None
             if code == grpc.StatusCode.UNAVAILABLE:
+                self._needs_setup = True
                 raise ClientConnectionError(f"{where}: cannot reach the server: {detail}") from None
             raise InferenceError(f"{where} failed: {code.name if code else 'error'}: {detail}") from None
 
@@ -151,6 +155,7 @@ class LeRobotClient(PolicyClient):
         timeout = float(self.init_timeout or self.inference_timeout)
         self._rpc("Ready", wire.Empty(), timeout)
         self._rpc("SendPolicyInstructions", wire.PolicySetup(data=wire.dumps_payload(setup)), timeout)
+        self._needs_setup = False
 
     def _deinitialize(self) -> None:
         self._close()
@@ -159,6 +164,8 @@ class LeRobotClient(PolicyClient):
 
     def _predict(self, observation: dict[str, Any]) -> tuple[int, np.ndarray]:
         _, wire = _grpc_and_wire()
+        if self._needs_setup:
+            self._initialize()
         deadline = time.monotonic() + float(self.inference_timeout)
         raw: dict[str, Any] = {name: float(value) for name, value in observation["state"].items()}
         for camera, image in observation["images"].items():
