@@ -29,6 +29,9 @@ METRICS: dict[str, list[tuple[str, str, str, str]]] = {
     "voice": [("stt_speed", "x realtime", "higher", "speed"), ("first_audio", "ms", "lower", "first_audio_ms")],
     # layer values written into a local Chroma through MapEncoding vs direct ChromaClient.add calls.
     "map": [("writes_per_s", "writes/s", "higher", "writes_per_s")],
+    # a goal with N feedbacks, sent to its result: send_goal / create_action_server vs raw zenoh queryables
+    # or raw rclpy ActionServer / ActionClient.
+    "goals": [("rtt_median", "us", "lower", "rtt.median_us"), ("rtt_p99", "us", "lower", "rtt.p99_us")],
 }
 
 #: Above this slowdown (framework cost / raw cost) a latency figure needs a profile note.
@@ -165,7 +168,7 @@ def plot(figures: list[dict[str, Any]], records: list[dict[str, Any]], path: Pat
                                       gridspec_kw={"width_ratios": [3, 2]})
     colors = {"hop": "tab:blue", "throughput": "tab:orange", "startup": "tab:green", "model": "tab:purple",
               "imports": "tab:brown", "vision": "tab:red", "voice": "tab:olive",
-              "map": "tab:cyan"}
+              "map": "tab:cyan", "goals": "tab:pink"}
     labels = [f["id"] for f in shown]
     values = [f["slowdown"] for f in shown]
     y = list(range(len(shown)))

@@ -23,6 +23,8 @@ when the goal ends.
 
 from __future__ import annotations
 
+import collections
+import contextlib
 import logging
 import threading
 import time
@@ -53,6 +55,10 @@ MAX_RESULT_WAIT_S = 5.0
 #: Result queries a server holds at once per goal (a bound on what a peer can pile up).
 MAX_HELD_QUERIES = 16
 _PRIORITY = zenoh.Priority.INTERACTIVE_HIGH
+#: Goals whose feedback count a server remembers (for their result replies).
+KEPT_COUNTS = 1024
+#: How long a client waits, after the result, for feedback the server says it sent.
+FEEDBACK_GRACE_S = 1.0
 
 
 def action_key(driver: ZenohDriver, name: str, *parts: str) -> str:
@@ -99,6 +105,9 @@ class ZenohActionServer:
         self._lane = lane
         self._lock = threading.Lock()
         self._held: dict[str, list[zenoh.Query]] = {}
+        # Feedback samples sent per goal, told with the result: the result travels on another
+        # path than the feedback, so the client waits (bounded) for the feedback still on its way.
+        self._sent: collections.OrderedDict[str, int] = collections.OrderedDict()
         self._closed = False
         session = driver._session
         self._entities = [
@@ -188,12 +197,22 @@ class ZenohActionServer:
         _finalize(query)
 
     def _reply_result(self, query: zenoh.Query, status: GoalStatus, result: dict[str, Any]) -> None:
-        _answer(query, {"status": int(status), "result": result})
+        goal_id = ""
+        with contextlib.suppress(Exception):
+            goal_id = str(unpack(query.payload.to_bytes()).get("goal_id", "")) if query.payload is not None else ""
+        with self._lock:
+            sent = self._sent.get(goal_id, 0)
+        _answer(query, {"status": int(status), "result": result, "feedback_sent": sent})
         _finalize(query)
 
     # -- DriverActionServer ------------------------------------------------------------------------
 
     def feedback(self, goal_id: str, feedback: dict[str, Any]) -> None:
+        with self._lock:
+            self._sent[goal_id] = self._sent.get(goal_id, 0) + 1
+            self._sent.move_to_end(goal_id)
+            while len(self._sent) > KEPT_COUNTS:
+                self._sent.popitem(last=False)
         self._driver._session.put(action_key(self._driver, self.name, "feedback", goal_id), pack(feedback),
                                   encoding=MSGPACK, priority=_PRIORITY)
 
@@ -233,6 +252,8 @@ class ZenohGoal:
         self._subscriber: Any = driver._session.declare_subscriber(action_key(driver, name, "*", goal_id),
                                                                    self._on_sample)
         self._thread: threading.Thread | None = None
+        self._feedback_seen = 0
+        self._feedback_cond = threading.Condition()
 
     def _on_sample(self, sample: zenoh.Sample) -> None:
         try:
@@ -241,6 +262,9 @@ class ZenohGoal:
                 raise CodecError(f"expected a map, got {type(doc).__name__}")
             if str(sample.key_expr) == self._feedback_key:
                 self._events.feedback(doc)
+                with self._feedback_cond:
+                    self._feedback_seen += 1
+                    self._feedback_cond.notify_all()
             else:
                 self._events.status(GoalStatus(doc["status"]))
         except (CodecError, KeyError, ValueError, TypeError) as exc:
@@ -289,8 +313,21 @@ class ZenohGoal:
                 self._events.finished(GoalStatus.ABORTED, {"message": f"action server {self._name!r} does not "
                                                            "know the goal (restarted?)"})
             else:
+                self._await_feedback(answer.get("feedback_sent"))
                 self._events.finished(status, answer.get("result"))
             return
+
+    def _await_feedback(self, sent: Any) -> None:
+        """Let the feedback the server sent before the result arrive first (bounded)."""
+        if isinstance(sent, bool) or not isinstance(sent, int):
+            return
+        deadline = time.monotonic() + FEEDBACK_GRACE_S
+        with self._feedback_cond:
+            while self._feedback_seen < sent and not self._done.is_set():
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    return
+                self._feedback_cond.wait(left)
 
     def cancel(self, timeout: float) -> bool:
         try:
