@@ -313,3 +313,28 @@ class TestBadInput:
             final = r.arm.snapshot()
         assert status == GoalStatus.SUCCEEDED
         assert final["shoulder"] == pytest.approx(0.5) and final["elbow"] == pytest.approx(-0.5, abs=1e-6)
+
+
+def test_the_readme_example_builds_and_reads_its_urdf(server: PolicyTestServer, tmp_path: Path,
+                                                      monkeypatch: pytest.MonkeyPatch) -> None:
+    import re  # noqa: PLC0415
+
+    readme = (Path(__file__).resolve().parents[2] / "README.md").read_text(encoding="utf-8")
+    block = next(b for b in re.findall(r"```python\n(.*?)```", readme, flags=re.S) if "VLAConfig(" in b)
+    build = block.split("# then, from any process")[0].replace("port=8080", f"port={server.port}")
+    (tmp_path / "info.json").write_text('{"features": {"observation.state": {"dtype": "float32", "shape": [2], '
+                                        '"names": ["shoulder_pan.pos", "gripper.pos"]}, "action": {"dtype": '
+                                        '"float32", "shape": [2], "names": ["shoulder_pan.pos", "gripper.pos"]}}}')
+    (tmp_path / "so100.urdf").write_text('<robot name="so100"><joint name="shoulder_pan" type="revolute">'
+                                         '<limit lower="-2" upper="2" velocity="3"/></joint><joint name="gripper" '
+                                         'type="prismatic"><limit lower="0" upper="0.04" velocity="0.1"/></joint>'
+                                         '</robot>')
+    monkeypatch.chdir(tmp_path)
+    namespace: dict[str, Any] = {"Topic": Topic}
+    exec(compile(build, "README.md", "exec"), namespace)
+    vla = namespace["vla"]
+    launcher = Launcher("memory")
+    launcher.add_pkg(components=[vla])
+    with launcher:
+        assert vla._limits["gripper"].upper == pytest.approx(0.04)
+        assert vla._action_names == ["shoulder_pan.pos", "gripper.pos"]
