@@ -32,6 +32,8 @@ METRICS: dict[str, list[tuple[str, str, str, str]]] = {
     # a goal with N feedbacks, sent to its result: send_goal / create_action_server vs raw zenoh queryables
     # or raw rclpy ActionServer / ActionClient.
     "goals": [("rtt_median", "us", "lower", "rtt.median_us"), ("rtt_p99", "us", "lower", "rtt.p99_us")],
+    # one observation -> action chunk round trip: LeRobotClient.inference vs the raw gRPC stubs, one server.
+    "vla": [("latency_p50", "ms", "lower", "latency_ms.p50"), ("latency_p99", "ms", "lower", "latency_ms.p99")],
 }
 
 #: Above this slowdown (framework cost / raw cost) a latency figure needs a profile note.
@@ -168,7 +170,7 @@ def plot(figures: list[dict[str, Any]], records: list[dict[str, Any]], path: Pat
                                       gridspec_kw={"width_ratios": [3, 2]})
     colors = {"hop": "tab:blue", "throughput": "tab:orange", "startup": "tab:green", "model": "tab:purple",
               "imports": "tab:brown", "vision": "tab:red", "voice": "tab:olive",
-              "map": "tab:cyan", "goals": "tab:pink"}
+              "map": "tab:cyan", "goals": "tab:pink", "vla": "tab:gray"}
     labels = [f["id"] for f in shown]
     values = [f["slowdown"] for f in shown]
     y = list(range(len(shown)))

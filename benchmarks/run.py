@@ -1,7 +1,7 @@
 """Run the benchmarks: ``python -m benchmarks.run [--quick] [--transports memory,zenoh,ros2] [--out DIR]``.
 
 Runs the suites (hop latency and throughput, start-up, model path, import cost, vision, voice, map,
-goals) for every transport this environment has, framework and raw library side by side, then writes
+goals, vla) for every transport this environment has, framework and raw library side by side, then writes
 ``<out>/<stamp>-<quick|full>.json`` and ``.png`` and prints a markdown table. A transport or suite
 that cannot run here (its extra is not installed) is skipped, and the reason is recorded in the
 JSON. Child logs go to ``<out>/<stamp>-logs/``. See ``benchmarks/README.md``.
@@ -21,7 +21,7 @@ from pathlib import Path
 from types import FrameType
 from typing import Any
 
-from . import goals, hop, imports, model, report, startup, vision, voice
+from . import goals, hop, imports, model, report, startup, vision, vla, voice
 from . import map as map_suite  # the module name is the suite name; "map" alone would hide the builtin
 from .common import IMAGE_SHAPE, REPO, STRING_BYTES, Children, available
 from .throughput import WINDOW
@@ -33,15 +33,15 @@ SETTINGS: dict[str, dict[str, Any]] = {
               "throughput_seconds": 1.5, "latency_max_seconds": 30.0, "startup_reps": 2,
               "model_reps": 2, "model_max_tokens": 64, "model_threads": 1, "rounds": 1, "import_reps": 5,
               "vision_frames": 20, "vision_seconds": 3.0, "voice_reps": 1, "map_values": 100, "map_reps": 1,
-              "goal_count": 20, "goal_feedbacks": 10},
+              "goal_count": 20, "goal_feedbacks": 10, "vla_reps": 30, "vla_warmup": 5},
     "full": {"string_warmup": 200, "string_count": 2000, "image_warmup": 30, "image_count": 300,
              "throughput_seconds": 5.0, "latency_max_seconds": 120.0, "startup_reps": 5,
              "model_reps": 8, "model_max_tokens": 64, "model_threads": 1, "rounds": 3, "import_reps": 15,
              "vision_frames": 100, "vision_seconds": 10.0, "voice_reps": 3, "map_values": 300,
-             "map_reps": 3, "goal_count": 200, "goal_feedbacks": 10},
+             "map_reps": 3, "goal_count": 200, "goal_feedbacks": 10, "vla_reps": 200, "vla_warmup": 10},
 }
 
-SUITES = ("hop", "startup", "model", "imports", "vision", "voice", "map", "goals")
+SUITES = ("hop", "startup", "model", "imports", "vision", "voice", "map", "goals", "vla")
 
 
 def transport_unavailable(name: str) -> str | None:
@@ -125,6 +125,10 @@ def run_suites(transports: list[str], suites: list[str], settings: dict[str, Any
             skipped += lost
         if "goals" in suites:
             got, lost = goals.run_suite(transports, settings, children, ros_domain, progress)
+            records += got
+            skipped += lost
+        if "vla" in suites:
+            got, lost = vla.run_suite(settings, children, progress)
             records += got
             skipped += lost
     finally:
