@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+import time
 from pathlib import Path
 from typing import Any
 
@@ -12,7 +13,7 @@ import pytest
 
 pytest.importorskip("zenoh")
 
-from agents_core.testing.helpers import free_tcp_port
+from agents_core.testing.helpers import free_tcp_port, wait_for
 from agents_core.transport.goals import GoalHandle
 from agents_zenoh.transport import ZenohTransport
 
@@ -45,7 +46,8 @@ def test_plain_zenoh_client_sends_cancels_and_reads_results() -> None:
         assert seen["accepted"] == {"accepted": True, "reason": ""}
         assert [f["step"] for f in seen["feedback"]] == [1, 2, 3]
         assert seen["feedback"][1] == {"step": 2, "action": [0.5, -1.0], "status": "moving"}
-        assert seen["result"] == {"status": 4, "result": {"success": True, "message": "reach", "steps": 3}}
+        assert seen["result"] == {"status": 4, "result": {"success": True, "message": "reach", "steps": 3},
+                                  "feedback_sent": 3}
         assert 2 in seen["statuses"] and 4 in seen["statuses"]  # EXECUTING, then SUCCEEDED
         assert seen["cancel"] == {"accepted": True}
         assert seen["cancel_result"]["status"] == 5 and seen["cancel_result"]["result"]["success"] is False
@@ -57,3 +59,42 @@ def test_plain_zenoh_client_sends_cancels_and_reads_results() -> None:
             proc.kill()
             proc.wait(5)
         server_side.close()
+
+
+def test_a_killed_server_process_ends_the_goal_aborted() -> None:
+    """The server's process dies mid-goal: the client's goal ends ABORTED with the reason, in bounded time."""
+    from agents_core.transport.goals import GoalStatus  # noqa: PLC0415
+
+    port = free_tcp_port()
+    proc = subprocess.Popen([sys.executable, "-m", "tests.zenoh_adapter.goal_server", str(port), "doomed"],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=REPO)
+    client_side = None
+    try:
+        assert proc.stdout is not None and proc.stdout.readline().strip() == "READY"
+        client_side = ZenohTransport(mode="peer", listen=[], connect=[f"tcp/127.0.0.1:{port}"],
+                                     multicast_scouting=False)
+        feedback: list[dict[str, Any]] = []
+        goal = None
+        for _ in range(50):
+            try:
+                goal = client_side.send_goal("doomed", "VisionLanguageAction", {"task": "x"}, feedback=feedback.append,
+                                             timeout=2.0)
+                break
+            except Exception:
+                time.sleep(0.1)
+        assert goal is not None and goal.accepted
+        assert wait_for(lambda: len(feedback) >= 3, timeout=10.0)
+        proc.kill()
+        proc.wait(10)
+        started = time.monotonic()
+        status, result = goal.result(15.0)
+        assert status == GoalStatus.ABORTED and "went away" in result["message"]
+        assert time.monotonic() - started < 15.0
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait(10)
+        if proc.stdout is not None:
+            proc.stdout.close()
+        if client_side is not None:
+            client_side.close()
