@@ -197,3 +197,16 @@ def test_a_raising_feedback_callback_does_not_break_the_goal() -> None:
         assert goal.result(5.0)[0] == GoalStatus.SUCCEEDED
         time.sleep(0.05)
         t.close()
+
+
+def test_readme_goals_example_runs_as_written() -> None:
+    import re  # noqa: PLC0415
+    from pathlib import Path  # noqa: PLC0415
+
+    readme = (Path(__file__).resolve().parent.parent / "README.md").read_text()
+    block = next(b for b in re.findall(r"```python\n(.*?)```", readme, flags=re.S)
+                 if "create_action_server(\"arm\"" in b)
+    namespace: dict[str, Any] = {}
+    exec(compile(block, "README.md", "exec"), namespace)
+    assert namespace["status"] == GoalStatus.SUCCEEDED
+    assert namespace["result"] == {"success": True, "message": "", "steps": 3}

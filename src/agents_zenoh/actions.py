@@ -24,7 +24,6 @@ when the goal ends.
 from __future__ import annotations
 
 import collections
-import contextlib
 import logging
 import threading
 import time
@@ -167,7 +166,7 @@ class ZenohActionServer:
             return
         ended = self._hooks.wait_result(goal_id, 0.0)
         if ended is not None:
-            self._reply_result(query, ended[0], ended[1])
+            self._reply_result(query, goal_id, ended[0], ended[1])
             return
         with self._lock:
             held = self._held.setdefault(goal_id, [])
@@ -196,10 +195,7 @@ class ZenohActionServer:
         _answer(query, {"pending": True})
         _finalize(query)
 
-    def _reply_result(self, query: zenoh.Query, status: GoalStatus, result: dict[str, Any]) -> None:
-        goal_id = ""
-        with contextlib.suppress(Exception):
-            goal_id = str(unpack(query.payload.to_bytes()).get("goal_id", "")) if query.payload is not None else ""
+    def _reply_result(self, query: zenoh.Query, goal_id: str, status: GoalStatus, result: dict[str, Any]) -> None:
         with self._lock:
             sent = self._sent.get(goal_id, 0)
         _answer(query, {"status": int(status), "result": result, "feedback_sent": sent})
@@ -224,7 +220,7 @@ class ZenohActionServer:
         with self._lock:
             held = self._held.pop(goal_id, [])
         for query in held:
-            self._reply_result(query, status, result)
+            self._reply_result(query, goal_id, status, result)
 
     def close(self) -> None:
         with self._lock:

@@ -1,8 +1,9 @@
-"""Transports: the contract every middleware adapter implements, the in-memory one, and lookup by name."""
+"""Transports: the contract every middleware adapter implements, the in-memory one, lookup by name, goals."""
 
 from __future__ import annotations
 
 from .contract import (
+    ActionServer,
     ComponentPresence,
     Publisher,
     ServiceHandler,
@@ -14,14 +15,21 @@ from .contract import (
     TransportCapabilities,
 )
 from .delivery import BoundedDelivery, SubscriptionStatistics
+from .goals import ActionType, FieldSpec, GoalClient, GoalHandle, GoalStatus, register_action_type
 from .memory import MemoryTransport, TopicStatistics
 from .registry import ENTRY_POINT_GROUP, TRANSPORT_ALIASES, available_transports, resolve_transport
 
 __all__ = [
     "ENTRY_POINT_GROUP",
     "TRANSPORT_ALIASES",
+    "ActionServer",
+    "ActionType",
     "BoundedDelivery",
     "ComponentPresence",
+    "FieldSpec",
+    "GoalClient",
+    "GoalHandle",
+    "GoalStatus",
     "MemoryTransport",
     "Publisher",
     "ServiceHandler",
@@ -34,5 +42,6 @@ __all__ = [
     "Transport",
     "TransportCapabilities",
     "available_transports",
+    "register_action_type",
     "resolve_transport",
 ]
