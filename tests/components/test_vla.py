@@ -338,3 +338,18 @@ def test_the_readme_example_builds_and_reads_its_urdf(server: PolicyTestServer, 
     with launcher:
         assert vla._limits["gripper"].upper == pytest.approx(0.04)
         assert vla._action_names == ["shoulder_pan.pos", "gripper.pos"]
+
+
+def test_deactivating_mid_goal_ends_it_with_a_hold(server: PolicyTestServer) -> None:
+    with rig(server.port) as r:
+        goal = r.send(max_steps=100_000)
+        assert wait_for(lambda: len(r.feedback) >= 3, 10.0)
+        r.vla.deactivate()
+        status, result = goal.result(timeout=10)
+        # The runtime closes the action server first: a running goal ends ABORTED with that reason.
+        assert status == GoalStatus.ABORTED and "closed" in result["message"], result
+        assert wait_for(lambda: r.vla.holds_sent == 1, 5.0)
+        hold = r.arm.commands[-1]
+        assert isinstance(hold, JointStateMsg)
+        assert positions_of(hold) == pytest.approx(r.arm.snapshot(), abs=1e-9)
+        assert isinstance(r.arm.commands[-1], JointStateMsg)

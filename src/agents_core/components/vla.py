@@ -231,6 +231,9 @@ class VLA(ModelComponent):
             running = self._running
         if running is not None:
             running.request_cancel()
+            # Let the goal send its hold command while the output is still open (bounded).
+            if self._run_lock.acquire(timeout=_PREEMPT_WAIT):
+                self._run_lock.release()
         self._close_event_subscriptions()
         super().custom_on_deactivate()
 
