@@ -17,8 +17,11 @@ traffic out of ``<ns>/**`` topic subscriptions. A client subscribes to
 ``<base>/@action/*/<goal_id>`` before it sends the goal, then asks for the result in a loop of
 bounded queries: a query that ends with no reply means the server is gone, and the goal ends
 ABORTED with that reason. Goal and cancel queries are answered on the owner's request lane (the
-server's ``accept`` is user code); result queries are held, not a thread each, and answered
-when the goal ends.
+server's ``accept`` is user code); result queries are held (one sweeper thread per server answers
+``pending`` when their wait runs out, never a thread per query) and answered when the goal ends,
+with ``"feedback_sent": n``, the number of feedback samples the goal published: feedback and
+result travel on different paths, so the client waits (at most a second) for the feedback still
+on its way before it reports the result.
 """
 
 from __future__ import annotations
@@ -103,7 +106,9 @@ class ZenohActionServer:
         self._hooks = hooks
         self._lane = lane
         self._lock = threading.Lock()
-        self._held: dict[str, list[zenoh.Query]] = {}
+        # Result queries waiting for their goal's end, with the time to answer "pending" instead.
+        self._held: dict[str, list[tuple[zenoh.Query, float]]] = {}
+        self._wake = threading.Condition(self._lock)
         # Feedback samples sent per goal, told with the result: the result travels on another
         # path than the feedback, so the client waits (bounded) for the feedback still on its way.
         self._sent: collections.OrderedDict[str, int] = collections.OrderedDict()
@@ -114,6 +119,8 @@ class ZenohActionServer:
             session.declare_queryable(action_key(driver, name, "cancel"), self._on_cancel),
             session.declare_queryable(action_key(driver, name, "result"), self._on_result),
         ]
+        self._sweeper = threading.Thread(target=self._sweep, daemon=True, name=f"{name}:result-queries")
+        self._sweeper.start()
 
     # -- queries ---------------------------------------------------------------------------------
 
@@ -168,32 +175,49 @@ class ZenohActionServer:
         if ended is not None:
             self._reply_result(query, goal_id, ended[0], ended[1])
             return
+        deadline = time.monotonic() + min(max(float(wait), 0.0), MAX_RESULT_WAIT_S)
         with self._lock:
             held = self._held.setdefault(goal_id, [])
-            if self._closed or len(held) >= MAX_HELD_QUERIES:
-                pending = True
-            else:
-                held.append(query)
-                pending = False
+            pending = self._closed or len(held) >= MAX_HELD_QUERIES
+            if not pending:
+                held.append((query, deadline))
+                self._wake.notify()
+            elif not held:
+                del self._held[goal_id]
         if pending:
             _answer(query, {"pending": True})
             _finalize(query)
             return
-        # Answer "pending" when the wait runs out, so the client's bounded query gets a reply.
-        timer = threading.Timer(min(max(float(wait), 0.0), MAX_RESULT_WAIT_S), self._release, args=(goal_id, query))
-        timer.daemon = True
-        timer.start()
+        ended = self._hooks.wait_result(goal_id, 0.0)  # it may have ended while the query was being held
+        if ended is not None:
+            self.finish(goal_id, ended[0], ended[1])
 
-    def _release(self, goal_id: str, query: zenoh.Query) -> None:
-        with self._lock:
-            held = self._held.get(goal_id, [])
-            if query not in held:
-                return
-            held.remove(query)
-            if not held:
-                self._held.pop(goal_id, None)
-        _answer(query, {"pending": True})
-        _finalize(query)
+    def _sweep(self) -> None:
+        """Answer "pending" to held result queries whose wait ran out (one thread per server, not per query)."""
+        while True:
+            expired: list[zenoh.Query] = []
+            with self._lock:
+                if self._closed:
+                    return
+                now = time.monotonic()
+                nearest = now + 1.0
+                for goal_id in list(self._held):
+                    keep = []
+                    for query, deadline in self._held[goal_id]:
+                        if deadline <= now:
+                            expired.append(query)
+                        else:
+                            keep.append((query, deadline))
+                            nearest = min(nearest, deadline)
+                    if keep:
+                        self._held[goal_id] = keep
+                    else:
+                        del self._held[goal_id]
+                if not expired:
+                    self._wake.wait(max(0.001, nearest - now))
+            for query in expired:
+                _answer(query, {"pending": True})
+                _finalize(query)
 
     def _reply_result(self, query: zenoh.Query, goal_id: str, status: GoalStatus, result: dict[str, Any]) -> None:
         with self._lock:
@@ -219,14 +243,16 @@ class ZenohActionServer:
     def finish(self, goal_id: str, status: GoalStatus, result: dict[str, Any]) -> None:
         with self._lock:
             held = self._held.pop(goal_id, [])
-        for query in held:
+        for query, _deadline in held:
             self._reply_result(query, goal_id, status, result)
 
     def close(self) -> None:
         with self._lock:
             self._closed = True
-            held = [q for queries in self._held.values() for q in queries]
+            held = [q for queries in self._held.values() for q, _deadline in queries]
             self._held.clear()
+            self._wake.notify_all()
+        self._sweeper.join(2.0)
         for query in held:
             _finalize(query)
         for entity in reversed(self._entities):

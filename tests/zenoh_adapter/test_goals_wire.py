@@ -98,3 +98,29 @@ def test_a_killed_server_process_ends_the_goal_aborted() -> None:
             proc.stdout.close()
         if client_side is not None:
             client_side.close()
+
+
+def test_a_goal_longer_than_one_result_query_still_gets_its_result() -> None:
+    """Result queries are answered "pending" after wait_s and asked again; the goal's feedback all arrives."""
+    from agents_core.testing.pairs import zenoh_pair  # noqa: PLC0415
+    from agents_core.transport.goals import GoalStatus  # noqa: PLC0415
+
+    def slow(handle: GoalHandle) -> dict[str, Any]:
+        for step in range(6):
+            handle.publish_feedback({"step": step})
+            handle.wait_for_cancel(0.3)
+        return {"success": True, "steps": 6}
+
+    with zenoh_pair() as (a, b):
+        a.create_action_server("slow_goal", "VisionLanguageAction", slow)
+        feedback: list[dict[str, Any]] = []
+        goal = None
+        for _ in range(50):
+            try:
+                goal = b.send_goal("slow_goal", "VisionLanguageAction", {"task": "x"}, feedback=feedback.append)
+                break
+            except Exception:
+                time.sleep(0.1)
+        assert goal is not None
+        assert goal.result(15.0) == (GoalStatus.SUCCEEDED, {"success": True, "message": "", "steps": 6})
+        assert wait_for(lambda: len(feedback) == 6, timeout=5.0)
