@@ -1,4 +1,4 @@
-"""The VLA recipe (vla_recipe.py) in its own process on Zenoh and on ROS 2: a simulated arm and the goal
+"""The VLA recipe (vla_recipe.py) on memory, and in its own process on Zenoh and on ROS 2: a simulated arm and the goal
 client in this process, a gRPC policy server on 127.0.0.1; the arm reaches the pose within its limits,
 and a cancel mid-goal stops it with a hold command. On ROS 2 the arm and the client are plain rclpy
 (sensor_msgs/JointState, sensor_msgs/Image, an rclpy ActionClient for VisionLanguageAction)."""
@@ -239,3 +239,35 @@ def _plain_rclpy_side(server: PolicyTestServer) -> None:
         client.destroy()
         node.destroy_node()
         rclpy.shutdown(context=context)
+
+
+def test_recipe_on_memory() -> None:
+    from agents_core import Launcher  # noqa: PLC0415
+
+    with PolicyTestServer(ReachPolicy(TARGET, step=0.05)) as server:
+        launcher = Launcher("memory")
+        launcher.add_pkg(components=[vla_recipe.build(server.port)])
+        with launcher:
+            arm = SimulatedArm(launcher.transport, {"shoulder": 0.0, "elbow": 0.0}, state_topic=vla_recipe.STATE,
+                               command_topic=vla_recipe.COMMANDS, camera_topic=vla_recipe.CAMERA)
+            try:
+                time.sleep(0.3)
+                status, result = launcher.transport.send_goal(
+                    "arm_vla", "VisionLanguageAction", {"task": "reach", "max_steps": 80}).result(timeout=30)
+                assert status == GoalStatus.SUCCEEDED, result
+                check_reach([c.position.tolist() for c in arm.commands if isinstance(c, JointStateMsg)],
+                            arm.snapshot())
+                server.policy = ReachPolicy(FAR, step=0.01)
+                feedback: list[dict[str, Any]] = []
+                goal = launcher.transport.send_goal("arm_vla", "VisionLanguageAction",
+                                                    {"task": "reach far", "max_steps": 100_000},
+                                                    feedback=feedback.append)
+                assert wait_for(lambda: len(feedback) >= 10, 15.0)
+                assert goal.cancel(timeout=5.0)
+                assert goal.result(timeout=15)[0] == GoalStatus.CANCELED
+                before = arm.snapshot()
+                time.sleep(0.3)
+                moves = [c.position.tolist() for c in arm.commands if isinstance(c, JointStateMsg)]
+                check_hold(moves[-1], moves[-4:-1], before, arm.snapshot())
+            finally:
+                arm.close()
