@@ -210,3 +210,27 @@ def test_readme_goals_example_runs_as_written() -> None:
     exec(compile(block, "README.md", "exec"), namespace)
     assert namespace["status"] == GoalStatus.SUCCEEDED
     assert namespace["result"] == {"success": True, "message": "", "steps": 3}
+
+
+def test_a_goal_whose_acceptance_times_out_is_cancelled() -> None:
+    """accept() slower than the sender's timeout: the sender gets RequestTimeoutError, the goal does not run on."""
+    release = threading.Event()
+    ran: list[bool] = []
+
+    def slow_accept(goal: dict[str, Any]) -> bool:
+        release.wait(5.0)
+        return True
+
+    def execute(h: GoalHandle) -> dict[str, Any]:
+        ran.append(h.wait_for_cancel(5.0))  # True: woken by the cancel, not by the timeout
+        return {}
+
+    with MemoryTransport() as t:
+        server = t.create_action_server("arm", VLA, execute, accept=slow_accept)
+        threading.Timer(0.3, release.set).start()
+        with pytest.raises(RequestTimeoutError, match="arm"):
+            t.send_goal("arm", VLA, {"task": "x"}, timeout=0.1)
+        # The cancel came while accept() ran: the goal is refused when decided, and never runs.
+        assert wait_for(lambda: server.statistics().rejected == 1, timeout=5.0)
+        assert server.statistics().accepted == 0 and ran == []
+        t.close()

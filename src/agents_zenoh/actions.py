@@ -304,8 +304,10 @@ class ZenohGoal:
         started = time.monotonic()
         try:
             answer = self._query("goal", {"goal_id": self._goal_id, "goal": goal}, timeout)
-        except ServiceUnavailableError:
-            if time.monotonic() - started >= timeout:
+        except (ServiceUnavailableError, RequestTimeoutError) as exc:
+            if isinstance(exc, RequestTimeoutError) or time.monotonic() - started >= timeout:
+                # Accepted after its sender gave up, the goal would run for nobody: cancel it (best effort).
+                self.cancel(0.5)
                 raise RequestTimeoutError(f"goal to {self._name!r} got no answer within {timeout:g} s") from None
             raise
         self.accepted = answer.get("accepted") is True
@@ -354,7 +356,7 @@ class ZenohGoal:
     def cancel(self, timeout: float) -> bool:
         try:
             return self._query("cancel", {"goal_id": self._goal_id}, timeout).get("accepted") is True
-        except (ServiceUnavailableError, RemoteError):
+        except (ServiceUnavailableError, RemoteError, RequestTimeoutError):
             return False
 
     def close(self) -> None:

@@ -95,6 +95,9 @@ class CoreActionServer:
         self._running: dict[str, GoalHandle] = {}
         self._threads: dict[str, threading.Thread] = {}
         self._ended: collections.OrderedDict[str, tuple[GoalStatus, dict[str, Any]]] = collections.OrderedDict()
+        # Cancels that came before their goal was decided (its sender gave up waiting): such a goal
+        # is refused when it is decided. Bounded, as the ids come from the network.
+        self._early_cancels: collections.OrderedDict[str, None] = collections.OrderedDict()
         self._stats = ActionServerStatistics()
         self._closed = False
 
@@ -124,6 +127,8 @@ class CoreActionServer:
                 return f"action server {self.name!r} is closed"
             if goal_id in self._running or goal_id in self._ended:
                 return f"goal id {goal_id} is already in use"
+            if goal_id in self._early_cancels:
+                return f"goal {goal_id} was cancelled before it was accepted"
             if len(self._running) >= MAX_RUNNING_GOALS:
                 return f"action server {self.name!r} already runs {MAX_RUNNING_GOALS} goals"
         if self._accept is not None:
@@ -138,6 +143,8 @@ class CoreActionServer:
                 return f"action server {self.name!r} is closed"
             if goal_id in self._running:
                 return f"goal id {goal_id} is already in use"
+            if self._early_cancels.pop(goal_id, 0) is None:  # cancelled while accept() ran
+                return f"goal {goal_id} was cancelled before it was accepted"
             self._running[goal_id] = handle
         return None
 
@@ -154,8 +161,14 @@ class CoreActionServer:
 
     def on_cancel(self, goal_id: str) -> bool:
         """Mark a running goal canceling; False for a goal that has ended or is unknown."""
+        if not _valid_goal_id(goal_id):
+            return False
         with self._lock:
-            handle = self._running.get(goal_id) if isinstance(goal_id, str) else None
+            handle = self._running.get(goal_id)
+            if handle is None and goal_id not in self._ended:
+                self._early_cancels[goal_id] = None
+                while len(self._early_cancels) > KEPT_RESULTS:
+                    self._early_cancels.popitem(last=False)
         if handle is None:
             return False
         handle.request_cancel()

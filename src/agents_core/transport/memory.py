@@ -263,14 +263,27 @@ class MemoryDriver:
             raise ServiceUnavailableError(f"no action server {name!r} on this memory transport")
         with server._lock:
             server._clients[goal_id] = events
+        hooks = server.hooks
+
+        def decide() -> str | None:
+            reason = hooks.on_goal(goal_id, goal)
+            if reason is None:
+                hooks.on_accepted(goal_id)
+            return reason
+
         # The accept decision may run user code: on the owner's lane, as requests do.
-        reason = _await_reply(f"goal to {name!r}", _run_on_lane(server.lane, server.hooks.on_goal, goal_id, goal),
-                              timeout)
+        try:
+            reason = _await_reply(f"goal to {name!r}", _run_on_lane(server.lane, decide), timeout)
+        except RequestTimeoutError:
+            # Accepted after its sender gave up, the goal would run for nobody: cancel it (best effort).
+            with server._lock:
+                server._clients.pop(goal_id, None)
+            hooks.on_cancel(goal_id)
+            raise
         if reason is not None:
             with server._lock:
                 server._clients.pop(goal_id, None)
             return _MemoryGoal(server, goal_id, False, reason)
-        server.hooks.on_accepted(goal_id)
         return _MemoryGoal(server, goal_id, True, "")
 
     def close(self) -> None:
