@@ -200,11 +200,12 @@ class Ros2ActionServer:
         deadline = time.monotonic() + CLOSE_FLUSH_S
         for event in waiting:
             event.wait(max(0.0, deadline - time.monotonic()))
-        # Clients that asked for a result get it before the server goes away.
-        time.sleep(0.05 if waiting else 0.0)
+        if waiting:
+            # rclpy answers pending result requests in a task of its own right after the result is
+            # stored: give it a moment, so clients that asked get the result before the server goes.
+            time.sleep(0.05)
         try:
-            self._node.destroy_action_server(self._server) if hasattr(self._node, "destroy_action_server") \
-                else self._server.destroy()
+            self._server.destroy()
         except Exception as exc:
             logger.debug("destroying the action server %r: %s", self.name, exc)
 

@@ -30,13 +30,21 @@ from typing import TYPE_CHECKING, Any
 
 from attrs import define
 
-from ..errors import ComponentError, TransportClosedError, TypeValidationError
+from ..errors import ComponentError, TypeValidationError
 from .goals import ActionType, GoalClient, GoalHandle, GoalStatus
 
 if TYPE_CHECKING:
     from .driver import ActionDriver, DriverActionServer, DriverGoal
 
-__all__ = ["ActionServerStatistics", "CoreActionServer", "GoalAccept", "GoalExecute", "send_goal"]
+__all__ = [
+    "ActionServerStatistics",
+    "CoreActionServer",
+    "GoalAccept",
+    "GoalExecute",
+    "abort_locally",
+    "new_goal_id",
+    "send_goal",
+]
 
 logger = logging.getLogger(__name__)
 
@@ -439,8 +447,3 @@ def abort_locally(client: GoalClient, reason: str) -> None:
     if "message" in result:
         result["message"] = reason
     client._finish(GoalStatus.ABORTED, result)
-
-
-def closed_error(what: str, transport_name: str) -> TransportClosedError:
-    """The error for using goals after the transport closed."""
-    return TransportClosedError(f"{what}: the {transport_name} transport is closed")
