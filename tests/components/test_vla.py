@@ -353,3 +353,22 @@ def test_deactivating_mid_goal_ends_it_with_a_hold(server: PolicyTestServer) -> 
         assert isinstance(hold, JointStateMsg)
         assert positions_of(hold) == pytest.approx(r.arm.snapshot(), abs=1e-9)
         assert isinstance(r.arm.commands[-1], JointStateMsg)
+
+
+def test_a_hanging_policy_server_aborts_the_goal_after_the_inference_timeout() -> None:
+    with PolicyTestServer(fault="hang") as hanging, rig(hanging.port) as r:
+        status, result = r.send(max_steps=10).result(timeout=20)
+        assert status == GoalStatus.ABORTED and "policy server failed" in result["message"], result
+        assert "no action chunk within" in result["message"] or "timed out" in result["message"]
+        assert r.vla.health_status == HealthStatus.COMPONENT_FAILURE and r.vla.holds_sent == 1
+
+
+def test_a_chunk_for_a_future_step_is_refused() -> None:
+    from agents_core.clients import lerobot_protocol as wire  # noqa: PLC0415
+
+    ahead = wire.dumps_payload([wire.TimedAction(0.0, 10_000 + i, np.zeros(2)) for i in range(3)])
+    with PolicyTestServer(actions_payload=ahead) as server, rig(server.port) as r:
+        status, result = r.send(max_steps=10).result(timeout=20)
+        assert status == GoalStatus.ABORTED and "with actions from step 10000" in result["message"], result
+        assert r.vla.health_status == HealthStatus.ALGORITHM_FAILURE
+        assert not any(isinstance(c, JointStateMsg) and len(c.position) and c.position.any() for c in r.arm.commands)

@@ -343,6 +343,11 @@ class VLA(ModelComponent):
                 observation = self._observation(task, queue.last_played + 1)
                 result = self._call_inference(observation)
                 first, chunk = int(result.get("timestep", observation["timestep"])), result["output"]
+                if first > observation["timestep"]:
+                    # A chunk starts at the step of the observation it answers (or earlier, for an older
+                    # one); a later start would jump the control loop ahead of every other chunk.
+                    raise AlgorithmFailure(f"the policy answered the observation of step {observation['timestep']} "
+                                           f"with actions from step {first}")
                 queue.add_chunk(first, self._checked_chunk(chunk))
             except _GoalFailure as exc:
                 failure.append(exc)
