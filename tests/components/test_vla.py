@@ -77,9 +77,10 @@ class Rig:
 
 @contextmanager
 def rig(port: int, *, output: Topic | None = None, config: VLAConfig | None = None,
-        model: LeRobotPolicy | None = None, start_positions: dict[str, float] | None = None) -> Iterator[Rig]:
+        model: LeRobotPolicy | None = None, start_positions: dict[str, float] | None = None,
+        inference_timeout: float = 2) -> Iterator[Rig]:
     command = output or Topic(name="joint_commands", msg_type="JointState")
-    client = LeRobotClient(model or policy_model(), port=port, allow_pickle=True, inference_timeout=2)
+    client = LeRobotClient(model or policy_model(), port=port, allow_pickle=True, inference_timeout=inference_timeout)
     vla = VLA(inputs=[STATE, CAMERA], outputs=[command], model_client=client, config=config or vla_config(),
               trigger=None, component_name="arm_vla")
     launcher = Launcher("memory")
@@ -372,3 +373,14 @@ def test_a_chunk_for_a_future_step_is_refused() -> None:
         assert status == GoalStatus.ABORTED and "with actions from step 10000" in result["message"], result
         assert r.vla.health_status == HealthStatus.ALGORITHM_FAILURE
         assert not any(isinstance(c, JointStateMsg) and len(c.position) and c.position.any() for c in r.arm.commands)
+
+
+def test_no_action_for_the_wait_timeout_aborts_without_waiting_for_the_inference_timeout() -> None:
+    with PolicyTestServer(fault="hang") as hanging, \
+            rig(hanging.port, config=vla_config(action_wait_timeout=0.5), inference_timeout=30) as r:
+        start = time.monotonic()
+        status, result = r.send(max_steps=10).result(timeout=20)
+        took = time.monotonic() - start
+        assert status == GoalStatus.ABORTED and "no action from the policy for 0.5 s" in result["message"], result
+        assert took < 10.0  # far below the client's 30 s inference timeout
+        assert r.vla.holds_sent == 1

@@ -310,11 +310,14 @@ class VLA(ModelComponent):
                 handle.wait_for_cancel(next_tick - time.monotonic())
         except _GoalFailure as exc:
             return self._abort(handle, str(exc), exc.health, steps)
-        except ComponentError as exc:
-            return self._abort(handle, str(exc), HealthStatus.COMPONENT_FAILURE, steps)
+        except Exception as exc:  # a publish on a closing transport, a bug: the robot still gets its hold
+            self._logger.exception("goal failed")
+            return self._abort(handle, f"{type(exc).__name__}: {exc}", HealthStatus.COMPONENT_FAILURE, steps)
         finally:
             stop.set()
-            policy.join(timeout=max(float(getattr(self.model_client, "inference_timeout", 5.0)), 1.0) + 1.0)
+            # Not the whole inference timeout: a policy call still in flight ends on its own (its chunk
+            # goes to this goal's queue, which nobody reads), and the result must not wait for it.
+            policy.join(timeout=1.0)
 
     def _succeed(self, handle: GoalHandle, message: str, steps: int) -> dict[str, Any]:
         _end_goal(handle.succeed)
