@@ -142,6 +142,7 @@ class VLA(ModelComponent):
         self._goal_lock = threading.Lock()
         self._running: GoalHandle | None = None
         self._run_lock = threading.Lock()
+        self._policy_thread: threading.Thread | None = None
         self._stop_event: Event | None = None
         self._stop_requested = threading.Event()
         self._event_subscriptions: list[Subscription] = []
@@ -278,6 +279,11 @@ class VLA(ModelComponent):
         self._stop_requested.clear()
         policy = threading.Thread(target=self._policy_loop, args=(task, queue, stop, failure),
                                   name=f"{self.component_name}:policy", daemon=True)
+        previous = self._policy_thread
+        if previous is not None and previous.is_alive():
+            # The last goal's policy call is still in flight: one client serves one call at a time.
+            previous.join(timeout=float(getattr(self.model_client, "inference_timeout", 5.0)))
+        self._policy_thread = policy
         steps = 0
         period = 1.0 / self.config.action_sending_rate
         last_action = time.monotonic()
