@@ -10,6 +10,7 @@ Keys, under the action name (``<base>`` is ``<ns>/<action>``; see ``docs/zenoh-w
                                             ``wait_s`` seconds (default 1, at most 5) if it still runs
 ``<base>/@action/feedback/<goal_id>``       samples: the feedback map
 ``<base>/@action/status/<goal_id>``         samples: ``{"status": <GoalStatus number>}``
+``<base>/@action/result/<goal_id>``         sample: the result reply's map, once, when the goal ends
 ==========================================  =====================================================
 
 Every payload is a msgpack map (``application/msgpack``). The ``@action`` chunk keeps goal
@@ -61,6 +62,8 @@ _PRIORITY = zenoh.Priority.INTERACTIVE_HIGH
 KEPT_COUNTS = 1024
 #: How long a client waits, after the result, for feedback the server says it sent.
 FEEDBACK_GRACE_S = 1.0
+#: How long a client whose result query found no server waits for the result sample a closing server sends.
+RESULT_SAMPLE_GRACE_S = 0.3
 
 
 def action_key(driver: ZenohDriver, name: str, *parts: str) -> str:
@@ -243,6 +246,11 @@ class ZenohActionServer:
     def finish(self, goal_id: str, status: GoalStatus, result: dict[str, Any]) -> None:
         with self._lock:
             held = self._held.pop(goal_id, [])
+            sent = self._sent.get(goal_id, 0)
+        # Also as a sample: a client between two result queries still gets it if the server then closes.
+        self._driver._session.put(action_key(self._driver, self.name, "result", goal_id),
+                                  pack({"status": int(status), "result": result, "feedback_sent": sent}),
+                                  encoding=MSGPACK, priority=_PRIORITY)
         for query, _deadline in held:
             self._reply_result(query, goal_id, status, result)
 
@@ -271,6 +279,9 @@ class ZenohGoal:
         self._events = events
         self._done = threading.Event()
         self._feedback_key = action_key(driver, name, "feedback", goal_id)
+        self._result_key = action_key(driver, name, "result", goal_id)
+        self._result_sample = threading.Event()
+        self._result_doc: dict[str, Any] = {}
         self._subscriber: Any = driver._session.declare_subscriber(action_key(driver, name, "*", goal_id),
                                                                    self._on_sample)
         self._thread: threading.Thread | None = None
@@ -282,11 +293,15 @@ class ZenohGoal:
             doc = unpack(sample.payload.to_bytes())
             if not isinstance(doc, dict):
                 raise CodecError(f"expected a map, got {type(doc).__name__}")
-            if str(sample.key_expr) == self._feedback_key:
+            key = str(sample.key_expr)
+            if key == self._feedback_key:
                 self._events.feedback(doc)
                 with self._feedback_cond:
                     self._feedback_seen += 1
                     self._feedback_cond.notify_all()
+            elif key == self._result_key:
+                self._result_doc = doc  # the result thread reports it (Zenoh's thread must not wait)
+                self._result_sample.set()
             else:
                 self._events.status(GoalStatus(doc["status"]))
         except (CodecError, KeyError, ValueError, TypeError) as exc:
@@ -319,27 +334,36 @@ class ZenohGoal:
 
     def _wait_result(self) -> None:
         while not self._done.is_set():
+            if self._result_sample.is_set():
+                self._report(self._result_doc)
+                return
             try:
                 answer = self._query("result", {"goal_id": self._goal_id, "wait_s": RESULT_WAIT_S},
                                      RESULT_WAIT_S + 4.0)
             except (ServiceUnavailableError, RequestTimeoutError, RemoteError, TransportError, zenoh.ZError) as exc:
-                if not self._done.is_set():
+                # A server that closes publishes its goals' results just before its queryables go.
+                if self._result_sample.wait(RESULT_SAMPLE_GRACE_S):
+                    self._report(self._result_doc)
+                elif not self._done.is_set():
                     self._events.finished(GoalStatus.ABORTED, {"message": f"action server {self._name!r} went "
                                                                f"away before the goal ended ({exc})"})
                 return
-            if answer.get("pending") is True:
-                continue
-            try:
-                status = GoalStatus(int(answer.get("status", 0)))
-            except (ValueError, TypeError):
-                status = GoalStatus.UNKNOWN
-            if status == GoalStatus.UNKNOWN:
-                self._events.finished(GoalStatus.ABORTED, {"message": f"action server {self._name!r} does not "
-                                                           "know the goal (restarted?)"})
-            else:
-                self._await_feedback(answer.get("feedback_sent"))
-                self._events.finished(status, answer.get("result"))
+            if answer.get("pending") is not True:
+                self._report(answer)
+                return
+
+    def _report(self, answer: dict[str, Any]) -> None:
+        """Hand a result reply (or result sample) to the core."""
+        try:
+            status = GoalStatus(int(answer.get("status", 0)))
+        except (ValueError, TypeError):
+            status = GoalStatus.UNKNOWN
+        if status == GoalStatus.UNKNOWN:
+            self._events.finished(GoalStatus.ABORTED, {"message": f"action server {self._name!r} does not "
+                                                       "know the goal (restarted?)"})
             return
+        self._await_feedback(answer.get("feedback_sent"))
+        self._events.finished(status, answer.get("result"))
 
     def _await_feedback(self, sent: Any) -> None:
         """Let the feedback the server sent before the result arrive first (bounded)."""

@@ -186,7 +186,7 @@ def test_goal_server_closed_mid_goal_aborts_the_client(transport_pair: tuple[Tra
     began = time.monotonic()
     server.close()
     status, result = goal.result(10.0)
-    assert status == GoalStatus.ABORTED and "closed" in result["message"]
+    assert status == GoalStatus.ABORTED and "closed" in result["message"], (status, result)
     assert time.monotonic() - began < 10.0
 
 

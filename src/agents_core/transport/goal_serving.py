@@ -293,8 +293,10 @@ class CoreActionServer:
             threads = list(self._threads.values())
         reason = f"action server {self.name!r} closed while the goal ran"
         for handle in running:
-            handle.request_cancel()
+            # Ended first, then woken: the execute callback, seeing the cancel, must not get to
+            # report its own outcome before the abort.
             self._complete(handle, GoalStatus.ABORTED, self._aborted(reason))
+            handle._cancel.set()
         self._on_close(self)
         driver, self._driver_server = self._driver_server, None
         if driver is not None:
