@@ -241,7 +241,12 @@ class Ros2Goal:
         uuid_msg = UUID(uuid=list(bytes.fromhex(self._goal_id)))
         future = self._client.send_goal_async(_to_message(self._cls.Goal, goal), feedback_callback=self._on_feedback,
                                               goal_uuid=uuid_msg)
-        self._handle = _wait(future, deadline, f"goal to {self._name!r}")
+        try:
+            self._handle = _wait(future, deadline, f"goal to {self._name!r}", cancel=False)
+        except RequestTimeoutError:
+            # Accepted after its sender gave up, the goal would run for nobody: cancel it then.
+            future.add_done_callback(_cancel_if_accepted)
+            raise
         self.accepted = bool(self._handle.accepted)
         if not self.accepted:
             self.reason = f"action server {self._name!r} did not accept the goal"
@@ -293,10 +298,20 @@ class Ros2Goal:
         self._done.set()
 
 
-def _wait(future: Any, deadline: float, what: str) -> Any:
+def _wait(future: Any, deadline: float, what: str, *, cancel: bool = True) -> Any:
     done = threading.Event()
     future.add_done_callback(lambda _f: done.set())
     if not done.wait(max(0.0, deadline - time.monotonic())):
-        future.cancel()
+        if cancel:
+            future.cancel()
         raise RequestTimeoutError(f"{what} got no answer in time")
     return future.result()
+
+
+def _cancel_if_accepted(future: Any) -> None:
+    try:
+        handle = future.result()
+        if handle is not None and handle.accepted:
+            handle.cancel_goal_async()
+    except Exception as exc:  # the transport closed meanwhile
+        logger.debug("cancelling a goal accepted after its sender gave up: %s", exc)

@@ -17,7 +17,7 @@ pytest.importorskip("agents_interfaces", reason="needs agents_interfaces (pip in
 
 from agents_core.components import Component
 from agents_core.testing.pairs import private_ros_environment
-from agents_core.transport.goals import GoalHandle
+from agents_core.transport.goals import GoalHandle, GoalStatus
 
 pytestmark = [pytest.mark.ros2, pytest.mark.slow]
 
@@ -75,3 +75,36 @@ def test_plain_rclpy_action_client_drives_a_component() -> None:
             proc.wait(10)
         mover.shutdown()
         transport.close()
+
+
+def test_a_goal_accepted_after_its_sender_gave_up_is_cancelled() -> None:
+    import time  # noqa: PLC0415
+
+    from agents_core.errors import RequestTimeoutError  # noqa: PLC0415
+    from agents_core.testing.pairs import ros2_pair  # noqa: PLC0415
+
+    ran: list[bool] = []
+
+    def slow_accept(goal: dict[str, Any]) -> bool:
+        if goal["task"] == "slow":
+            time.sleep(1.0)  # on the server's executor: the answer comes after the sender's timeout
+        return True
+
+    def execute(handle: GoalHandle) -> dict[str, Any]:
+        if handle.goal["task"] == "slow":
+            ran.append(handle.wait_for_cancel(10.0))
+        return {}
+
+    with ros2_pair() as (a, b):
+        server = a.create_action_server(f"late_{os.getpid()}", "VisionLanguageAction", execute, accept=slow_accept)
+        # Discovery first, with a goal accepted at once.
+        assert b.send_goal(server.name, "VisionLanguageAction", {"task": "fast"}, timeout=10.0).result(10.0)[0] \
+            == GoalStatus.SUCCEEDED
+        started = time.monotonic()
+        with pytest.raises(RequestTimeoutError):
+            b.send_goal(server.name, "VisionLanguageAction", {"task": "slow"}, timeout=0.5)
+        deadline = time.monotonic() + 15.0
+        while server.statistics().canceled < 1 and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert server.statistics().canceled == 1 and ran == [True]
+        assert time.monotonic() - started < 15.0
