@@ -35,6 +35,11 @@ METRICS: dict[str, list[tuple[str, str, str, str]]] = {
                   ("respawn_to_active", "ms", "lower", "respawn_median_ms")],
     # framework: a topic value -> the web UI's WebSocket client; raw: a plain subscription's callback.
     "ui": [("latency_p50", "ms", "lower", "latency_ms.p50"), ("latency_p99", "ms", "lower", "latency_ms.p99")],
+    # a goal with N feedbacks, sent to its result: send_goal / create_action_server vs raw zenoh queryables
+    # or raw rclpy ActionServer / ActionClient.
+    "goals": [("rtt_median", "us", "lower", "rtt.median_us"), ("rtt_p99", "us", "lower", "rtt.p99_us")],
+    # one observation -> action chunk round trip: LeRobotClient.inference vs the raw gRPC stubs, one server.
+    "vla": [("latency_p50", "ms", "lower", "latency_ms.p50"), ("latency_p99", "ms", "lower", "latency_ms.p99")],
 }
 
 #: Above this slowdown (framework cost / raw cost) a latency figure needs a profile note.
@@ -171,7 +176,8 @@ def plot(figures: list[dict[str, Any]], records: list[dict[str, Any]], path: Pat
                                       gridspec_kw={"width_ratios": [3, 2]})
     colors = {"hop": "tab:blue", "throughput": "tab:orange", "startup": "tab:green", "model": "tab:purple",
               "imports": "tab:brown", "vision": "tab:red", "voice": "tab:olive",
-              "map": "tab:cyan", "processes": "tab:pink", "ui": "tab:gray"}
+              "map": "tab:cyan", "processes": "tab:pink", "ui": "tab:gray", "goals": "tab:olive",
+              "vla": "tab:brown"}
     labels = [f["id"] for f in shown]
     values = [f["slowdown"] for f in shown]
     y = list(range(len(shown)))

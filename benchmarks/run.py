@@ -1,7 +1,7 @@
 """Run the benchmarks: ``python -m benchmarks.run [--quick] [--transports memory,zenoh,ros2] [--out DIR]``.
 
 Runs the suites (hop latency and throughput, start-up, model path, import cost, vision, voice, map,
-processes) for every transport this environment has, framework and raw library side by side, then writes
+processes, ui, goals, vla) for every transport this environment has, framework and raw library side by side, then writes
 ``<out>/<stamp>-<quick|full>.json`` and ``.png`` and prints a markdown table. A transport or suite
 that cannot run here (its extra is not installed) is skipped, and the reason is recorded in the
 JSON. Child logs go to ``<out>/<stamp>-logs/``. See ``benchmarks/README.md``.
@@ -21,7 +21,7 @@ from pathlib import Path
 from types import FrameType
 from typing import Any
 
-from . import hop, imports, model, processes, report, startup, ui, vision, voice
+from . import goals, hop, imports, model, processes, report, startup, ui, vision, vla, voice
 from . import map as map_suite  # the module name is the suite name; "map" alone would hide the builtin
 from .common import IMAGE_SHAPE, REPO, STRING_BYTES, Children, available
 from .throughput import WINDOW
@@ -33,15 +33,17 @@ SETTINGS: dict[str, dict[str, Any]] = {
               "throughput_seconds": 1.5, "latency_max_seconds": 30.0, "startup_reps": 2,
               "model_reps": 2, "model_max_tokens": 64, "model_threads": 1, "rounds": 1, "import_reps": 5,
               "vision_frames": 20, "vision_seconds": 3.0, "voice_reps": 1, "map_values": 100, "map_reps": 1,
-              "processes_reps": 2, "processes_respawns": 3, "ui_count": 100, "ui_warmup": 10},
+              "processes_reps": 2, "processes_respawns": 3, "ui_count": 100, "ui_warmup": 10,
+              "goal_count": 20, "goal_feedbacks": 10, "vla_reps": 30, "vla_warmup": 5},
     "full": {"string_warmup": 200, "string_count": 2000, "image_warmup": 30, "image_count": 300,
              "throughput_seconds": 5.0, "latency_max_seconds": 120.0, "startup_reps": 5,
              "model_reps": 8, "model_max_tokens": 64, "model_threads": 1, "rounds": 3, "import_reps": 15,
              "vision_frames": 100, "vision_seconds": 10.0, "voice_reps": 3, "map_values": 300,
-             "map_reps": 3, "processes_reps": 5, "processes_respawns": 10, "ui_count": 1000, "ui_warmup": 50},
+             "map_reps": 3, "processes_reps": 5, "processes_respawns": 10, "ui_count": 1000, "ui_warmup": 50,
+             "goal_count": 200, "goal_feedbacks": 10, "vla_reps": 200, "vla_warmup": 10},
 }
 
-SUITES = ("hop", "startup", "model", "imports", "vision", "voice", "map", "processes", "ui")
+SUITES = ("hop", "startup", "model", "imports", "vision", "voice", "map", "processes", "ui", "goals", "vla")
 
 
 def transport_unavailable(name: str) -> str | None:
@@ -91,46 +93,30 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
 def run_suites(transports: list[str], suites: list[str], settings: dict[str, Any], ros_domain: int,
                children: Children, progress: Any) -> tuple[list[dict[str, Any]], list[dict[str, str]]]:
     """Every selected suite, in order; all children are stopped by PID before this returns."""
+    t, c, d, p = transports, children, ros_domain, progress
+    # Each suite with the transport it needs in the selection (None: it picks its own), and how to run it.
+    runners: list[tuple[str, str | None, Any]] = [
+        ("hop", None, lambda: hop.run_suite(t, settings, c, d, p)),
+        ("startup", None, lambda: startup.run_suite(t, settings, c, d, p)),
+        ("model", None, lambda: model.run_suite(settings, c, p)),
+        ("imports", None, lambda: imports.run_suite(settings, p)),
+        ("vision", "zenoh", lambda: vision.run_suite(settings, c, p)),
+        ("voice", "memory", lambda: voice.run_suite(settings, c, p)),
+        ("map", "memory", lambda: map_suite.run_suite(settings, c, p)),
+        ("processes", None, lambda: processes.run_suite(t, settings, c, d, p)),
+        ("ui", "memory", lambda: ui.run_suite(settings, p)),
+        ("goals", None, lambda: goals.run_suite(t, settings, c, d, p)),
+        ("vla", None, lambda: vla.run_suite(settings, c, p)),
+    ]
     records: list[dict[str, Any]] = []
     skipped: list[dict[str, str]] = []
     previous = signal.signal(signal.SIGTERM, _terminate)
     try:
-        if "hop" in suites:
-            got, lost = hop.run_suite(transports, settings, children, ros_domain, progress)
-            records += got
-            skipped += lost
-        if "startup" in suites:
-            got, lost = startup.run_suite(transports, settings, children, ros_domain, progress)
-            records += got
-            skipped += lost
-        if "model" in suites:
-            got, lost = model.run_suite(settings, children, progress)
-            records += got
-            skipped += lost
-        if "imports" in suites:
-            got, lost = imports.run_suite(settings, progress)
-            records += got
-            skipped += lost
-        if "vision" in suites and "zenoh" in transports:
-            got, lost = vision.run_suite(settings, children, progress)
-            records += got
-            skipped += lost
-        if "voice" in suites and "memory" in transports:
-            got, lost = voice.run_suite(settings, children, progress)
-            records += got
-            skipped += lost
-        if "map" in suites and "memory" in transports:
-            got, lost = map_suite.run_suite(settings, children, progress)
-            records += got
-            skipped += lost
-        if "processes" in suites:
-            got, lost = processes.run_suite(transports, settings, children, ros_domain, progress)
-            records += got
-            skipped += lost
-        if "ui" in suites and "memory" in transports:
-            got, lost = ui.run_suite(settings, progress)
-            records += got
-            skipped += lost
+        for name, needs, run in runners:
+            if name in suites and (needs is None or needs in transports):
+                got, lost = run()
+                records += got
+                skipped += lost
     finally:
         children.stop_all()
         signal.signal(signal.SIGTERM, previous)

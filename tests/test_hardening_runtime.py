@@ -393,12 +393,26 @@ def test_an_action_server_needs_a_transport_with_actions() -> None:
         def _server_capable(cls) -> bool:
             return True
 
+    from agents_core.transport.contract import TransportCapabilities  # noqa: PLC0415
+    from agents_core.transport.core import DriverTransport  # noqa: PLC0415
+    from agents_core.transport.memory import MemoryDriver  # noqa: PLC0415
+
+    class NoGoalsDriver(MemoryDriver):
+        """A driver without the goal primitives (as a third party's may be)."""
+
+        name = "nogoals"
+        capabilities = TransportCapabilities(cross_process=False, actions=False)
+
     server = Server(trigger=None, run_type="ActionServer", component_name="mover")
-    launcher = Launcher(transport="memory")
+    transport = DriverTransport(NoGoalsDriver())
+    launcher = Launcher(transport=transport)
     launcher.add_pkg(components=[server])
-    with pytest.raises(WiringError, match=r"'mover' runs as an action server, but the 'memory' transport has no "
-                                          r"long-running goals"):
-        launcher.start()
+    try:
+        with pytest.raises(WiringError, match=r"'mover' runs as an action server, but the 'nogoals' transport has "
+                                              r"no long-running goals"):
+            launcher.start()
+    finally:
+        transport.close()
 
 
 def test_add_pkg_refuses_unknown_arguments() -> None:

@@ -23,6 +23,8 @@ around :class:`Ros2Driver`, which maps:
 * **presence**: lifecycle services of the component's node; the core publishes
   ``/<component>/status`` through a publisher on that node;
 * **discovery**: the rclpy graph API (:mod:`agents_ros2.graph`).
+* **long-running goals**: a real rclpy action server of the action type's ROS 2 type on the
+  owner's node, and rclpy action clients (see :mod:`agents_ros2.actions`).
 
 Options (all keyword): ``domain_id`` (default: ``ROS_DOMAIN_ID``), ``shared_memory`` (the 16 MB
 Fast DDS shared-memory profile; default on, ``AGENTS_ROS2_SHM=0`` turns it off),
@@ -52,6 +54,7 @@ except ImportError as _exc:  # rclpy is there (the extra), the interface package
         "build it into this environment with: pip install --no-build-isolation ./interfaces"
     ) from _exc
 from lifecycle_msgs.srv import ChangeState, GetState
+from rclpy.action import ActionClient
 from rclpy.context import Context
 from rclpy.exceptions import InvalidHandle
 from rclpy.executors import Executor, ExternalShutdownException, ShutdownException
@@ -71,9 +74,11 @@ from agents_core.supported_types import ComponentStatus
 from agents_core.topics import Topic
 from agents_core.transport.contract import ServiceHandler, TransitionHandler, TransportCapabilities
 from agents_core.transport.core import DriverTransport
-from agents_core.transport.driver import Lane, Sink
+from agents_core.transport.driver import GoalEvents, GoalServerHooks, Lane, Sink
+from agents_core.transport.goals import ActionType
 from agents_core.transport.graph import Graph
 
+from .actions import Ros2ActionServer, Ros2Goal, ros_action_class
 from .conversions import RosConversion, conversion_for
 from .executor import OffloadingExecutor
 from .graph import discover_graph
@@ -217,7 +222,7 @@ class Ros2Driver:
 
     name = "ros2"
     # On the class, like the other drivers': what the driver offers is known before it is opened.
-    capabilities = TransportCapabilities(cross_process=True, actions=False)
+    capabilities = TransportCapabilities(cross_process=True, actions=True)
 
     def __init__(self, *, domain_id: int | None = None, shared_memory: bool | None = None,
                  executor: ExecutorKind = "single", reader_depth_floor: int = READER_DEPTH_FLOOR,
@@ -232,6 +237,7 @@ class Ros2Driver:
         self._closed = False
         self._components: dict[str, ComponentLifecycle] = {}
         self._clients: dict[tuple[str, str], Client] = {}
+        self._action_clients: dict[tuple[str, str], ActionClient] = {}
         self._status_watches: dict[str, Any] = {}
         self._latest_status: dict[str, ComponentStatusMsg] = {}
         self._context = Context()
@@ -347,6 +353,27 @@ class Ros2Driver:
         if not isinstance(reply, dict):
             raise RemoteError(f"{name!r} replied with a {type(reply).__name__}, not a JSON object")
         return reply
+
+    def serve_goals(self, name: str, definition: ActionType, hooks: GoalServerHooks, owner: str | None,
+                    lane: Lane) -> Ros2ActionServer:
+        """A real rclpy action server for ``name`` on the owner's node (the core runs the goals)."""
+        with self._lock:
+            self._check_open()
+            return Ros2ActionServer(self._node_for(owner), name, definition, hooks, absolute_name(name))
+
+    def send_goal(self, name: str, definition: ActionType, goal_id: str, goal: dict[str, Any], events: GoalEvents,
+                  timeout: float) -> Ros2Goal:
+        """Send a goal through an rclpy action client (kept per action name and type)."""
+        key = (definition.ros_type, absolute_name(name))
+        with self._lock:
+            self._check_open()
+            client = self._action_clients.get(key)
+            if client is None:
+                client = ActionClient(self.node, ros_action_class(definition), key[1])
+                self._action_clients[key] = client
+        sent = Ros2Goal(client, name, definition, goal_id, events)
+        sent.send(goal, timeout)
+        return sent
 
     def declare_presence(self, name: str, on_transition: TransitionHandler, lane: Lane) -> ComponentLifecycle:
         """Create the component's lifecycle node; outside change_state requests run ``on_transition`` on ``lane``."""

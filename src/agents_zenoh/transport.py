@@ -16,6 +16,8 @@
 - components to a liveliness token plus two queryables (state, transition), see
   :mod:`agents_zenoh.keys`;
 - graph discovery to a liveliness token per publisher and subscriber (:mod:`agents_zenoh.graph`).
+- long-running goals to queryables (goal, cancel, result) and topics (feedback, status) under
+  ``<namespace>/<action>/@action/``, see :mod:`agents_zenoh.actions`.
 
 QoS: ``reliable`` -> Zenoh reliable + congestion control *block*; ``best_effort`` -> best
 effort + *drop*; ``depth`` / ``history`` -> the subscriber's BoundedDelivery queue;
@@ -49,10 +51,12 @@ from agents_core.supported_types import ComponentStatus
 from agents_core.topics import Topic
 from agents_core.transport.contract import ServiceHandler, TransitionHandler, TransportCapabilities
 from agents_core.transport.core import DriverTransport
-from agents_core.transport.driver import Lane, Sink
+from agents_core.transport.driver import GoalEvents, GoalServerHooks, Lane, Sink
+from agents_core.transport.goals import ActionType
 from agents_core.transport.graph import Graph
 from agents_core.transport.requests import with_caller_timeout
 
+from .actions import ZenohActionServer, ZenohGoal
 from .codecs import MSGPACK, CodecError, codec_for, decode_value, pack
 from .config import ZenohConfig
 from .graph import discover_graph
@@ -79,7 +83,7 @@ class ZenohDriver:
     """The Zenoh primitives under :class:`ZenohTransport` (see the module docstring)."""
 
     name = "zenoh"
-    capabilities = TransportCapabilities(cross_process=True, actions=False)
+    capabilities = TransportCapabilities(cross_process=True, actions=True)
 
     def __init__(self, config: ZenohConfig) -> None:
         self.config = config
@@ -131,6 +135,26 @@ class ZenohDriver:
         if time.monotonic() - start >= timeout:
             raise RequestTimeoutError(f"request {what} got no reply within {timeout:g} s")
         raise ServiceUnavailableError(f"nobody serves {what} on zenoh (key {key!r})")
+
+    def serve_goals(self, name: str, definition: ActionType, hooks: GoalServerHooks, owner: str | None,
+                    lane: Lane) -> ZenohActionServer:
+        self._check_open(f"serve the action {name!r}")
+        return ZenohActionServer(self, name, hooks, lane)
+
+    def send_goal(self, name: str, definition: ActionType, goal_id: str, goal: dict[str, Any], events: GoalEvents,
+                  timeout: float) -> ZenohGoal:
+        self._check_open(f"send a goal to {name!r}")
+        sent = ZenohGoal(self, name, goal_id, events)
+        try:
+            sent.send(goal, timeout)
+        except zenoh.ZError as exc:
+            sent.close()
+            self._check_open(f"send a goal to {name!r}")
+            raise TransportError(f"goal to {name!r} failed: {exc}") from exc
+        except BaseException:
+            sent.close()
+            raise
+        return sent
 
     def declare_presence(self, name: str, on_transition: TransitionHandler, lane: Lane) -> ZenohPresence:
         self._key(name, "component")

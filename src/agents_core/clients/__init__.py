@@ -18,8 +18,10 @@ _EXPORTS: dict[str, tuple[str, ...]] = {
     ".client_base": ("BaseClient", "client_from_spec", "client_types"),
     ".db_base": ("DBClient",),
     ".generic": ("GenericHTTPClient",),
+    ".lerobot": ("LeRobotClient",),
     ".model_base": ("ModelClient",),
     ".ollama": ("OllamaClient",),
+    ".policy_base": ("PolicyClient",),
     ".roboml_http": ("RoboMLHTTPClient",),
     ".roboml_resp": ("RoboMLRESPClient",),
     ".roboml_ws": ("RoboMLWSClient",),
@@ -35,13 +37,16 @@ if TYPE_CHECKING:
     from .client_base import BaseClient, client_from_spec, client_types
     from .db_base import DBClient
     from .generic import GenericHTTPClient
+    from .lerobot import LeRobotClient
     from .model_base import ModelClient
     from .ollama import OllamaClient
+    from .policy_base import PolicyClient
     from .roboml_http import RoboMLHTTPClient
     from .roboml_resp import RoboMLRESPClient
     from .roboml_ws import RoboMLWSClient
 else:
     __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS, import_all_for=_NEED_EVERY_CLIENT)
 
-__all__ = ["BaseClient", "ChromaClient", "DBClient", "GenericHTTPClient", "ModelClient", "OllamaClient",
-           "RoboMLHTTPClient", "RoboMLRESPClient", "RoboMLWSClient", "client_from_spec", "client_types"]
+__all__ = ["BaseClient", "ChromaClient", "DBClient", "GenericHTTPClient", "LeRobotClient", "ModelClient",
+           "OllamaClient", "PolicyClient", "RoboMLHTTPClient", "RoboMLRESPClient", "RoboMLWSClient",
+           "client_from_spec", "client_types"]

@@ -23,6 +23,7 @@ _EXPORTS: dict[str, tuple[str, ...]] = {
     ".text_to_speech": ("TextToSpeech",),
     ".video_maker": ("VideoMessageMaker",),
     ".vision": ("Vision",),
+    ".vla": ("VLA",),
 }
 
 if TYPE_CHECKING:
@@ -37,12 +38,14 @@ if TYPE_CHECKING:
     from .text_to_speech import TextToSpeech
     from .video_maker import VideoMessageMaker
     from .vision import Vision
+    from .vla import VLA
 else:
     __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
 
 __all__ = [
     "LLM",
     "MLLM",
+    "VLA",
     "VLM",
     "Component",
     "ComponentPublisher",

@@ -41,7 +41,15 @@ from .wiring import AllowedTypes, TriggerType, check_topic_list, resolve_run_typ
 from .worker import PeriodicTimer, StepWorker, WorkerStatistics
 
 if TYPE_CHECKING:
-    from ..transport.contract import ComponentPresence, Publisher, ServiceServer, Subscription, Transport
+    from ..transport.contract import (
+        ActionServer,
+        ComponentPresence,
+        Publisher,
+        ServiceServer,
+        Subscription,
+        Transport,
+    )
+    from ..transport.goals import GoalHandle
 
 __all__ = ["AllowedTypes", "Component", "ComponentPublisher", "TriggerType"]
 
@@ -112,6 +120,10 @@ class Component(HealthAndFallbacks, ComponentServices):
     #: Subclasses set them on the class, or on the instance before ``super().__init__``.
     allowed_inputs: AllowedTypes | None = None
     allowed_outputs: AllowedTypes | None = None
+    #: For ACTION_SERVER components: the action type (e.g. ``"VisionLanguageAction"``) served on
+    #: :attr:`action_name` while active, each goal running :meth:`main_action_callback`.
+    _action_type: str | None = None
+
     #: The positional and keyword arguments the component was constructed with.
     _init_arguments: tuple[tuple[Any, ...], dict[str, Any]]
 
@@ -171,6 +183,7 @@ class Component(HealthAndFallbacks, ComponentServices):
         self._transport: Transport | None = None
         self._presence: ComponentPresence | None = None
         self._services: list[ServiceServer] = []
+        self._action_server: ActionServer | None = None
         self._subscriptions: list[Subscription] = []
         self._timers: list[PeriodicTimer] = []
         self._status_timer: PeriodicTimer | None = None
@@ -265,6 +278,19 @@ class Component(HealthAndFallbacks, ComponentServices):
     def input_statistics(self) -> dict[str, SubscriptionStatistics]:
         """Counters of each input subscription while active (delivered, dropped, decode errors, ...)."""
         return {sub.topic.name: sub.statistics() for sub in list(self._subscriptions)}
+
+    @property
+    def action_name(self) -> str:
+        """The name goals are sent to, for an action-server component (default: the component name)."""
+        return self.component_name
+
+    def main_action_callback(self, goal_handle: GoalHandle) -> dict[str, Any]:
+        """Run one goal (ACTION_SERVER components); returns the result dict. Runs on the goal's own thread."""
+        raise NotImplementedError(f"{type(self).__name__} must implement main_action_callback()")
+
+    def _accept_goal(self, goal: dict[str, Any]) -> bool:
+        """Whether to accept a validated goal (default: yes)."""
+        return True
 
     @property
     def transport(self) -> Transport:
@@ -365,11 +391,13 @@ class Component(HealthAndFallbacks, ComponentServices):
         self._status_timer = PeriodicTimer(self.config.status_rate, self._report_status,
                                            f"{self.component_name}:status")
         self.custom_on_activate()
+        self.runtime.open_action_server()
 
     def _do_deactivate(self) -> None:
         # First of all: no new step starts, and the running one (if any) is overtaken.
         self._accepting_steps = False
         self._epoch += 1
+        self.runtime.close_action_server()
         self.custom_on_deactivate()
         if isinstance(self.trigger, Event):
             self.trigger.remove_listener(self._on_trigger_event)

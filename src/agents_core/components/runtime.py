@@ -7,7 +7,11 @@ private to it; what a launcher needs goes through ``component.runtime``:
   ``execute_method`` / ``set_param`` / ``describe`` services, the serial worker);
 - :meth:`ComponentRuntime.submit_action`: run an event's action on the component's worker,
   between steps;
-- :meth:`ComponentRuntime.hurry`: stop waiting for a running step (a second Ctrl-C).
+- :meth:`ComponentRuntime.hurry`: stop waiting for a running step (a second Ctrl-C);
+- :meth:`ComponentRuntime.open_action_server` / :meth:`ComponentRuntime.close_action_server`:
+  an ACTION_SERVER component whose class sets ``_action_type`` serves goals on
+  ``component.action_name`` while active (execute: ``main_action_callback``, accept:
+  ``_accept_goal``); each goal runs on a thread of its own, never on the step worker.
 """
 
 from __future__ import annotations
@@ -66,6 +70,22 @@ class ComponentRuntime:
     def hurry(self) -> None:
         """Stop waiting for a running step in deactivate and shutdown."""
         self._component.hurry_shutdown()
+
+    def open_action_server(self) -> None:
+        """Serve the component's goals (at activate), if it is an action server with an ``_action_type``."""
+        c = self._component
+        action_type = getattr(c, "_action_type", None)
+        if c.run_type != ComponentRunType.ACTION_SERVER or action_type is None or c._action_server is not None:
+            return
+        c._action_server = c.transport.create_action_server(c.action_name, action_type, c.main_action_callback,
+                                                            owner=c.component_name, accept=c._accept_goal)
+
+    def close_action_server(self) -> None:
+        """Stop serving goals (at deactivate): goals still running end ABORTED with the reason."""
+        c = self._component
+        server, c._action_server = c._action_server, None
+        if server is not None:
+            server.close()
 
     def _external_transition(self, transition: str) -> bool:
         """Run a transition asked from outside (lifecycle service, queryable); never raises."""

@@ -29,6 +29,16 @@ from agents_core.supported_types import registered_types
 from agents_core.topics import QoSConfig, Topic
 from agents_core.transport import Transport
 
+from .goals_suite import (  # noqa: F401 - collected as part of this suite
+    test_goal_a_raising_execute_aborts_with_its_message,
+    test_goal_bad_goal_fields_are_refused_before_sending,
+    test_goal_cancel_mid_goal_and_cancel_of_a_finished_goal,
+    test_goal_rejected_by_accept_and_nobody_serving,
+    test_goal_round_trip_with_feedback,
+    test_goal_server_closed_mid_goal_aborts_the_client,
+    test_goal_several_goals_run_at_once,
+    test_goal_unsupported_transport_says_so,
+)
 from .helpers import wait_for
 
 _ids = itertools.count()

@@ -1,8 +1,9 @@
-"""Transports: the contract every middleware adapter implements, the in-memory one, and lookup by name."""
+"""Transports: the contract every middleware adapter implements, the in-memory one, lookup by name, goals."""
 
 from __future__ import annotations
 
 from .contract import (
+    ActionServer,
     ComponentPresence,
     Publisher,
     ServiceHandler,
@@ -14,6 +15,7 @@ from .contract import (
     TransportCapabilities,
 )
 from .delivery import BoundedDelivery, SubscriptionStatistics
+from .goals import ActionType, FieldSpec, GoalClient, GoalHandle, GoalStatus, register_action_type
 from .graph import Graph, TopicInfo, describe_component
 from .memory import MemoryTransport, TopicStatistics
 from .registry import ENTRY_POINT_GROUP, TRANSPORT_ALIASES, available_transports, resolve_transport
@@ -21,8 +23,14 @@ from .registry import ENTRY_POINT_GROUP, TRANSPORT_ALIASES, available_transports
 __all__ = [
     "ENTRY_POINT_GROUP",
     "TRANSPORT_ALIASES",
+    "ActionServer",
+    "ActionType",
     "BoundedDelivery",
     "ComponentPresence",
+    "FieldSpec",
+    "GoalClient",
+    "GoalHandle",
+    "GoalStatus",
     "Graph",
     "MemoryTransport",
     "Publisher",
@@ -38,5 +46,6 @@ __all__ = [
     "TransportCapabilities",
     "available_transports",
     "describe_component",
+    "register_action_type",
     "resolve_transport",
 ]

@@ -17,7 +17,10 @@ any driver into a :class:`Transport`, which promises:
    lifecycle state and health, and may be driven through ``on_transition``;
 5. ``close()``, after which every call raises :class:`~agents_core.errors.TransportClosedError`;
 6. per-topic ``statistics()`` (published, delivered, dropped, callback errors, discarded,
-   decode errors), so that no value is ever lost uncounted.
+   decode errors), so that no value is ever lost uncounted;
+7. where ``capabilities.actions`` is True, long-running goals: ``create_action_server`` and
+   ``send_goal`` (:mod:`agents_core.transport.goals`); elsewhere both raise
+   :class:`~agents_core.errors.TransportError`.
 
 What a transport can do beyond that is data (:class:`TransportCapabilities`), not subclassing.
 """
@@ -33,8 +36,10 @@ from ..messages import ComponentStatusMsg
 from ..status import HealthStatus, LifecycleState
 from ..topics import Topic
 from .delivery import SubscriptionStatistics, TopicStatistics
+from .goals import ActionType, GoalClient, GoalHandle
 
 __all__ = [
+    "ActionServer",
     "ComponentPresence",
     "Publisher",
     "ServiceHandler",
@@ -106,6 +111,17 @@ class ServiceServer(Protocol):
 
     def close(self) -> None:
         """Stop serving; idempotent."""
+        ...
+
+
+@runtime_checkable
+class ActionServer(Protocol):
+    """Serves long-running goals on one action name."""
+
+    name: str
+
+    def close(self) -> None:
+        """Abort the goals still running (their clients get ABORTED with the reason), stop serving; idempotent."""
         ...
 
 
@@ -184,6 +200,17 @@ class Transport(Protocol):
 
     def get_component_state(self, name: str, *, timeout: float = 2.0) -> ComponentStatusMsg | None:
         """Read a component's lifecycle state and health as an observer would; None if not present."""
+        ...
+
+    def create_action_server(self, name: str, action_type_name: str | ActionType,
+                             execute: Callable[[GoalHandle], dict[str, Any]], *, owner: str | None = None,
+                             accept: Callable[[dict[str, Any]], bool] | None = None) -> ActionServer:
+        """Serve goals on ``name``; each accepted goal runs ``execute(handle)`` on a thread of its own."""
+        ...
+
+    def send_goal(self, name: str, action_type_name: str | ActionType, goal: dict[str, Any], *,
+                  feedback: Callable[[dict[str, Any]], None] | None = None, timeout: float = 5.0) -> GoalClient:
+        """Send a goal to the action ``name``; returns once it is accepted or rejected."""
         ...
 
     def request_transition(self, name: str, transition: str, *, timeout: float = 5.0) -> bool:

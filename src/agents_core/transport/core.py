@@ -16,6 +16,10 @@ Every transport (memory, Zenoh, ROS 2, a third party's) is a :class:`DriverTrans
 - each component's status topic ``<name>/status``: :meth:`ComponentPresence.update` is the one
   path by which a component's state reaches the driver and the topic;
 - graph discovery (:meth:`~DriverTransport.discover`), where the driver has the optional primitive.
+- long-running goals (:meth:`DriverTransport.create_action_server`,
+  :meth:`DriverTransport.send_goal`) on drivers that implement
+  :class:`~agents_core.transport.driver.ActionDriver`: the bookkeeping is in
+  :mod:`agents_core.transport.goal_serving`.
 """
 
 from __future__ import annotations
@@ -33,7 +37,19 @@ from ..supported_types import ComponentStatus
 from ..topics import QoSConfig, Topic, validate_topic_name
 from .contract import ServiceHandler, SubscriptionCallback, TransitionHandler
 from .delivery import BoundedDelivery, InlineDelivery, SubscriptionStatistics, TopicCounters, TopicStatistics
-from .driver import Closable, DiscoveringDriver, DriverPresence, DriverPublisher, Lane, TransportDriver
+from .driver import (
+    ActionDriver,
+    Closable,
+    DiscoveringDriver,
+    DriverGoal,
+    DriverPresence,
+    DriverPublisher,
+    Lane,
+    TransportDriver,
+)
+from .goal_serving import CoreActionServer, GoalAccept, GoalExecute, abort_locally
+from .goal_serving import send_goal as _send_goal
+from .goals import ActionType, GoalClient, action_type
 from .graph import Graph
 from .requests import RequestLanes, check_timeout, serve_with_caller_deadline, with_caller_timeout
 
@@ -225,6 +241,8 @@ class DriverTransport:
         self._open: dict[int, CorePublisher | CoreSubscription | CoreService | CorePresence] = {}
         self._services: dict[str, CoreService] = {}
         self._components: dict[str, CorePresence] = {}
+        self._action_servers: dict[str, CoreActionServer] = {}
+        self._sent_goals: dict[str, tuple[GoalClient, DriverGoal]] = {}
 
     # -- bookkeeping --------------------------------------------------------------------------
 
@@ -414,6 +432,70 @@ class DriverTransport:
         self._check_open("discover the graph")
         return graph
 
+    # -- long-running goals ---------------------------------------------------------------------
+
+    def _action_driver(self, what: str) -> ActionDriver:
+        driver = self._driver
+        if not self.capabilities.actions or not isinstance(driver, ActionDriver):
+            raise TransportError(f"{what}: the {self.name!r} transport has no long-running goals "
+                                 "(capabilities.actions is False)")
+        return driver
+
+    def create_action_server(self, name: str, action_type_name: str | ActionType, execute: GoalExecute, *,
+                             owner: str | None = None, accept: GoalAccept | None = None) -> CoreActionServer:
+        """Serve goals of ``action_type_name`` on ``name``: each accepted goal runs ``execute`` on a thread of its own.
+
+        ``accept(goal)`` decides whether a validated goal is accepted (default: every goal, up to
+        :data:`~agents_core.transport.goal_serving.MAX_RUNNING_GOALS` at once). Raises
+        :class:`~agents_core.errors.UnknownTypeError` for an unknown action type and
+        :class:`~agents_core.errors.TransportError` on a transport without goals.
+        """
+        validate_topic_name(name, "action")
+        definition = action_type(action_type_name)
+        with self._lock:
+            self._check_open(f"serve the action {name!r}")
+            driver = self._action_driver(f"serve the action {name!r}")
+            if name in self._action_servers:
+                raise WiringError(f"action {name!r} is already served on this transport")
+            server = CoreActionServer(name, definition, execute, accept, owner, self._forget_action_server)
+            server._driver_server = driver.serve_goals(name, definition, server, owner, self._lane(owner))
+            self._action_servers[name] = server
+        return server
+
+    def _forget_action_server(self, server: CoreActionServer) -> None:
+        with self._lock:
+            if self._action_servers.get(server.name) is server:
+                del self._action_servers[server.name]
+
+    def send_goal(self, name: str, action_type_name: str | ActionType, goal: dict[str, Any], *,
+                  feedback: Callable[[dict[str, Any]], None] | None = None, timeout: float = 5.0) -> GoalClient:
+        """Send ``goal`` to the action ``name`` and wait up to ``timeout`` for it to be accepted or rejected.
+
+        Returns a :class:`~agents_core.transport.goals.GoalClient` (a rejected goal comes back
+        with status REJECTED and the reason in its result). ``feedback`` is called with each
+        feedback dict on a thread of the goal's own. Raises
+        :class:`~agents_core.errors.TypeValidationError` for a goal that does not fit the type,
+        :class:`~agents_core.errors.ServiceUnavailableError` when nobody serves ``name``,
+        :class:`~agents_core.errors.RequestTimeoutError` when the server does not answer in time.
+        """
+        validate_topic_name(name, "action")
+        timeout = check_timeout(timeout, f"goal to {name!r}")
+        definition = action_type(action_type_name)
+        self._check_open(f"send a goal to {name!r}")
+        driver = self._action_driver(f"send a goal to {name!r}")
+        client, handle = _send_goal(driver, name, definition, goal, feedback, timeout, self._forget_goal)
+        with self._lock:
+            closed = self._closed
+            if not closed and not client.done:
+                self._sent_goals[client.goal_id] = (client, handle)
+        if closed:
+            abort_locally(client, f"the {self.name} transport closed")
+        return client
+
+    def _forget_goal(self, client: GoalClient) -> None:
+        with self._lock:
+            self._sent_goals.pop(client.goal_id, None)
+
     # -- teardown -----------------------------------------------------------------------------
 
     def close(self) -> None:
@@ -424,6 +506,17 @@ class DriverTransport:
             self._closed = True
             # Components first, so observers see them go before their topics fall silent.
             entities = sorted(self._open.values(), key=lambda e: not isinstance(e, CorePresence))
+            servers = list(self._action_servers.values())
+            sent = list(self._sent_goals.values())
+        # Action servers before anything else: their clients get ABORTED with the reason.
+        for server in servers:
+            try:
+                server.close()
+            except Exception as exc:
+                logger.debug("closing action server %r failed: %s", server.name, exc)
+        for client, handle in sent:
+            abort_locally(client, f"the {self.name} transport closed before the goal ended")
+            _close_quietly(handle, f"goal {client.goal_id}")
         for entity in entities:
             try:
                 entity.close()

@@ -28,6 +28,12 @@ how many publishers and subscribers it has, and the live components) also implem
 :class:`DiscoveringDriver` (``discover(timeout) -> Graph``). Without it,
 :meth:`DriverTransport.discover() <agents_core.transport.core.DriverTransport.discover>` raises
 a :class:`~agents_core.errors.TransportError` saying the transport does not support discovery.
+A driver that carries long-running goals also implements :class:`ActionDriver` (two more
+methods, :meth:`~ActionDriver.serve_goals` and :meth:`~ActionDriver.send_goal`) and says so with
+``capabilities.actions=True``. The core keeps the goal bookkeeping (validation, goal ids, the
+thread of each goal, status changes, results kept for late result requests, the closed state;
+see :mod:`agents_core.transport.goal_serving`); the driver only carries goals, cancels,
+feedback, status and results between the two sides.
 
 Errors: a driver raises the core's errors (:class:`~agents_core.errors.RequestTimeoutError`,
 :class:`~agents_core.errors.ServiceUnavailableError`, :class:`~agents_core.errors.RemoteError`,
@@ -43,13 +49,19 @@ from ..messages import ComponentStatusMsg
 from ..status import HealthStatus, LifecycleState
 from ..topics import Topic
 from .contract import ServiceHandler, TransitionHandler, TransportCapabilities
+from .goals import ActionType, GoalStatus
 from .graph import Graph
 
 __all__ = [
+    "ActionDriver",
     "Closable",
     "DiscoveringDriver",
+    "DriverActionServer",
+    "DriverGoal",
     "DriverPresence",
     "DriverPublisher",
+    "GoalEvents",
+    "GoalServerHooks",
     "Lane",
     "Sink",
     "TransportDriver",
@@ -156,5 +168,125 @@ class DiscoveringDriver(Protocol):
 
         Waits at most ``timeout`` seconds for the middleware's discovery to settle; what was not
         seen by then is not in the graph.
+        """
+        ...
+
+
+# -- long-running goals (optional: drivers with capabilities.actions=True) -------------------------
+
+
+@runtime_checkable
+class GoalServerHooks(Protocol):
+    """What the core gives a driver's action server; every method is safe on any thread."""
+
+    def on_goal(self, goal_id: str, goal: Any) -> str | None:
+        """A goal arrived (decoded, not yet validated): None if accepted, else why it was rejected.
+
+        May run the server's ``accept`` callback (user code): call it through the lane given to
+        :meth:`ActionDriver.serve_goals` where the middleware's thread must not wait. Never raises.
+        """
+        ...
+
+    def on_accepted(self, goal_id: str) -> None:
+        """Start the accepted goal (once the driver can carry its feedback and status)."""
+        ...
+
+    def on_cancel(self, goal_id: str) -> bool:
+        """A client asked to cancel ``goal_id``: whether the goal was running (and is now canceling)."""
+        ...
+
+    def wait_result(self, goal_id: str, timeout: float) -> tuple[GoalStatus, dict[str, Any]] | None:
+        """The goal's terminal status and result once it has ended; None if it still runs after ``timeout``.
+
+        ``(GoalStatus.UNKNOWN, {})`` for a goal id this server does not know (never accepted, or
+        forgotten long ago).
+        """
+        ...
+
+    def reject(self, reason: object) -> None:
+        """A goal, cancel or result request that did not decode, with why (counted)."""
+        ...
+
+
+@runtime_checkable
+class DriverActionServer(Protocol):
+    """Carries one action server's goal events to its clients (returned by :meth:`ActionDriver.serve_goals`)."""
+
+    def feedback(self, goal_id: str, feedback: dict[str, Any]) -> None:
+        """Send validated ``feedback`` of a running goal to its client."""
+        ...
+
+    def status(self, goal_id: str, status: GoalStatus) -> None:
+        """The goal's status changed (EXECUTING, CANCELING, or a terminal one just before :meth:`finish`)."""
+        ...
+
+    def finish(self, goal_id: str, status: GoalStatus, result: dict[str, Any]) -> None:
+        """The goal ended with ``status`` and the validated ``result``: make it available to the client."""
+        ...
+
+    def close(self) -> None:
+        """Stop serving (the core has finished every goal before)."""
+        ...
+
+
+@runtime_checkable
+class GoalEvents(Protocol):
+    """Where a driver hands what arrives for one sent goal; return at once, never raise."""
+
+    def feedback(self, feedback: Any) -> None:
+        """Feedback as decoded (the core validates it)."""
+        ...
+
+    def status(self, status: GoalStatus) -> None:
+        """A status change seen by the client."""
+        ...
+
+    def finished(self, status: GoalStatus, result: Any) -> None:
+        """The goal ended (the core validates ``result``; only the first call counts).
+
+        A driver that loses its server (gone, closed) calls it with ``GoalStatus.ABORTED`` and
+        ``{"message": why}``, so that a client never waits for a result that cannot come.
+        """
+        ...
+
+    def reject(self, reason: object) -> None:
+        """Feedback, status or a result that did not decode, with why (counted)."""
+        ...
+
+
+@runtime_checkable
+class DriverGoal(Protocol):
+    """One sent goal as the driver tracks it (returned by :meth:`ActionDriver.send_goal`)."""
+
+    #: Whether the server accepted the goal.
+    accepted: bool
+    #: Why the server rejected it (empty when accepted).
+    reason: str
+
+    def cancel(self, timeout: float) -> bool:
+        """Ask the server to cancel the goal; whether it agreed."""
+        ...
+
+    def close(self) -> None:
+        """Stop listening for the goal's events."""
+        ...
+
+
+@runtime_checkable
+class ActionDriver(Protocol):
+    """The two primitives of a driver that carries long-running goals (``capabilities.actions``)."""
+
+    def serve_goals(self, name: str, definition: ActionType, hooks: GoalServerHooks, owner: str | None,
+                    lane: Lane) -> DriverActionServer:
+        """Serve goals of ``definition`` on ``name``: hand goals, cancels and result requests to ``hooks``."""
+        ...
+
+    def send_goal(self, name: str, definition: ActionType, goal_id: str, goal: dict[str, Any],
+                  events: GoalEvents, timeout: float) -> DriverGoal:
+        """Send a goal and wait (up to ``timeout``) for its acceptance; then feed ``events`` until it ends.
+
+        Raises :class:`~agents_core.errors.ServiceUnavailableError` when nobody serves ``name``
+        within ``timeout`` and :class:`~agents_core.errors.RequestTimeoutError` when the server
+        does not answer in time.
         """
         ...

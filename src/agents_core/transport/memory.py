@@ -29,7 +29,8 @@ from ..topics import Topic
 from .contract import ServiceHandler, TransitionHandler, TransportCapabilities
 from .core import DriverTransport
 from .delivery import SubscriptionStatistics, TopicStatistics
-from .driver import Lane, Sink
+from .driver import GoalEvents, GoalServerHooks, Lane, Sink
+from .goals import ActionType, GoalStatus
 from .graph import Graph, TopicInfo
 
 __all__ = ["MemoryDriver", "MemoryTransport", "SubscriptionStatistics", "TopicStatistics"]
@@ -118,11 +119,69 @@ def _await_reply(name: str, future: Future[Any], timeout: float) -> Any:
     return future.result()
 
 
+class _MemoryActionServer:
+    """An action server in memory: goals are handed to the core's hooks, events straight to the clients."""
+
+    def __init__(self, driver: MemoryDriver, name: str, hooks: GoalServerHooks, lane: Lane) -> None:
+        self.name = name
+        self.hooks = hooks
+        self.lane = lane
+        self._driver = driver
+        self._clients: dict[str, GoalEvents] = {}
+        self._lock = threading.Lock()
+
+    def _events(self, goal_id: str) -> GoalEvents | None:
+        with self._lock:
+            return self._clients.get(goal_id)
+
+    def feedback(self, goal_id: str, feedback: dict[str, Any]) -> None:
+        events = self._events(goal_id)
+        if events is not None:
+            events.feedback(feedback)
+
+    def status(self, goal_id: str, status: GoalStatus) -> None:
+        events = self._events(goal_id)
+        if events is not None:
+            events.status(status)
+
+    def finish(self, goal_id: str, status: GoalStatus, result: dict[str, Any]) -> None:
+        with self._lock:
+            events = self._clients.pop(goal_id, None)
+        if events is not None:
+            events.finished(status, result)
+
+    def close(self) -> None:
+        with self._driver._lock:
+            if self._driver._actions.get(self.name) is self:
+                del self._driver._actions[self.name]
+        with self._lock:
+            orphans, self._clients = list(self._clients.values()), {}
+        for events in orphans:
+            events.finished(GoalStatus.ABORTED, {"message": f"action server {self.name!r} closed"})
+
+
+class _MemoryGoal:
+    """A sent goal in memory."""
+
+    def __init__(self, server: _MemoryActionServer, goal_id: str, accepted: bool, reason: str) -> None:
+        self.accepted = accepted
+        self.reason = reason
+        self._server = server
+        self._goal_id = goal_id
+
+    def cancel(self, timeout: float) -> bool:
+        return self._server.hooks.on_cancel(self._goal_id)
+
+    def close(self) -> None:
+        with self._server._lock:
+            self._server._clients.pop(self._goal_id, None)
+
+
 class MemoryDriver:
     """The memory transport's driver: subscribers, services and components in dictionaries."""
 
     name = "memory"
-    capabilities = TransportCapabilities(cross_process=False, actions=False)
+    capabilities = TransportCapabilities(cross_process=False, actions=True)
 
     def __init__(self) -> None:
         self._lock = threading.Lock()
@@ -131,6 +190,7 @@ class MemoryDriver:
         self._services: dict[str, _Served] = {}
         self._components: dict[str, _MemoryPresence] = {}
         self._senders: dict[str, list[_Sender]] = {}
+        self._actions: dict[str, _MemoryActionServer] = {}
 
     def open_publisher(self, topic: Topic, owner: str | None) -> _Sender:
         sender = _Sender(self, topic)
@@ -212,8 +272,47 @@ class MemoryDriver:
             raise ServiceUnavailableError(f"no component {name!r} on this memory transport")
         return bool(_await_reply(f"{name} lifecycle", _run_on_lane(p.lane, p.on_transition, transition), timeout))
 
+    def serve_goals(self, name: str, definition: ActionType, hooks: GoalServerHooks, owner: str | None,
+                    lane: Lane) -> _MemoryActionServer:
+        server = _MemoryActionServer(self, name, hooks, lane)
+        with self._lock:
+            self._actions[name] = server
+        return server
+
+    def send_goal(self, name: str, definition: ActionType, goal_id: str, goal: dict[str, Any], events: GoalEvents,
+                  timeout: float) -> _MemoryGoal:
+        with self._lock:
+            server = self._actions.get(name)
+        if server is None:
+            raise ServiceUnavailableError(f"no action server {name!r} on this memory transport")
+        with server._lock:
+            server._clients[goal_id] = events
+        hooks = server.hooks
+
+        def decide() -> str | None:
+            reason = hooks.on_goal(goal_id, goal)
+            if reason is None:
+                hooks.on_accepted(goal_id)
+            return reason
+
+        # The accept decision may run user code: on the owner's lane, as requests do.
+        try:
+            reason = _await_reply(f"goal to {name!r}", _run_on_lane(server.lane, decide), timeout)
+        except RequestTimeoutError:
+            # Accepted after its sender gave up, the goal would run for nobody: cancel it (best effort).
+            with server._lock:
+                server._clients.pop(goal_id, None)
+            hooks.on_cancel(goal_id)
+            raise
+        if reason is not None:
+            with server._lock:
+                server._clients.pop(goal_id, None)
+            return _MemoryGoal(server, goal_id, False, reason)
+        return _MemoryGoal(server, goal_id, True, "")
+
     def close(self) -> None:
         with self._lock:
+            self._actions.clear()
             self._receivers.clear()
             self._senders.clear()
             self._services.clear()

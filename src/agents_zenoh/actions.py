@@ -1,0 +1,388 @@
+"""Long-running goals on Zenoh: queryables for goal, cancel and result, topics for feedback and status.
+
+Keys, under the action name (``<base>`` is ``<ns>/<action>``; see ``docs/zenoh-wire-format.md``):
+
+==========================================  =====================================================
+``<base>/@action/goal``                     queryable: ``{"goal_id", "goal"}`` -> ``{"accepted", "reason"}``
+``<base>/@action/cancel``                   queryable: ``{"goal_id"}`` -> ``{"accepted"}``
+``<base>/@action/result``                   queryable: ``{"goal_id"}`` -> ``{"status", "result"}`` once the
+                                            goal ended (the reply waits), ``{"pending": true}`` after
+                                            ``wait_s`` seconds (default 1, at most 5) if it still runs
+``<base>/@action/feedback/<goal_id>``       samples: the feedback map
+``<base>/@action/status/<goal_id>``         samples: ``{"status": <GoalStatus number>}``
+``<base>/@action/result/<goal_id>``         sample: the result reply's map, once, when the goal ends
+==========================================  =====================================================
+
+Every payload is a msgpack map (``application/msgpack``). The ``@action`` chunk keeps goal
+traffic out of ``<ns>/**`` topic subscriptions. A client subscribes to
+``<base>/@action/*/<goal_id>`` before it sends the goal, then asks for the result in a loop of
+bounded queries: a query that ends with no reply means the server is gone, and the goal ends
+ABORTED with that reason. Goal and cancel queries are answered on the owner's request lane (the
+server's ``accept`` is user code); result queries are held (one sweeper thread per server answers
+``pending`` when their wait runs out, never a thread per query) and answered when the goal ends,
+with ``"feedback_sent": n``, the number of feedback samples the goal published: feedback and
+result travel on different paths, so the client waits (at most a second) for the feedback still
+on its way before it reports the result.
+"""
+
+from __future__ import annotations
+
+import collections
+import logging
+import threading
+import time
+from typing import TYPE_CHECKING, Any
+
+import zenoh
+
+from agents_core.errors import RemoteError, RequestTimeoutError, ServiceUnavailableError, TransportError
+from agents_core.transport.driver import GoalEvents, GoalServerHooks, Lane
+from agents_core.transport.goals import GoalStatus
+
+from .codecs import MSGPACK, CodecError, pack, unpack
+from .pubsub import undeclare
+from .queryables import read_reply
+
+if TYPE_CHECKING:
+    from .transport import ZenohDriver
+
+__all__ = ["ACTION_CHUNK", "ZenohActionServer", "ZenohGoal", "action_key"]
+
+logger = logging.getLogger(__name__)
+
+#: The verbatim chunk under an action name where its keys live.
+ACTION_CHUNK = "@action"
+#: How long one result query waits on the server before it answers ``pending`` (client asks, server caps).
+RESULT_WAIT_S = 1.0
+MAX_RESULT_WAIT_S = 5.0
+#: Result queries a server holds at once per goal (a bound on what a peer can pile up).
+MAX_HELD_QUERIES = 16
+_PRIORITY = zenoh.Priority.INTERACTIVE_HIGH
+#: Goals whose feedback count a server remembers (for their result replies).
+KEPT_COUNTS = 1024
+#: How long a client waits, after the result, for feedback the server says it sent.
+FEEDBACK_GRACE_S = 1.0
+#: How long a client whose result query found no server waits for the result sample a closing server sends.
+RESULT_SAMPLE_GRACE_S = 0.3
+
+
+def action_key(driver: ZenohDriver, name: str, *parts: str) -> str:
+    """The key ``<ns>/<name>/@action/<parts...>``."""
+    return "/".join((driver._key(name, "action"), ACTION_CHUNK, *parts))
+
+
+def _request(query: zenoh.Query) -> dict[str, Any]:
+    payload = query.payload
+    if payload is None or len(payload) == 0:
+        raise CodecError("the request is empty")
+    doc = unpack(payload.to_bytes())
+    if not isinstance(doc, dict):
+        raise CodecError(f"a request must be a map, got {type(doc).__name__}")
+    return doc
+
+
+def _answer(query: zenoh.Query, doc: dict[str, Any]) -> None:
+    try:
+        query.reply(query.key_expr, pack(doc), encoding=MSGPACK)
+    except zenoh.ZError as exc:
+        logger.debug("could not answer %s: %s", query.key_expr, exc)
+
+
+def _answer_error(query: zenoh.Query, reason: str) -> None:
+    try:
+        query.reply_err(pack({"error": reason, "type": "CodecError"}), encoding=f"{MSGPACK};error")
+    except zenoh.ZError as exc:
+        logger.debug("could not send an error reply: %s", exc)
+
+
+def _finalize(query: zenoh.Query) -> None:
+    """End a held query: its caller stops waiting for more replies."""
+    query.drop()  # type: ignore[no-untyped-call]  # zenoh's stub leaves it unannotated
+
+
+class ZenohActionServer:
+    """The driver side of one action server (see the module docstring)."""
+
+    def __init__(self, driver: ZenohDriver, name: str, hooks: GoalServerHooks, lane: Lane) -> None:
+        self.name = name
+        self._driver = driver
+        self._hooks = hooks
+        self._lane = lane
+        self._lock = threading.Lock()
+        # Result queries waiting for their goal's end, with the time to answer "pending" instead.
+        self._held: dict[str, list[tuple[zenoh.Query, float]]] = {}
+        self._wake = threading.Condition(self._lock)
+        # Feedback samples sent per goal, told with the result: the result travels on another
+        # path than the feedback, so the client waits (bounded) for the feedback still on its way.
+        self._sent: collections.OrderedDict[str, int] = collections.OrderedDict()
+        self._closed = False
+        session = driver._session
+        self._entities = [
+            session.declare_queryable(action_key(driver, name, "goal"), self._on_goal),
+            session.declare_queryable(action_key(driver, name, "cancel"), self._on_cancel),
+            session.declare_queryable(action_key(driver, name, "result"), self._on_result),
+        ]
+        self._sweeper = threading.Thread(target=self._sweep, daemon=True, name=f"{name}:result-queries")
+        self._sweeper.start()
+
+    # -- queries ---------------------------------------------------------------------------------
+
+    def _on_goal(self, query: zenoh.Query) -> None:
+        self._lane(lambda: self._serve_goal(query))
+
+    def _serve_goal(self, query: zenoh.Query) -> None:
+        with query:
+            try:
+                request = _request(query)
+                goal_id, goal = request.get("goal_id"), request.get("goal")
+                if not isinstance(goal_id, str):
+                    raise CodecError("a goal request is {'goal_id': str, 'goal': map}")
+            except CodecError as exc:
+                self._hooks.reject(exc)
+                _answer_error(query, f"the goal did not decode: {exc}")
+                return
+            reason = self._hooks.on_goal(goal_id, goal)
+            _answer(query, {"accepted": reason is None, "reason": reason or ""})
+        if reason is None:
+            self._hooks.on_accepted(goal_id)
+
+    def _on_cancel(self, query: zenoh.Query) -> None:
+        self._lane(lambda: self._serve_cancel(query))
+
+    def _serve_cancel(self, query: zenoh.Query) -> None:
+        with query:
+            try:
+                goal_id = _request(query).get("goal_id")
+                if not isinstance(goal_id, str):
+                    raise CodecError("a cancel request is {'goal_id': str}")
+            except CodecError as exc:
+                self._hooks.reject(exc)
+                _answer_error(query, f"the cancel request did not decode: {exc}")
+                return
+            _answer(query, {"accepted": self._hooks.on_cancel(goal_id)})
+
+    def _on_result(self, query: zenoh.Query) -> None:
+        # On Zenoh's thread: answered at once, or held until the goal ends (never a thread per query).
+        try:
+            request = _request(query)
+            goal_id = request.get("goal_id")
+            wait = request.get("wait_s", RESULT_WAIT_S)
+            if not isinstance(goal_id, str) or isinstance(wait, bool) or not isinstance(wait, int | float):
+                raise CodecError("a result request is {'goal_id': str, 'wait_s': number}")
+        except CodecError as exc:
+            self._hooks.reject(exc)
+            _answer_error(query, f"the result request did not decode: {exc}")
+            _finalize(query)
+            return
+        ended = self._hooks.wait_result(goal_id, 0.0)
+        if ended is not None:
+            self._reply_result(query, goal_id, ended[0], ended[1])
+            return
+        deadline = time.monotonic() + min(max(float(wait), 0.0), MAX_RESULT_WAIT_S)
+        with self._lock:
+            held = self._held.setdefault(goal_id, [])
+            pending = self._closed or len(held) >= MAX_HELD_QUERIES
+            if not pending:
+                held.append((query, deadline))
+                self._wake.notify()
+            elif not held:
+                del self._held[goal_id]
+        if pending:
+            _answer(query, {"pending": True})
+            _finalize(query)
+            return
+        ended = self._hooks.wait_result(goal_id, 0.0)  # it may have ended while the query was being held
+        if ended is not None:
+            self.finish(goal_id, ended[0], ended[1])
+
+    def _sweep(self) -> None:
+        """Answer "pending" to held result queries whose wait ran out (one thread per server, not per query)."""
+        while True:
+            expired: list[zenoh.Query] = []
+            with self._lock:
+                if self._closed:
+                    return
+                now = time.monotonic()
+                nearest = now + 1.0
+                for goal_id in list(self._held):
+                    keep = []
+                    for query, deadline in self._held[goal_id]:
+                        if deadline <= now:
+                            expired.append(query)
+                        else:
+                            keep.append((query, deadline))
+                            nearest = min(nearest, deadline)
+                    if keep:
+                        self._held[goal_id] = keep
+                    else:
+                        del self._held[goal_id]
+                if not expired:
+                    self._wake.wait(max(0.001, nearest - now))
+            for query in expired:
+                _answer(query, {"pending": True})
+                _finalize(query)
+
+    def _reply_result(self, query: zenoh.Query, goal_id: str, status: GoalStatus, result: dict[str, Any]) -> None:
+        with self._lock:
+            sent = self._sent.get(goal_id, 0)
+        _answer(query, {"status": int(status), "result": result, "feedback_sent": sent})
+        _finalize(query)
+
+    # -- DriverActionServer ------------------------------------------------------------------------
+
+    def feedback(self, goal_id: str, feedback: dict[str, Any]) -> None:
+        with self._lock:
+            self._sent[goal_id] = self._sent.get(goal_id, 0) + 1
+            self._sent.move_to_end(goal_id)
+            while len(self._sent) > KEPT_COUNTS:
+                self._sent.popitem(last=False)
+        self._driver._session.put(action_key(self._driver, self.name, "feedback", goal_id), pack(feedback),
+                                  encoding=MSGPACK, priority=_PRIORITY)
+
+    def status(self, goal_id: str, status: GoalStatus) -> None:
+        self._driver._session.put(action_key(self._driver, self.name, "status", goal_id),
+                                  pack({"status": int(status)}), encoding=MSGPACK, priority=_PRIORITY)
+
+    def finish(self, goal_id: str, status: GoalStatus, result: dict[str, Any]) -> None:
+        with self._lock:
+            held = self._held.pop(goal_id, [])
+            sent = self._sent.get(goal_id, 0)
+        # Also as a sample: a client between two result queries still gets it if the server then closes.
+        self._driver._session.put(action_key(self._driver, self.name, "result", goal_id),
+                                  pack({"status": int(status), "result": result, "feedback_sent": sent}),
+                                  encoding=MSGPACK, priority=_PRIORITY)
+        for query, _deadline in held:
+            self._reply_result(query, goal_id, status, result)
+
+    def close(self) -> None:
+        with self._lock:
+            self._closed = True
+            held = [q for queries in self._held.values() for q, _deadline in queries]
+            self._held.clear()
+            self._wake.notify_all()
+        self._sweeper.join(2.0)
+        for query in held:
+            _finalize(query)
+        for entity in reversed(self._entities):
+            undeclare(entity)
+
+
+class ZenohGoal:
+    """A sent goal: its feedback / status subscriber and the thread that waits for its result."""
+
+    def __init__(self, driver: ZenohDriver, name: str, goal_id: str, events: GoalEvents) -> None:
+        self.accepted = False
+        self.reason = ""
+        self._driver = driver
+        self._name = name
+        self._goal_id = goal_id
+        self._events = events
+        self._done = threading.Event()
+        self._feedback_key = action_key(driver, name, "feedback", goal_id)
+        self._result_key = action_key(driver, name, "result", goal_id)
+        self._result_sample = threading.Event()
+        self._result_doc: dict[str, Any] = {}
+        self._subscriber: Any = driver._session.declare_subscriber(action_key(driver, name, "*", goal_id),
+                                                                   self._on_sample)
+        self._thread: threading.Thread | None = None
+        self._feedback_seen = 0
+        self._feedback_cond = threading.Condition()
+
+    def _on_sample(self, sample: zenoh.Sample) -> None:
+        try:
+            doc = unpack(sample.payload.to_bytes())
+            if not isinstance(doc, dict):
+                raise CodecError(f"expected a map, got {type(doc).__name__}")
+            key = str(sample.key_expr)
+            if key == self._feedback_key:
+                self._events.feedback(doc)
+                with self._feedback_cond:
+                    self._feedback_seen += 1
+                    self._feedback_cond.notify_all()
+            elif key == self._result_key:
+                self._result_doc = doc  # the result thread reports it (Zenoh's thread must not wait)
+                self._result_sample.set()
+            else:
+                self._events.status(GoalStatus(doc["status"]))
+        except (CodecError, KeyError, ValueError, TypeError) as exc:
+            self._events.reject(exc)
+
+    def _query(self, part: str, request: dict[str, Any], timeout: float) -> dict[str, Any]:
+        key = action_key(self._driver, self._name, part)
+        replies = self._driver._session.get(key, payload=pack(request), encoding=MSGPACK, timeout=timeout,
+                                            consolidation=zenoh.ConsolidationMode.NONE, priority=_PRIORITY)
+        for reply in replies:
+            return read_reply(reply, f"{part} of action {self._name!r}", timeout)
+        raise ServiceUnavailableError(f"nobody serves the action {self._name!r} on zenoh (key {key!r})")
+
+    def send(self, goal: dict[str, Any], timeout: float) -> None:
+        started = time.monotonic()
+        try:
+            answer = self._query("goal", {"goal_id": self._goal_id, "goal": goal}, timeout)
+        except (ServiceUnavailableError, RequestTimeoutError) as exc:
+            if isinstance(exc, RequestTimeoutError) or time.monotonic() - started >= timeout:
+                # Accepted after its sender gave up, the goal would run for nobody: cancel it (best effort).
+                self.cancel(0.5)
+                raise RequestTimeoutError(f"goal to {self._name!r} got no answer within {timeout:g} s") from None
+            raise
+        self.accepted = answer.get("accepted") is True
+        self.reason = str(answer.get("reason", ""))[:1000]
+        if self.accepted:
+            self._thread = threading.Thread(target=self._wait_result, daemon=True,
+                                            name=f"{self._name}:result:{self._goal_id[:8]}")
+            self._thread.start()
+
+    def _wait_result(self) -> None:
+        while not self._done.is_set():
+            if self._result_sample.is_set():
+                self._report(self._result_doc)
+                return
+            try:
+                answer = self._query("result", {"goal_id": self._goal_id, "wait_s": RESULT_WAIT_S},
+                                     RESULT_WAIT_S + 4.0)
+            except (ServiceUnavailableError, RequestTimeoutError, RemoteError, TransportError, zenoh.ZError) as exc:
+                # A server that closes publishes its goals' results just before its queryables go.
+                if self._result_sample.wait(RESULT_SAMPLE_GRACE_S):
+                    self._report(self._result_doc)
+                elif not self._done.is_set():
+                    self._events.finished(GoalStatus.ABORTED, {"message": f"action server {self._name!r} went "
+                                                               f"away before the goal ended ({exc})"})
+                return
+            if answer.get("pending") is not True:
+                self._report(answer)
+                return
+
+    def _report(self, answer: dict[str, Any]) -> None:
+        """Hand a result reply (or result sample) to the core."""
+        try:
+            status = GoalStatus(int(answer.get("status", 0)))
+        except (ValueError, TypeError):
+            status = GoalStatus.UNKNOWN
+        if status == GoalStatus.UNKNOWN:
+            self._events.finished(GoalStatus.ABORTED, {"message": f"action server {self._name!r} does not "
+                                                       "know the goal (restarted?)"})
+            return
+        self._await_feedback(answer.get("feedback_sent"))
+        self._events.finished(status, answer.get("result"))
+
+    def _await_feedback(self, sent: Any) -> None:
+        """Let the feedback the server sent before the result arrive first (bounded)."""
+        if isinstance(sent, bool) or not isinstance(sent, int):
+            return
+        deadline = time.monotonic() + FEEDBACK_GRACE_S
+        with self._feedback_cond:
+            while self._feedback_seen < sent and not self._done.is_set():
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    return
+                self._feedback_cond.wait(left)
+
+    def cancel(self, timeout: float) -> bool:
+        try:
+            return self._query("cancel", {"goal_id": self._goal_id}, timeout).get("accepted") is True
+        except (ServiceUnavailableError, RemoteError, RequestTimeoutError):
+            return False
+
+    def close(self) -> None:
+        self._done.set()
+        undeclare(self._subscriber)
