@@ -160,7 +160,8 @@ def test_the_ui_attached_over_zenoh_to_a_recipe_in_another_process(page: Page, t
     try:
         assert recipe.stdout is not None
         assert recipe.stdout.readline().strip() == "READY", "the recipe process did not start"
-        transport = resolve_transport("zenoh", mode="peer", connect=[endpoint], listen=[])
+        transport = resolve_transport("zenoh", mode="peer", connect=[endpoint], listen=[],
+                                      multicast_scouting=False)
         try:
             server = attach(transport, components=["shouter"])
             try:

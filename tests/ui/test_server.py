@@ -142,3 +142,60 @@ def test_enable_ui_is_refused_after_start_and_off_loopback_without_a_token(monke
         launcher.enable_ui(host="0.0.0.0")
     with launcher, pytest.raises(ConfigError, match="before the launcher starts"):
         launcher.enable_ui(port=0)
+
+
+@pytest.mark.ros2
+def test_the_ui_attached_over_ros2_to_a_recipe_in_another_process() -> None:
+    import importlib.util  # noqa: PLC0415
+    import subprocess  # noqa: PLC0415
+    import sys  # noqa: PLC0415
+    from pathlib import Path  # noqa: PLC0415
+
+    if importlib.util.find_spec("rclpy") is None or importlib.util.find_spec("agents_interfaces") is None:
+        pytest.skip("ros2 transport not available here: rclpy or agents_interfaces is not installed")
+    from agents_core.testing.pairs import private_ros_environment  # noqa: PLC0415
+    from agents_core.transport.registry import resolve_transport  # noqa: PLC0415
+    from agents_core.ui.attach import attach  # noqa: PLC0415
+
+    private_ros_environment()
+    recipe = subprocess.Popen([sys.executable, "-m", "tests.ui.ui_parts", "--transport", "ros2"],
+                              cwd=Path(__file__).resolve().parents[2], stdout=subprocess.PIPE,
+                              stderr=subprocess.DEVNULL, text=True, env={**os.environ, "PYTHONUNBUFFERED": "1"})
+    try:
+        assert recipe.stdout is not None
+        assert recipe.stdout.readline().strip() == "READY", "the recipe process did not start"
+        transport = resolve_transport("ros2")
+        try:
+            # discovery over DDS takes a moment: bounded retries until the component is seen
+            assert wait_for(lambda: "shouter" in transport.discover(timeout=1.0).components, timeout=20)
+            server = attach(transport, settings=UISettings(port=0))
+            try:
+                doc = httpx.get(f"{server.url}api/interfaces", timeout=20).json()
+                assert [c["name"] for c in doc["components"]] == ["shouter"]
+                assert [i["name"] for i in doc["inputs"]] == ["words"]
+                with connect(f"ws://127.0.0.1:{server.port}/api/outputs?topics=shouts", open_timeout=10) as ws:
+                    text = None
+                    for _ in range(20):  # bounded: DDS matching may drop the first values
+                        httpx.post(f"{server.url}api/inputs/words", json={"value": "over dds"}, timeout=10)
+                        try:
+                            frame = json.loads(ws.recv(timeout=1.0))
+                        except TimeoutError:
+                            continue
+                        while frame["kind"] != "text":
+                            frame = json.loads(ws.recv(timeout=5.0))
+                        text = frame["text"]
+                        break
+                assert text == "OVER DDS!"
+            finally:
+                server.stop()
+        finally:
+            transport.close()
+    finally:
+        recipe.terminate()
+        try:
+            recipe.wait(timeout=20)
+        except subprocess.TimeoutExpired:
+            recipe.kill()
+            recipe.wait(timeout=10)
+        if recipe.stdout is not None:
+            recipe.stdout.close()

@@ -1,6 +1,7 @@
 """A small real recipe for the UI tests: a Shouter (String in, String and Image out) with actions.
 
-``python -m tests.ui.ui_parts --listen tcp/127.0.0.1:PORT`` runs it on Zenoh in its own process
+``python -m tests.ui.ui_parts --listen tcp/127.0.0.1:PORT`` runs it on Zenoh (``--transport ros2``: on
+ROS 2) in its own process
 (the attach test's "recipe running elsewhere"); it prints READY once active and stops on SIGTERM.
 """
 
@@ -64,9 +65,12 @@ def shouter(name: str = "shouter") -> Shouter:
 
 def main() -> int:
     parser = argparse.ArgumentParser()
-    parser.add_argument("--listen", required=True)
+    parser.add_argument("--transport", default="zenoh", choices=["zenoh", "ros2"])
+    parser.add_argument("--listen", help="the Zenoh endpoint (tcp/127.0.0.1:PORT)")
     args = parser.parse_args()
-    launcher = Launcher("zenoh", transport_options={"mode": "peer", "listen": [args.listen], "connect": []})
+    options = ({"mode": "peer", "listen": [args.listen], "connect": [], "multicast_scouting": False}
+               if args.transport == "zenoh" else {})
+    launcher = Launcher(args.transport, transport_options=options)
     launcher.add_pkg(components=[shouter()])
     stop = threading.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
