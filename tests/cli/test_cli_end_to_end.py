@@ -156,3 +156,30 @@ def test_bad_input_is_one_line_and_non_zero(recipe: Running, args: tuple[str, ..
     assert done.returncode != 0
     lines = done.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("error: ") and message in lines[0], done.stderr
+
+
+def test_ui_attaches_to_the_running_recipe(recipe: Running, tmp_path: Path) -> None:
+    """``agentsctl ui`` in its own process serves the recipe's components, found by discovery."""
+    pytest.importorskip("starlette", reason="the web UI needs the 'ui' extra")
+    import httpx
+
+    port = free_tcp_port()
+    log = tmp_path / "ui.log"
+    process = start("ui", *recipe.options, "--port", str(port), "--seconds", "120", env=cli_env(), log=log)
+    try:
+        def described() -> bool:
+            assert process.poll() is None, log.read_text()
+            try:
+                reply = httpx.get(f"http://127.0.0.1:{port}/api/interfaces", timeout=5.0)
+            except httpx.HTTPError:
+                return False
+            return reply.status_code == 200 and {"talker", "listener"} <= {
+                c["name"] for c in reply.json()["components"]}
+        assert wait_until(described, timeout=60.0), log.read_text()
+    finally:
+        stop(process)
+
+
+def test_ui_refuses_the_memory_transport() -> None:
+    done = cli("ui", "--transport", "memory")
+    assert done.returncode == 1 and done.stderr.count("\n") == 1 and "zenoh or ros2" in done.stderr

@@ -1,4 +1,4 @@
-"""The ``agentsctl`` command tree: ``run``, ``topics``, ``components``, ``call``, ``router``."""
+"""The ``agentsctl`` command tree: ``run``, ``topics``, ``components``, ``call``, ``ui``, ``router``."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from typing import Annotated
 
 import typer
 
-from ..errors import ConfigError
+from ..errors import AgentsError, ConfigError
 from ..transport.registry import TRANSPORT_ENV_VAR
 from . import components, topics
 from .connection import fail, one_line_errors
@@ -57,6 +57,27 @@ def run(ctx: typer.Context,
     # The recipe's own imports (a module beside it) work as with `python recipe.py`.
     sys.path.insert(0, str(recipe.resolve().parent))
     runpy.run_path(path, run_name="__main__")
+
+
+@app.command("ui", context_settings={"allow_extra_args": True, "ignore_unknown_options": True,
+                                     "help_option_names": []})
+def ui(ctx: typer.Context) -> None:
+    """Serve the web UI for a recipe running elsewhere (Zenoh or ROS 2); ``agentsctl ui --help`` lists options."""
+    args = list(ctx.args)
+    if "--transport" in args and args.index("--transport") + 1 < len(args):
+        name = args[args.index("--transport") + 1].strip().lower()
+        if name not in ("zenoh", "ros2"):
+            raise fail(f"the UI attaches over zenoh or ros2, not {name!r} (a memory recipe enables its UI "
+                       "itself: launcher.enable_ui())")
+    try:
+        from ..ui.attach import main as attach_main  # noqa: PLC0415 - needs the ui extra
+    except ImportError as exc:
+        raise fail(f"the web UI needs the 'ui' extra ({exc}); pip install 'agents-core[ui]'") from None
+    try:
+        code = attach_main(args)
+    except (AgentsError, OSError) as exc:
+        raise fail(str(exc) or type(exc).__name__) from None
+    raise typer.Exit(code)
 
 
 @app.command("router")
