@@ -161,7 +161,7 @@ def test_bad_input_is_one_line_and_non_zero(recipe: Running, args: tuple[str, ..
 def test_ui_attaches_to_the_running_recipe(recipe: Running, tmp_path: Path) -> None:
     """``agentsctl ui`` in its own process serves the recipe's components, found by discovery."""
     pytest.importorskip("starlette", reason="the web UI needs the 'ui' extra")
-    import httpx
+    import httpx  # noqa: PLC0415 - after the skip check
 
     port = free_tcp_port()
     log = tmp_path / "ui.log"
