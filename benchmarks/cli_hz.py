@@ -20,6 +20,7 @@ import subprocess
 import sys
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -99,6 +100,28 @@ def measure(rate: float, window: float) -> dict[str, Any]:
             "raw_hz": raw["rate_hz"], "cli_vs_publisher": cli_doc["rate_hz"] / publisher_rate,
             "cli_vs_raw": cli_doc["rate_hz"] / raw["rate_hz"] if raw["rate_hz"] else None,
             "cli_messages": cli_doc["messages"], "raw_messages": raw["messages"]}
+
+
+def run_suite(settings: dict[str, Any],
+              progress: Callable[[str], None]) -> tuple[list[dict[str, Any]], list[dict[str, str]]]:
+    """The ``cli`` suite of ``benchmarks.run``: ``topics hz`` vs a raw subscriber's rate; (records, skipped)."""
+    records: list[dict[str, Any]] = []
+    skipped: list[dict[str, str]] = []
+    window = float(settings.get("cli_window", 3.0))
+    for rate in settings.get("cli_rates", (100.0,)):
+        payload = f"String_at_{rate:g}_Hz"
+        try:
+            result = measure(float(rate), window)
+        except (RuntimeError, OSError, subprocess.SubprocessError, ValueError) as exc:
+            progress(f"cli: FAILED at {rate:g} Hz: {exc}")
+            skipped.append({"suite": "cli", "transport": "zenoh", "mode": "both", "reason": str(exc)[-1500:]})
+            continue
+        for mode, key in (("framework", "cli_hz"), ("raw", "raw_hz")):
+            records.append({"suite": "cli", "transport": "zenoh", "payload": payload, "mode": mode,
+                            "rate_hz": result[key], "publisher_hz": result["publisher_hz"]})
+        progress(f"{'cli':<10} {'zenoh':<6} {rate:g} Hz: agentsctl hz {result['cli_hz']:.1f}, "
+                 f"raw {result['raw_hz']:.1f}")
+    return records, skipped
 
 
 def main(argv: list[str] | None = None) -> int:

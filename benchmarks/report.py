@@ -40,6 +40,8 @@ METRICS: dict[str, list[tuple[str, str, str, str]]] = {
     "goals": [("rtt_median", "us", "lower", "rtt.median_us"), ("rtt_p99", "us", "lower", "rtt.p99_us")],
     # one observation -> action chunk round trip: LeRobotClient.inference vs the raw gRPC stubs, one server.
     "vla": [("latency_p50", "ms", "lower", "latency_ms.p50"), ("latency_p99", "ms", "lower", "latency_ms.p99")],
+    # the rate `agentsctl topics hz` reports vs a raw zenoh subscriber counting the same publisher.
+    "cli": [("hz_rate", "Hz", "higher", "rate_hz")],
 }
 
 #: Above this slowdown (framework cost / raw cost) a latency figure needs a profile note.
@@ -177,7 +179,7 @@ def plot(figures: list[dict[str, Any]], records: list[dict[str, Any]], path: Pat
     colors = {"hop": "tab:blue", "throughput": "tab:orange", "startup": "tab:green", "model": "tab:purple",
               "imports": "tab:brown", "vision": "tab:red", "voice": "tab:olive",
               "map": "tab:cyan", "processes": "tab:pink", "ui": "tab:gray", "goals": "tab:olive",
-              "vla": "tab:brown"}
+              "vla": "tab:brown", "cli": "tab:red"}
     labels = [f["id"] for f in shown]
     values = [f["slowdown"] for f in shown]
     y = list(range(len(shown)))
