@@ -21,8 +21,11 @@ from pathlib import Path
 
 import pytest
 
-#: Tests per transport in the shipped suite (every registered type round-trips, then 13 more).
-SUITE_TESTS = len(__import__("agents_core.supported_types", fromlist=["x"]).registered_types()) + 13
+#: Tests per transport in the shipped suite: every registered type round-trips, then 13 more on topics,
+#: requests and presence, and 7 on long-running goals (agents_core.testing.goals_suite).
+SUITE_TESTS = len(__import__("agents_core.supported_types", fromlist=["x"]).registered_types()) + 13 + 7
+#: Tests of the suite that take no transport pair, collected once (a driver without goals says so).
+PAIRLESS_TESTS = 1
 
 TRANSPORT_MODULE = '''
 """Two tiny transports for the plugin test: the memory transport under other names."""
@@ -134,7 +137,7 @@ def test_collects_the_suite_for_every_installed_transport(tmp_path: Path, site: 
                      for name in ("memory", "zenoh", "ros2", "loopmem", "solomem")}
     # Every transport, built in or installed, is a parameter, whether or not its extra is here.
     assert per_transport == dict.fromkeys(per_transport, SUITE_TESTS), per_transport
-    assert len(ids) == 5 * SUITE_TESTS, "the suite must be collected exactly once"
+    assert len(ids) == 5 * SUITE_TESTS + PAIRLESS_TESTS, "the suite must be collected exactly once"
     assert all(i.startswith("conftest.py::test_") for i in ids), ids[:3]
 
 
@@ -143,7 +146,8 @@ def test_marker_selects_the_entry_point_transport_only(tmp_path: Path, site: Pat
     out = _pytest(project, site, "--collect-only", "-q", "-m", "loopmem")
     ids = [line for line in out.splitlines() if "::" in line]
     assert len(ids) == SUITE_TESTS and all("loopmem" in i for i in ids), ids[:3]
-    assert f"{SUITE_TESTS}/{5 * SUITE_TESTS} tests collected ({4 * SUITE_TESTS} deselected)" in out, _summary(out)
+    total, deselected = 5 * SUITE_TESTS + PAIRLESS_TESTS, 4 * SUITE_TESTS + PAIRLESS_TESTS
+    assert f"{SUITE_TESTS}/{total} tests collected ({deselected} deselected)" in out, _summary(out)
 
 
 def test_suite_passes_on_entry_point_transports(tmp_path: Path, site: Path) -> None:
@@ -184,5 +188,5 @@ def test_root_conftest_with_testpaths_still_collects_the_suite_once(tmp_path: Pa
     (project / "tests" / "test_other.py").write_text("def test_alone():\n    pass\n")
     out = _pytest(project, site, "--collect-only", "-q", "-m", "loopmem or not conformance")
     ids = [line for line in out.splitlines() if "::" in line]
-    assert len(ids) == SUITE_TESTS + 1, ids[:5]
+    assert len(ids) == SUITE_TESTS + PAIRLESS_TESTS + 1, ids[:5]
     assert "tests/test_other.py::test_alone" in ids

@@ -9,15 +9,12 @@ the local SmolLM2 model: ``question`` (String) in, ``answer`` (StreamingString) 
 from __future__ import annotations
 
 import argparse
-import logging
-import signal
-import sys
-import threading
-from typing import Any
 
 from agents_core import Launcher, Topic
 from agents_core.components import LLM
 from agents_core.config import LLMConfig
+
+from .recipe_main import serve, transport_options
 
 QUESTION = Topic("question", "String")
 ANSWER = Topic("answer", "StreamingString")
@@ -35,19 +32,9 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--transport", required=True, choices=["memory", "zenoh", "ros2"])
     parser.add_argument("--listen", default=None, help="zenoh: the endpoint to listen on")
     args = parser.parse_args(argv)
-    logging.basicConfig(level=logging.INFO, stream=sys.stderr, format="%(levelname)s %(name)s: %(message)s")
-    options: dict[str, Any] = {}
-    if args.transport == "zenoh":
-        options = {"mode": "peer", "listen": [args.listen], "connect": []}
-    launcher = Launcher(transport=args.transport, transport_options=options)
+    launcher = Launcher(transport=args.transport, transport_options=transport_options(args.transport, args.listen))
     launcher.add_pkg(components=[build()])
-    stop = threading.Event()
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(sig, lambda *_: stop.set())
-    with launcher:
-        print("READY", flush=True)
-        stop.wait(600)  # bounded: a forgotten recipe ends by itself
-    print("stopped cleanly", file=sys.stderr, flush=True)
+    serve(launcher)
 
 
 if __name__ == "__main__":

@@ -11,10 +11,6 @@ from __future__ import annotations
 
 import argparse
 import importlib.util
-import logging
-import signal
-import sys
-import threading
 from typing import Any
 
 import numpy as np
@@ -26,6 +22,7 @@ from agents_core.components import Vision
 from agents_core.config import VisionConfig
 
 from .models_dir import SHARED_MODELS
+from .recipe_main import serve, transport_options
 
 #: The real COCO detector (SSD MobileNetV2, TF Object Detection signature) and the test photos.
 SSD_MODEL = SHARED_MODELS / "coco-ssd-mobilenet-v2" / "coco_ssd_mobilenet_v2.onnx"
@@ -86,19 +83,9 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--transport", required=True, choices=["memory", "zenoh", "ros2"])
     parser.add_argument("--listen", default=None, help="zenoh: the endpoint to listen on")
     args = parser.parse_args(argv)
-    logging.basicConfig(level=logging.INFO, stream=sys.stderr, format="%(levelname)s %(name)s: %(message)s")
-    options: dict[str, Any] = {}
-    if args.transport == "zenoh":
-        options = {"mode": "peer", "listen": [args.listen], "connect": []}
-    launcher = Launcher(transport=args.transport, transport_options=options)
+    launcher = Launcher(transport=args.transport, transport_options=transport_options(args.transport, args.listen))
     launcher.add_pkg(components=[build()])
-    stop = threading.Event()
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(sig, lambda *_: stop.set())
-    with launcher:
-        print("READY", flush=True)
-        stop.wait(600)  # bounded: a forgotten recipe ends by itself
-    print("stopped cleanly", file=sys.stderr, flush=True)
+    serve(launcher)
 
 
 if __name__ == "__main__":

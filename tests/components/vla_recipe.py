@@ -9,17 +9,14 @@ out, goals on ``arm_vla``. It prints ``READY`` once active and runs until SIGTER
 from __future__ import annotations
 
 import argparse
-import logging
-import signal
-import sys
-import threading
-from typing import Any
 
 from agents_core import Launcher, Topic
 from agents_core.clients.lerobot import LeRobotClient
 from agents_core.components import VLA
 from agents_core.config import VLAConfig
 from agents_core.models import LeRobotPolicy
+
+from .recipe_main import serve, transport_options
 
 JOINTS = ["shoulder", "elbow"]
 STATE = Topic(name="joint_states", msg_type="JointState")
@@ -54,19 +51,9 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--listen", default=None, help="zenoh: the endpoint to listen on")
     parser.add_argument("--policy-port", type=int, required=True)
     args = parser.parse_args(argv)
-    logging.basicConfig(level=logging.INFO, stream=sys.stderr, format="%(levelname)s %(name)s: %(message)s")
-    options: dict[str, Any] = {}
-    if args.transport == "zenoh":
-        options = {"mode": "peer", "listen": [args.listen], "connect": []}
-    launcher = Launcher(transport=args.transport, transport_options=options)
+    launcher = Launcher(transport=args.transport, transport_options=transport_options(args.transport, args.listen))
     launcher.add_pkg(components=[build(args.policy_port)])
-    stop = threading.Event()
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(sig, lambda *_: stop.set())
-    with launcher:
-        print("READY", flush=True)
-        stop.wait(600)  # bounded: a forgotten recipe ends by itself
-    print("stopped cleanly", file=sys.stderr, flush=True)
+    serve(launcher)
 
 
 if __name__ == "__main__":

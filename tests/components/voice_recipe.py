@@ -11,10 +11,7 @@ from __future__ import annotations
 import argparse
 import importlib.util
 import logging
-import signal
-import sys
 import tempfile
-import threading
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -25,8 +22,10 @@ import pytest
 
 from agents_core import Launcher, Topic
 from agents_core.messages import AudioMsg
+from agents_core.topics import QoSConfig
 
 from .models_dir import SHARED_MODELS
+from .recipe_main import serve, transport_options
 
 WHISPER_DIR = SHARED_MODELS / "whisper-tiny.en-int8"
 VAD_FILE = SHARED_MODELS / "silero-vad" / "silero_vad.onnx"
@@ -34,7 +33,9 @@ PIPER_SCRIPT = SHARED_MODELS / "piper-joe" / "make_sherpa_vits.py"
 SHARED_AUDIO = SHARED_MODELS.parent / "audio"
 
 #: The recipe's topics.
-MIC, HEARD = Topic("mic", "Audio"), Topic("heard", "String")
+# A microphone stream is hundreds of short chunks a second: the reader keeps enough of them that a
+# busy machine does not drop words before the component's own buffer takes them.
+MIC, HEARD = Topic("mic", "Audio", qos_profile=QoSConfig(depth=1000)), Topic("heard", "String")
 ANSWER, SPOKEN = Topic("answer", "StreamingString"), Topic("spoken", "Audio")
 
 
@@ -135,18 +136,8 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--transport", required=True, choices=["memory", "zenoh", "ros2"])
     parser.add_argument("--listen", default=None, help="zenoh: the endpoint to listen on")
     args = parser.parse_args(argv)
-    logging.basicConfig(level=logging.WARNING, stream=sys.stderr, format="%(levelname)s %(name)s: %(message)s")
-    options: dict[str, Any] = {}
-    if args.transport == "zenoh":
-        options = {"mode": "peer", "listen": [args.listen], "connect": []}
-    launcher = build(args.transport, **options)
-    stop = threading.Event()
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(sig, lambda *_: stop.set())
-    with launcher:
-        print("READY", flush=True)
-        stop.wait(600)  # bounded: a forgotten recipe ends by itself
-    print("stopped cleanly", file=sys.stderr, flush=True)
+    launcher = build(args.transport, **transport_options(args.transport, args.listen))
+    serve(launcher, logging.WARNING)
 
 
 if __name__ == "__main__":

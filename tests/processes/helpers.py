@@ -55,14 +55,27 @@ def mapped_shm(pid: int) -> set[str]:
 def leftover_segments(before: set[str]) -> set[str]:
     """Shared-memory files made since ``before`` that no live process maps: what a dead process left.
 
-    Other tests on this machine create and use segments meanwhile; a segment in use is theirs.
+    Other tests on this machine create and use segments meanwhile; a segment in use (mapped or
+    held open) is theirs.
     Zenoh's only: Fast DDS lock files (``*_el``) of other tests' ROS 2 runs are never mapped.
     """
     new = {f for f in shm_files() - before if f.endswith(".zenoh")}
     for entry in os.listdir("/proc"):
         if new and entry.isdigit():
-            new -= mapped_shm(int(entry))
+            new -= mapped_shm(int(entry)) | open_shm(int(entry))
     return new
+
+
+def open_shm(pid: int) -> set[str]:
+    """The /dev/shm files process ``pid`` holds open (a segment may be open before it is mapped)."""
+    names: set[str] = set()
+    with contextlib.suppress(OSError):
+        for fd in os.listdir(f"/proc/{pid}/fd"):
+            with contextlib.suppress(OSError):
+                target = os.readlink(f"/proc/{pid}/fd/{fd}")
+                if target.startswith("/dev/shm/"):
+                    names.add(target[len("/dev/shm/"):].removesuffix(" (deleted)"))
+    return names
 
 
 class RecipeRun:
