@@ -93,8 +93,11 @@ class _Recipe:
         paths = {parts[5].strip() for parts in (line.split(None, 5) for line in maps.splitlines())
                  if len(parts) == 6 and parts[5].startswith("/dev/shm/")}
         # LTTng's wait files (mapped by the ROS 2 tracing library) are shared by every process
-        # of the machine and live on purpose; they are not the middleware's segments.
-        return {p for p in paths if not p.startswith("/dev/shm/lttng-ust-wait")}
+        # of the machine and live on purpose; they are not the middleware's segments. Fast DDS's
+        # port mailboxes (fastrtps_port<N>) are shared by every participant of the machine that uses
+        # that port (other ROS 2 tests' processes too), so whether one outlives this process is Fast
+        # DDS's machine-wide business (CI saw one stay); its own segments (fastrtps_<guid>) count.
+        return {p for p in paths if not p.startswith(("/dev/shm/lttng-ust-wait", "/dev/shm/fastrtps_port"))}
 
     def kill(self) -> None:
         if self.proc.poll() is None:
