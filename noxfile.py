@@ -108,8 +108,8 @@ def lint(session: nox.Session) -> None:
 
 @nox.session
 def types(session: nox.Session) -> None:
-    """mypy --strict on src/."""
-    session.install("-e", ".[dev,zenoh,cli]")
+    """mypy --strict on src/ (with the web UI's Starlette and uvicorn, whose types it checks against)."""
+    session.install("-e", ".[dev,zenoh,cli,ui]")
     session.run("mypy", "src")
 
 
