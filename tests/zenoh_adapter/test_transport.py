@@ -145,13 +145,20 @@ def test_per_topic_statistics_are_public(trio: tuple[ZenohTransport, ZenohTransp
     pub = b.create_publisher(topic)
     for i in range(5):
         pub.publish(i)
-    raw.put(a.key_expr(topic), b"\xc1", encoding="application/msgpack;Int64")
-    assert wait_for(lambda: a.statistics(topic.name)[topic.name].decode_errors == 1 and len(got) == 4), (
+    # The raw session may not have seen a's subscriber yet (a put nobody is known to want is not
+    # sent): put again, a bounded number of times, until one payload that does not decode is counted.
+    puts = 0
+    while puts < 20 and a.statistics(topic.name)[topic.name].decode_errors == 0:
+        raw.put(a.key_expr(topic), b"\xc1", encoding="application/msgpack;Int64")
+        puts += 1
+        wait_for(lambda: a.statistics(topic.name)[topic.name].decode_errors > 0, timeout=0.5)
+    assert wait_for(lambda: a.statistics(topic.name)[topic.name].decode_errors >= 1 and len(got) == 4), (
         got, a.statistics())
     sent = b.statistics()[topic.name]
     received = a.statistics()[topic.name]
     assert sent.published == 5
-    assert (received.delivered, received.callback_errors, received.dropped, received.decode_errors) == (4, 1, 0, 1)
+    assert (received.delivered, received.callback_errors, received.dropped) == (4, 1, 0)
+    assert 1 <= received.decode_errors <= puts
     assert received.published == 0
     assert set(a.statistics(topic.name)) == {topic.name}
 
