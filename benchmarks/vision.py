@@ -2,7 +2,7 @@
 
 Same model (the real COCO SSD MobileNetV2 of ``../shared/models``), same 640x480 frame (a photo
 with a motorcycle, so post-processing has boxes to keep), one CPU thread on both sides, the same
-pre- and post-processing code (:class:`agents_core.utils.local_vision.LocalVisionModel`'s
+pre- and post-processing code (:class:`agents_core.engines.local_vision.LocalVisionModel`'s
 ``preprocess`` / ``session.run`` / ``postprocess``):
 
 - raw: a loop in one process calling those three on the frame; fps = frames / time, and the
@@ -54,7 +54,7 @@ def frame() -> Any:
     import numpy as np  # noqa: PLC0415
     from PIL import Image as PILImage  # noqa: PLC0415
 
-    from agents_core.utils.local_vision import resize_rgb  # noqa: PLC0415
+    from agents_core.engines.local_vision import resize_rgb  # noqa: PLC0415
 
     with PILImage.open(PHOTO) as img:
         return resize_rgb(np.asarray(img.convert("RGB")), 640, 480)
@@ -69,7 +69,7 @@ def _ms(samples_ns: list[int]) -> dict[str, float]:
 
 
 def run_raw(frames: int, seconds: float) -> None:
-    from agents_core.utils.local_vision import LocalVisionModel  # noqa: PLC0415
+    from agents_core.engines.local_vision import LocalVisionModel  # noqa: PLC0415
 
     model = LocalVisionModel(str(MODEL), ncpu=1, threshold=0.5)
     image = frame()

@@ -51,7 +51,7 @@ class _LeRobotInstalled(pickle.Unpickler):
 
     def find_class(self, module: str, name: str) -> Any:
         if module == "lerobot.async_inference.helpers":
-            from agents_core.clients import lerobot_protocol as wire  # noqa: PLC0415
+            from agents_core.clients.lerobot import protocol as wire  # noqa: PLC0415
 
             return getattr(wire, name)
         return super().find_class(module, name)
@@ -61,8 +61,8 @@ def run_child(reps: int, warmup: int) -> None:
     import grpc  # noqa: PLC0415
     from tests.servers.policy_server import PolicyTestServer  # noqa: PLC0415
 
-    from agents_core.clients import lerobot_protocol as wire  # noqa: PLC0415
     from agents_core.clients.lerobot import LeRobotClient  # noqa: PLC0415
+    from agents_core.clients.lerobot import protocol as wire  # noqa: PLC0415
     from agents_core.models import LeRobotPolicy  # noqa: PLC0415
 
     model = LeRobotPolicy(name="bench", policy_type="act", actions_per_chunk=50, policy_device="cpu",

@@ -63,7 +63,7 @@ def speech() -> Any:
     """The benchmark audio: 16 kHz int16, two clips with pauses (about 17 s)."""
     import numpy as np  # noqa: PLC0415
 
-    from agents_core.utils.audio import read_wav  # noqa: PLC0415
+    from agents_core.engines.audio import read_wav  # noqa: PLC0415
 
     pause = np.zeros(16_000, np.int16)
     parts = [pause]
@@ -139,13 +139,13 @@ def stt_framework(pcm: Any) -> dict[str, Any]:
 
 
 def _voice_dir() -> Path:
-    from agents_core.utils.local_tts import default_voice_dir  # noqa: PLC0415
+    from agents_core.engines.local_tts import default_voice_dir  # noqa: PLC0415
 
     return default_voice_dir(Path(tempfile.gettempdir()) / "agents-core-tests-piper-joe")
 
 
 def tts_raw(voice: Path) -> dict[str, Any]:
-    from agents_core.utils.local_tts import LocalTTS  # noqa: PLC0415
+    from agents_core.engines.local_tts import LocalTTS  # noqa: PLC0415
 
     tts = LocalTTS(str(voice), ncpu=THREADS)
     tts.synthesize("Ready.")  # warm-up, as the component's

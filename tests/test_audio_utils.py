@@ -1,12 +1,12 @@
-"""agents_core.utils.audio: down-mixing, checks, and a resampler whose output does not depend on chunking."""
+"""agents_core.engines.audio: down-mixing, checks, and a resampler whose output does not depend on chunking."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
+from agents_core.engines.audio import AudioInputError, StreamResampler, check_rate, read_wav, to_mono_float, wav_bytes
 from agents_core.errors import AlgorithmFailure
-from agents_core.utils.audio import AudioInputError, StreamResampler, check_rate, read_wav, to_mono_float, wav_bytes
 
 
 def _tone(freq: float, rate: int, seconds: float = 1.0) -> np.ndarray:

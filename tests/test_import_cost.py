@@ -33,6 +33,7 @@ LIGHT = [
     "from agents_core import Topic, Launcher, Event, Action, MemoryTransport, BaseComponentConfig",
     "from agents_core.components import Component, ComponentRunType",
     "import agents_core.components, agents_core.clients, agents_core.utils, agents_core.ros",
+    "import agents_core.engines, agents_core.launch, agents_core.components.vision, agents_core.components.vla",
     "import agents_core.config",
 ]
 
@@ -46,12 +47,19 @@ LAZY_NAMES = [
     ("agents_core.clients", "ChromaClient", "agents_core.clients.chroma"),
     ("agents_core.ros", "Route", "agents_core.components.semantic_router"),
     ("agents_core.ros", "String", "agents_core.supported_types"),
-    ("agents_core.utils", "LocalLLM", "agents_core.utils.local_llm"),
+    ("agents_core.utils", "LocalLLM", "agents_core.engines.local_llm"),
+    ("agents_core.utils", "ObjectTracker", "agents_core.components.vision.tracking"),
+    ("agents_core.engines", "LocalSTT", "agents_core.engines.local_stt"),
+    ("agents_core.components", "Vision", "agents_core.components.vision.component"),
+    ("agents_core.components", "VLA", "agents_core.components.vla.component"),
+    ("agents_core.clients", "LeRobotClient", "agents_core.clients.lerobot.client"),
+    ("agents_core", "Launcher", "agents_core.launch.launcher"),
 ]
 
 #: The modules whose re-exports are lazy.
 LAZY_MODULES = ["agents_core", "agents_core.ros", "agents_core.components", "agents_core.clients",
-                "agents_core.utils"]
+                "agents_core.utils", "agents_core.engines", "agents_core.launch", "agents_core.components.vision",
+                "agents_core.components.vla", "agents_core.clients.lerobot"]
 
 _PROBE = textwrap.dedent("""
     import json, sys
@@ -90,7 +98,8 @@ def test_light_path_loads_no_model_stack(code: str) -> None:
     assert not heavy, f"{code!r} imported {heavy}"
     clients = [m for m in loaded if m.startswith("agents_core.clients.")]
     assert not clients, f"{code!r} imported clients {clients}"
-    models = [m for m in loaded if m in MODEL_COMPONENT_MODULES or m.startswith("agents_core.utils.")]
+    models = [m for m in loaded
+              if m in MODEL_COMPONENT_MODULES or m.startswith(("agents_core.utils.", "agents_core.engines."))]
     assert not models, f"{code!r} imported model modules {models}"
     assert not got["components"], f"{code!r} imported components {got['components']}"
 

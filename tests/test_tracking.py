@@ -7,7 +7,7 @@ import builtins
 import numpy as np
 import pytest
 
-from agents_core.utils.tracking import ObjectTracker, iou_matrix
+from agents_core.components.vision.tracking import ObjectTracker, iou_matrix
 
 FPS = 10.0
 SIZE = 40.0

@@ -23,7 +23,7 @@ _EXPORTS: dict[str, tuple[str, ...]] = {
     ".config": ("BaseComponentConfig", "ModelComponentConfig"),
     ".errors": ("AgentsError",),
     ".events": ("Event",),
-    ".launcher": ("Launcher",),
+    ".launch.launcher": ("Launcher",),
     ".messages": ("Header",),
     ".status": ("HealthStatus", "LifecycleState"),
     ".supported_types": ("SupportedType", "add_additional_datatypes", "get_type", "registered_types"),
@@ -37,7 +37,7 @@ if TYPE_CHECKING:
     from .config import BaseComponentConfig, ModelComponentConfig
     from .errors import AgentsError
     from .events import Event
-    from .launcher import Launcher
+    from .launch.launcher import Launcher
     from .messages import Header
     from .status import HealthStatus, LifecycleState
     from .supported_types import SupportedType, add_additional_datatypes, get_type, registered_types

@@ -4,9 +4,9 @@ A robot process that only relays topics should not pay for the model stack (http
 clients, the model components) because a package re-exports those names. Each re-exporting module
 declares a table, module -> names, and installs the pair this module builds::
 
-    _EXPORTS = {".topics": ("Topic", "QoSConfig"), ".launcher": ("Launcher",)}
+    _EXPORTS = {".topics": ("Topic", "QoSConfig"), ".launch.launcher": ("Launcher",)}
     if TYPE_CHECKING:
-        from .launcher import Launcher
+        from .launch.launcher import Launcher
         from .topics import QoSConfig, Topic
     else:
         __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)

@@ -339,7 +339,7 @@ class VisionConfig(ModelComponentConfig):
     :param dataset_labels: class names of the local model (a list in class order, or id -> name);
         None: from a labels file beside the model, the model's metadata, or COCO.
     :param dataset_labels_file: a labels file for the local model (see
-        :func:`~agents_core.utils.local_vision.read_labels_file`).
+        :func:`~agents_core.engines.local_vision.read_labels_file`).
     """
 
     threshold: float = field(default=0.5, validator=base_validators.in_range(0.0, 1.0))
@@ -501,7 +501,7 @@ def _str_map(instance: Any, attribute: attrs.Attribute[Any], value: Any) -> None
 def _optional_limits(instance: Any, attribute: attrs.Attribute[Any], value: Any) -> None:
     if value is None:
         return
-    from .utils.urdf import joint_limits_from_config  # noqa: PLC0415  # validates each joint's entry
+    from .components.vla.urdf import joint_limits_from_config  # noqa: PLC0415  # validates each joint's entry
 
     if not isinstance(value, dict):
         raise ConfigError(f"{type(instance).__name__}.{attribute.name} must be None or a dict joint -> limits")
@@ -532,7 +532,7 @@ class VLAConfig(ModelComponentConfig):
         one (which ends canceled, with a hold command, before the new one starts).
     :param aggregation_function: how overlapping chunks combine: ``"latest_only"``, ``"average"``,
         ``"weighted_average"``, ``"conservative"``
-        (see :mod:`agents_core.utils.action_chunks`); set a callable with ``VLA.set_aggregation_function``.
+        (see :mod:`agents_core.components.vla.action_chunks`); set a callable with ``VLA.set_aggregation_function``.
     """
 
     joint_names_map: dict[str, str] = field(factory=dict, validator=_str_map)

@@ -37,7 +37,7 @@ from typing import Any
 
 from .components.llm import LLM
 from .config import LLMConfig
-from .launcher import Launcher
+from .launch.launcher import Launcher
 from .messages import StreamingStringMsg
 from .topics import Topic
 from .transport.contract import Transport
@@ -271,8 +271,8 @@ def _voice_demo(argv: list[str]) -> int:
     from .components.speech_to_text import SpeechToText  # noqa: PLC0415
     from .components.text_to_speech import TextToSpeech  # noqa: PLC0415
     from .config import SpeechToTextConfig, TextToSpeechConfig  # noqa: PLC0415
+    from .engines.audio import read_wav  # noqa: PLC0415
     from .errors import AgentsError  # noqa: PLC0415
-    from .utils.audio import read_wav  # noqa: PLC0415
 
     data, rate, channels = read_wav(args.wav)
     seconds = data.size / channels / rate
@@ -303,8 +303,8 @@ def _voice_loop(launcher: Launcher, args: argparse.Namespace, wav: tuple[Any, in
     """Stream the WAV in, print the transcript and the answer, write the speech (the voice demo's run)."""
     import numpy as np  # noqa: PLC0415
 
+    from .engines.audio import write_wav  # noqa: PLC0415
     from .messages import AudioMsg  # noqa: PLC0415
-    from .utils.audio import write_wav  # noqa: PLC0415
 
     (data, rate, channels), (stt, tts) = wav, parts
     mic, heard, spoken, question, answer = topics

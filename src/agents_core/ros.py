@@ -18,7 +18,7 @@ _EXPORTS: dict[str, tuple[str, ...]] = {
     ".components.semantic_router": ("Route",),
     ".config": ("BaseAttrs", "BaseComponentConfig"),
     ".events": ("Event",),
-    ".launcher": ("Launcher",),
+    ".launch.launcher": ("Launcher",),
     ".status": ("HealthStatus", "LifecycleState"),
     ".supported_types": (
         "Audio", "Bool", "CameraInfo", "ComponentStatus", "CompressedImage", "Detections", "DetectionsMultiSource",
@@ -41,7 +41,7 @@ if TYPE_CHECKING:
     from .components.semantic_router import Route
     from .config import BaseAttrs, BaseComponentConfig
     from .events import Event
-    from .launcher import Launcher
+    from .launch.launcher import Launcher
     from .status import HealthStatus, LifecycleState
     from .supported_types import (
         RGBD,

@@ -14,9 +14,10 @@ import pytest
 
 grpc = pytest.importorskip("grpc", reason="the vla extra (grpcio) is not installed")
 
-from agents_core.clients import lerobot_protocol as wire  # noqa: E402
 from agents_core.clients.client_base import client_from_spec  # noqa: E402
 from agents_core.clients.lerobot import LeRobotClient  # noqa: E402
+from agents_core.clients.lerobot import protocol as wire  # noqa: E402
+from agents_core.clients.lerobot.restricted_pickle import NUMPY_GLOBALS, UnsafePayloadError, restricted_loads  # noqa: E402
 from agents_core.errors import (  # noqa: E402
     ClientConnectionError,
     ConfigError,
@@ -25,7 +26,6 @@ from agents_core.errors import (  # noqa: E402
 )
 from agents_core.models import LeRobotPolicy  # noqa: E402
 from agents_core.testing.helpers import free_tcp_port  # noqa: E402
-from agents_core.utils.restricted_pickle import NUMPY_GLOBALS, UnsafePayloadError, restricted_loads  # noqa: E402
 from tests.servers.policy_server import PolicyTestServer, ReachPolicy  # noqa: E402
 
 JOINTS = ["shoulder", "elbow"]

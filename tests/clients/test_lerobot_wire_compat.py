@@ -17,7 +17,7 @@ pytest.importorskip("grpc", reason="the vla extra (grpcio, protobuf) is not inst
 
 from google.protobuf import descriptor_pb2, descriptor_pool, message_factory
 
-from agents_core.clients import lerobot_protocol as wire
+from agents_core.clients.lerobot import protocol as wire
 
 #: ``lerobot/transport/services.proto`` of lerobot 0.4.4 as compiled into its ``services_pb2.py``
 #: (a serialized FileDescriptorProto: services AsyncInference and LearnerService and their messages).

@@ -170,7 +170,7 @@ def _plain_rclpy_side() -> None:
 def test_voice_demo_prints_the_transcript_and_the_answer_and_writes_the_spoken_answer(tmp_path: Path) -> None:
     needs_voice_loop()
     wav = tmp_path / "question.wav"
-    from agents_core.utils.audio import write_wav  # noqa: PLC0415
+    from agents_core.engines.audio import write_wav  # noqa: PLC0415
 
     write_wav(wav, clip("pick_up_red_cube_16k.wav"), 16_000)
     out = tmp_path / "answer.wav"

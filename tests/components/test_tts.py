@@ -14,11 +14,11 @@ import pytest
 from agents_core import Launcher, Topic
 from agents_core.components import SpeechToText, TextToSpeech
 from agents_core.config import SpeechToTextConfig, TextToSpeechConfig
+from agents_core.engines.audio import wav_bytes
+from agents_core.engines.local_tts import split_sentences
 from agents_core.errors import ConfigError, WiringError
 from agents_core.messages import AudioMsg, StreamingStringMsg
 from agents_core.status import HealthStatus
-from agents_core.utils.audio import wav_bytes
-from agents_core.utils.local_tts import split_sentences
 
 from ..conftest import wait_for
 from .scripted_client import ScriptedChatClient

@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from agents_core.engines.local_vision import LocalVisionModel, coco90_labels, nms, read_labels_file
 from agents_core.errors import ConfigError, InferenceError
-from agents_core.utils.local_vision import LocalVisionModel, coco90_labels, nms, read_labels_file
 
 from .models_dir import TINY
 from .vision_recipe import KNOWN, found_on, needs_ssd, photo

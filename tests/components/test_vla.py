@@ -21,7 +21,7 @@ from agents_core.components import VLA
 from agents_core.config import VLAConfig
 from agents_core.errors import ConfigError, WiringError
 from agents_core.events import Event
-from agents_core.launcher import Launcher
+from agents_core.launch.launcher import Launcher
 from agents_core.messages import JointJogMsg, JointStateMsg, JointTrajectoryMsg
 from agents_core.models import LeRobotPolicy
 from agents_core.status import HealthStatus
@@ -365,7 +365,7 @@ def test_a_hanging_policy_server_aborts_the_goal_after_the_inference_timeout() -
 
 
 def test_a_chunk_for_a_future_step_is_refused() -> None:
-    from agents_core.clients import lerobot_protocol as wire  # noqa: PLC0415
+    from agents_core.clients.lerobot import protocol as wire  # noqa: PLC0415
 
     ahead = wire.dumps_payload([wire.TimedAction(0.0, 10_000 + i, np.zeros(2)) for i in range(3)])
     with PolicyTestServer(actions_payload=ahead) as server, rig(server.port) as r:

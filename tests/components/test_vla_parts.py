@@ -7,9 +7,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from agents_core.components.vla.action_chunks import ActionChunkQueue, aggregation_function
+from agents_core.components.vla.urdf import JointLimits, joint_limits_from_config, read_urdf_joint_limits
 from agents_core.errors import ConfigError
-from agents_core.utils.action_chunks import ActionChunkQueue, aggregation_function
-from agents_core.utils.urdf import JointLimits, joint_limits_from_config, read_urdf_joint_limits
 
 ARM_URDF = """<?xml version="1.0"?>
 <robot name="arm">

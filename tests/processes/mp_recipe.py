@@ -19,7 +19,7 @@ from agents_core import Component, Topic
 from agents_core.actions import Action, component_action
 from agents_core.clients.generic import GenericHTTPClient
 from agents_core.events import Event
-from agents_core.launcher import Launcher
+from agents_core.launch.launcher import Launcher
 from agents_core.models import GenericLLM
 from agents_core.supported_types import String
 

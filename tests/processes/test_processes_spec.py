@@ -17,9 +17,9 @@ from agents_core.clients.generic import GenericHTTPClient
 from agents_core.config import BaseComponentConfig
 from agents_core.errors import ConfigError, WiringError
 from agents_core.events import Event
-from agents_core.launcher import Launcher
+from agents_core.launch.launcher import Launcher
+from agents_core.launch.spec import SPEC_VERSION, ComponentSpec, check_rebuild, decode_value, encode_value
 from agents_core.models import GenericLLM
-from agents_core.processes.spec import SPEC_VERSION, ComponentSpec, check_rebuild, decode_value, encode_value
 from agents_core.topics import FixedInput, QoSConfig
 
 from .mp_recipe import Shout
@@ -98,7 +98,7 @@ def test_child_refuses_a_spec_of_another_version_and_reports_why() -> None:
     data = ComponentSpec.from_component(_shout(), "memory", {}, os.getpid()).to_dict()
     data["version"] = 99
     read_fd, write_fd = os.pipe()
-    proc = subprocess.Popen([sys.executable, "-m", "agents_core.processes.child", "--report-fd", str(write_fd)],
+    proc = subprocess.Popen([sys.executable, "-m", "agents_core.launch.child", "--report-fd", str(write_fd)],
                             stdin=subprocess.PIPE, stderr=subprocess.PIPE, pass_fds=(write_fd,))
     os.close(write_fd)
     _, err = proc.communicate(json.dumps(data).encode() + b"\n", timeout=30)
@@ -120,7 +120,7 @@ def test_action_on_a_component_process_must_be_a_component_action() -> None:
     component = _shout()
     launcher = Launcher(transport="memory")
     launcher.add_pkg(components=[component], events_actions={Event("e"): Action(component.get_logger)})
-    from agents_core.launcher import _check_remote_action  # noqa: PLC0415
+    from agents_core.launch.launcher import _check_remote_action  # noqa: PLC0415
 
     with pytest.raises(WiringError, match="mark the method @component_action"):
         _check_remote_action(Event("e2"), Action(component.get_logger))
@@ -161,7 +161,7 @@ def test_config_file_errors_name_the_section(tmp_path: Path) -> None:
 
 def _run_child(stdin: bytes) -> tuple[int, list[dict[str, Any]]]:
     read_fd, write_fd = os.pipe()
-    proc = subprocess.Popen([sys.executable, "-m", "agents_core.processes.child", "--report-fd", str(write_fd)],
+    proc = subprocess.Popen([sys.executable, "-m", "agents_core.launch.child", "--report-fd", str(write_fd)],
                             stdin=subprocess.PIPE, stderr=subprocess.DEVNULL, pass_fds=(write_fd,))
     os.close(write_fd)
     proc.communicate(stdin, timeout=30)

@@ -254,7 +254,7 @@ import os
 from typing import Any
 
 from agents_core import Component, Topic
-from agents_core.launcher import Launcher
+from agents_core.launch.launcher import Launcher
 from agents_core.supported_types import String
 
 

@@ -1,6 +1,6 @@
 """A LeRobot async-inference policy server double: gRPC ``transport.AsyncInference`` on 127.0.0.1.
 
-It speaks the service of :mod:`agents_core.clients.lerobot_protocol` the way LeRobot's
+It speaks the service of :mod:`agents_core.clients.lerobot.protocol` the way LeRobot's
 ``policy_server.py`` does (``Ready`` resets it, ``SendPolicyInstructions`` loads a "policy",
 ``SendObservations`` queues the newest observation, ``GetActions`` answers the chunk predicted from
 it or no actions when none arrived within ``obs_queue_timeout``), with numpy arrays standing in
@@ -36,7 +36,7 @@ import numpy as np
 if __package__ in (None, ""):  # run as a script: make the project importable
     sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "src"))
 
-from agents_core.clients import lerobot_protocol as wire
+from agents_core.clients.lerobot import protocol as wire
 
 __all__ = ["PolicyFunction", "PolicyTestServer", "ReachPolicy"]
 

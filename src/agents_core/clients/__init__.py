@@ -18,7 +18,7 @@ _EXPORTS: dict[str, tuple[str, ...]] = {
     ".client_base": ("BaseClient", "client_from_spec", "client_types"),
     ".db_base": ("DBClient",),
     ".generic": ("GenericHTTPClient",),
-    ".lerobot": ("LeRobotClient",),
+    ".lerobot.client": ("LeRobotClient",),
     ".model_base": ("ModelClient",),
     ".ollama": ("OllamaClient",),
     ".policy_base": ("PolicyClient",),
@@ -37,7 +37,7 @@ if TYPE_CHECKING:
     from .client_base import BaseClient, client_from_spec, client_types
     from .db_base import DBClient
     from .generic import GenericHTTPClient
-    from .lerobot import LeRobotClient
+    from .lerobot.client import LeRobotClient
     from .model_base import ModelClient
     from .ollama import OllamaClient
     from .policy_base import PolicyClient

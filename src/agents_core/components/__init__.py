@@ -22,8 +22,8 @@ _EXPORTS: dict[str, tuple[str, ...]] = {
     ".speech_to_text": ("SpeechToText",),
     ".text_to_speech": ("TextToSpeech",),
     ".video_maker": ("VideoMessageMaker",),
-    ".vision": ("Vision",),
-    ".vla": ("VLA",),
+    ".vision.component": ("Vision",),
+    ".vla.component": ("VLA",),
 }
 
 if TYPE_CHECKING:
@@ -37,8 +37,8 @@ if TYPE_CHECKING:
     from .speech_to_text import SpeechToText
     from .text_to_speech import TextToSpeech
     from .video_maker import VideoMessageMaker
-    from .vision import Vision
-    from .vla import VLA
+    from .vision.component import Vision
+    from .vla.component import VLA
 else:
     __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
 

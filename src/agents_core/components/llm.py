@@ -467,7 +467,7 @@ class LLM(ModelComponent):
     # -- local model and warm-up ------------------------------------------------------------------
 
     def _deploy_local_model(self) -> None:
-        from ..utils.local_llm import LocalLLM  # noqa: PLC0415  (llama-cpp-python is optional)
+        from ..engines.local_llm import LocalLLM  # noqa: PLC0415  (llama-cpp-python is optional)
 
         self.local_model = LocalLLM(model_path=self.config.local_model_path, device=self.config.device_local_model,
                                     ncpu=self.config.ncpu_local_model)

@@ -186,7 +186,7 @@ class MLLM(LLM):
         return self._answer(question) or ""
 
     def _deploy_local_model(self) -> None:
-        from ..utils.local_llm import LocalVLM  # noqa: PLC0415  (llama-cpp-python is optional)
+        from ..engines.local_llm import LocalVLM  # noqa: PLC0415  (llama-cpp-python is optional)
 
         self.local_model = LocalVLM(model_path=self.config.local_model_path, device=self.config.device_local_model,
                                     ncpu=self.config.ncpu_local_model, mmproj_path=self.config.local_mmproj_path)

@@ -4,7 +4,7 @@ Audio comes as a stream of short Audio messages (10 to 100 ms is usual) from a m
 any other component, or from a local microphone (``enable_microphone``, the ``voice`` extra):
 8 to 48 kHz (4 to 384 kHz accepted), int16 or float32, mono or interleaved multi-channel. Each
 chunk is down-mixed and resampled to the 16 kHz mono the models take
-(:mod:`agents_core.utils.audio`); the resampler keeps its state across chunks.
+(:mod:`agents_core.engines.audio`); the resampler keeps its state across chunks.
 
 With ``enable_vad`` (the default), Silero VAD cuts the stream into utterances (speech start ->
 ``min_silence_duration_ms`` of silence) and each utterance becomes one transcript. With
@@ -20,11 +20,11 @@ buffer for the next step, so a slow transcription never blocks the transport and
 the middle of an utterance.
 
 A chunk that cannot be used (NaN or infinite samples, a sample rate outside 4..384 kHz, a single
-chunk longer than ``max_chunk_s``) fails the step with :class:`~agents_core.utils.audio.AudioInputError`
+chunk longer than ``max_chunk_s``) fails the step with :class:`~agents_core.engines.audio.AudioInputError`
 (health ALGORITHM_FAILURE) after the good audio around it is processed; the next good chunk brings
 the health back. Empty chunks are skipped.
 
-The recognizer is the built-in :class:`~agents_core.utils.local_stt.LocalSTT` (sherpa-onnx, Whisper
+The recognizer is the built-in :class:`~agents_core.engines.local_stt.LocalSTT` (sherpa-onnx, Whisper
 tiny.en by default; ``enable_local_model``), or a remote ``GenericSTT`` / ``Whisper`` model through a
 model client (the utterance is sent as 16 kHz audio).
 """
@@ -41,11 +41,11 @@ import numpy.typing as npt
 
 from ..clients.model_base import ModelClient
 from ..config import SpeechToTextConfig
+from ..engines.audio import AudioInputError, StreamResampler, check_rate, to_mono_float
 from ..errors import AlgorithmFailure, ConfigError
 from ..messages import AudioMsg, StreamingStringMsg
 from ..supported_types import Audio, StreamingString, String, SupportedType
 from ..topics import Topic
-from ..utils.audio import AudioInputError, StreamResampler, check_rate, to_mono_float
 from .component_base import TriggerType
 from .model_component import ModelComponent
 
@@ -120,7 +120,7 @@ class SpeechToText(ModelComponent):
     # -- model --------------------------------------------------------------------------------
 
     def _deploy_local_model(self) -> None:
-        from ..utils.local_stt import LocalSTT  # noqa: PLC0415  (sherpa-onnx is optional)
+        from ..engines.local_stt import LocalSTT  # noqa: PLC0415  (sherpa-onnx is optional)
 
         cfg = self.config
         self.local_model = LocalSTT(model_path=cfg.local_model_path, ncpu=cfg.ncpu_local_model,
@@ -129,7 +129,7 @@ class SpeechToText(ModelComponent):
     def custom_on_configure(self) -> None:
         cfg = self.config
         if cfg.enable_vad:
-            from ..utils.local_stt import SpeechSegmenter, WakeWordDetector  # noqa: PLC0415
+            from ..engines.local_stt import SpeechSegmenter, WakeWordDetector  # noqa: PLC0415
 
             self._segmenter = SpeechSegmenter(cfg.vad_model_path, threshold=cfg.vad_threshold,
                                               min_silence_ms=cfg.min_silence_duration_ms,

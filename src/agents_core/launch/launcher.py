@@ -17,7 +17,7 @@ subscription per event topic, and runs each action on the worker of the componen
 the method (or on the launcher's own action worker for other callables).
 
 With ``add_pkg(..., multiprocessing=True)`` each component runs in a process of its own (see
-:mod:`agents_core.processes`), respawned when it crashes (``on_process_fail``). The launcher
+:mod:`agents_core.launch`), respawned when it crashes (``on_process_fail``). The launcher
 keeps its own transport to watch events; an action on a component in another process runs
 through that component's services (``<name>/execute_method`` for ``@component_action``
 methods, the lifecycle for ``activate`` / ``deactivate`` / ...).
@@ -41,18 +41,18 @@ from collections.abc import Mapping, Sequence
 from types import FrameType
 from typing import TYPE_CHECKING, Any
 
-from .actions import Action
-from .components.component_base import Component
-from .components.worker import StepWorker
-from .config import load_config_file
-from .errors import ComponentError, ConfigError, WiringError
-from .events import Event, EventListener
-from .status import LifecycleState
-from .transport.contract import Subscription, Transport
-from .transport.registry import TRANSPORT_ENV_VAR, resolve_transport
+from ..actions import Action
+from ..components.component_base import Component
+from ..components.worker import StepWorker
+from ..config import load_config_file
+from ..errors import ComponentError, ConfigError, WiringError
+from ..events import Event, EventListener
+from ..status import LifecycleState
+from ..transport.contract import Subscription, Transport
+from ..transport.registry import TRANSPORT_ENV_VAR, resolve_transport
 
 if TYPE_CHECKING:
-    from .processes.supervisor import Supervisor
+    from .supervisor import Supervisor
 
 __all__ = ["Launcher"]
 
@@ -148,7 +148,7 @@ class Launcher:
         unfed inputs / every output). Other keywords are :class:`agents_core.ui.UISettings` fields
         (``host``, ``token``, ``max_upload_bytes``, ...); it binds 127.0.0.1 unless told otherwise.
         """
-        from .ui.settings import UISettings  # noqa: PLC0415  (the UI is optional)
+        from ..ui.settings import UISettings  # noqa: PLC0415  (the UI is optional)
 
         if self._started:
             raise ConfigError("enable_ui() must be called before the launcher starts")
@@ -222,7 +222,7 @@ class Launcher:
                 for c in self.components:
                     c.activate()
             if self._ui_options is not None:
-                from .ui.launch import start_ui  # noqa: PLC0415  (the UI is optional)
+                from ..ui.launch import start_ui  # noqa: PLC0415  (the UI is optional)
 
                 self._ui = start_ui(self.components, self._transport, **self._ui_options)
         except BaseException:
@@ -249,8 +249,8 @@ class Launcher:
                         from exc
 
     def _start_processes(self) -> None:
-        from .processes.spec import ComponentSpec, check_rebuild  # noqa: PLC0415
-        from .processes.supervisor import Supervisor  # noqa: PLC0415
+        from .spec import ComponentSpec, check_rebuild  # noqa: PLC0415
+        from .supervisor import Supervisor  # noqa: PLC0415
 
         transport = self.transport
         # A transport may say how another process reaches it (Zenoh: connect to this session's
@@ -451,7 +451,7 @@ def _check_remote_action(event: Event, action: Action) -> None:
 
 def _cross_process_transports() -> list[str]:
     """The built-in transports installed here whose drivers declare cross_process (capabilities, not names)."""
-    from .transport.registry import TRANSPORT_ALIASES  # noqa: PLC0415
+    from ..transport.registry import TRANSPORT_ALIASES  # noqa: PLC0415
 
     names = []
     for name, (target, _extra) in TRANSPORT_ALIASES.items():
@@ -470,7 +470,7 @@ def _cross_process_transports() -> list[str]:
 
 def _refuse_inside_component_process() -> None:
     """A component process imports the recipe for its classes: the recipe's launcher must not launch again."""
-    recipe_import = sys.modules.get("agents_core.processes.recipe_import")
+    recipe_import = sys.modules.get("agents_core.launch.recipe_import")
     if recipe_import is not None and recipe_import.importing_recipe():
         raise recipe_import.RecipeImportStop
 

@@ -6,7 +6,7 @@ task sentence. While a goal runs, two loops work on it:
 - the *policy loop* (a thread of the goal's) samples an observation at ``observation_sending_rate``
   (joint state as the policy names it, camera images, the task, the control step), sends it
   through the policy client, checks the returned chunk (finite numbers, one entry per action
-  name) and queues it in an :class:`~agents_core.utils.action_chunks.ActionChunkQueue`, where
+  name) and queues it in an :class:`~agents_core.components.vla.action_chunks.ActionChunkQueue`, where
   chunks that overlap are aggregated;
 - the *control loop* (the goal's thread) pops one action per tick of ``action_sending_rate``, maps
   it onto the robot's joints (``joint_names_map``), clips it to the joint limits (position and,
@@ -33,23 +33,23 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..config import VLAConfig
-from ..errors import AlgorithmFailure, ComponentError, ConfigError, ModelClientError, WiringError
-from ..events import Event
-from ..messages import JointJogMsg, JointStateMsg, JointTrajectoryMsg, JointTrajectoryPointMsg
-from ..status import HealthStatus, LifecycleState
-from ..supported_types import RGBD, Image, JointJog, JointState, JointTrajectory
-from ..topics import Topic
-from ..utils.action_chunks import ActionChunkQueue, AggregationFunction, aggregation_function
-from ..utils.urdf import JointLimits, joint_limits_from_config, read_urdf_joint_limits
-from .model_component import ModelComponent
-from .run_type import ComponentRunType
-from .wiring import AllowedTypes
+from ...config import VLAConfig
+from ...errors import AlgorithmFailure, ComponentError, ConfigError, ModelClientError, WiringError
+from ...events import Event
+from ...messages import JointJogMsg, JointStateMsg, JointTrajectoryMsg, JointTrajectoryPointMsg
+from ...status import HealthStatus, LifecycleState
+from ...supported_types import RGBD, Image, JointJog, JointState, JointTrajectory
+from ...topics import Topic
+from ..model_component import ModelComponent
+from ..run_type import ComponentRunType
+from ..wiring import AllowedTypes
+from .action_chunks import ActionChunkQueue, AggregationFunction, aggregation_function
+from .urdf import JointLimits, joint_limits_from_config, read_urdf_joint_limits
 
 if TYPE_CHECKING:
-    from ..clients.model_base import ModelClient
-    from ..transport.contract import Subscription
-    from ..transport.goals import GoalHandle
+    from ...clients.model_base import ModelClient
+    from ...transport.contract import Subscription
+    from ...transport.goals import GoalHandle
 
 __all__ = ["VLA"]
 

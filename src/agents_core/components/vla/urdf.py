@@ -16,7 +16,7 @@ from typing import Any
 
 from attrs import define
 
-from ..errors import ConfigError
+from ...errors import ConfigError
 
 __all__ = ["JointLimits", "joint_limits_from_config", "read_urdf_joint_limits"]
 

@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from ..errors import ConfigError
+from ...errors import ConfigError
 
 __all__ = ["AGGREGATION_FUNCTIONS", "ActionChunkQueue", "AggregationFunction", "aggregation_function"]
 

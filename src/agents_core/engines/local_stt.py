@@ -41,7 +41,7 @@ from .model_files import looks_like_hub_id
 __all__ = ["DEFAULT_STT_REPO", "MODEL_RATE", "LocalSTT", "SpeechSegmenter", "WakeWordDetector",
            "default_vad_path", "import_sherpa_onnx"]
 
-_logger = logging.getLogger("agents_core.utils.local_stt")
+_logger = logging.getLogger("agents_core.engines.local_stt")
 
 #: The default recognizer: Whisper tiny.en in the sherpa-onnx layout, from the hub.
 DEFAULT_STT_REPO = "csukuangfj/sherpa-onnx-whisper-tiny.en"

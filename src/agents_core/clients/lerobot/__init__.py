@@ -1,0 +1,25 @@
+"""The client of a LeRobot policy server and its wire format.
+
+:mod:`.client` holds :class:`LeRobotClient`; :mod:`.protocol` the gRPC service and the messages
+LeRobot's async inference exchanges (needs grpcio and protobuf, imported when a client first
+talks); :mod:`.restricted_pickle` the unpickler that accepts only the globals those messages need.
+``LeRobotClient`` is imported on first use (PEP 562).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from ..._lazy import lazy_exports
+
+#: module -> the names re-exported from it, imported on first access.
+_EXPORTS: dict[str, tuple[str, ...]] = {
+    ".client": ("LeRobotClient",),
+}
+
+if TYPE_CHECKING:
+    from .client import LeRobotClient
+else:
+    __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
+
+__all__ = ["LeRobotClient"]

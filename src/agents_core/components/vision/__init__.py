@@ -1,0 +1,25 @@
+"""The ``Vision`` component and the object tracker only it uses.
+
+:mod:`.component` holds :class:`Vision` (detection on camera frames, tracking, the model
+clients or the built-in local detector); :mod:`.tracking` the IoU tracker that follows the
+detections of one camera between frames. ``Vision`` is imported on first use (PEP 562), so
+importing the tracker alone does not load the model component and its clients.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from ..._lazy import lazy_exports
+
+#: module -> the names re-exported from it, imported on first access.
+_EXPORTS: dict[str, tuple[str, ...]] = {
+    ".component": ("Vision",),
+}
+
+if TYPE_CHECKING:
+    from .component import Vision
+else:
+    __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
+
+__all__ = ["Vision"]

@@ -1,0 +1,26 @@
+"""The ``VLA`` component and the parts only it uses.
+
+:mod:`.component` holds :class:`VLA` (a vision-language-action policy driving joints);
+:mod:`.action_chunks` the queue that merges overlapping action chunks; :mod:`.urdf` the joint
+limits read from a URDF file or a config dict (``VLAConfig`` validates ``joint_limits`` with it).
+``VLA`` is imported on first use (PEP 562), so the config's validation does not load the model
+component and its clients.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from ..._lazy import lazy_exports
+
+#: module -> the names re-exported from it, imported on first access.
+_EXPORTS: dict[str, tuple[str, ...]] = {
+    ".component": ("VLA",),
+}
+
+if TYPE_CHECKING:
+    from .component import VLA
+else:
+    __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
+
+__all__ = ["VLA"]

@@ -1,0 +1,39 @@
+"""The built-in local model engines, run in the component's own process, and their helpers.
+
+``LocalLLM`` / ``LocalVLM`` (:mod:`.local_llm`) need the ``local`` extra (llama-cpp-python),
+``LocalVisionModel`` (:mod:`.local_vision`) onnxruntime, ``LocalSTT`` / ``LocalTTS``
+(:mod:`.local_stt`, :mod:`.local_tts`) sherpa-onnx (the same extra). :mod:`.model_files` finds
+their files (a path, a hub id, the default cache); :mod:`.audio` holds the sample-rate, down-mix
+and WAV helpers of the speech engines and components. Importing this package imports none of
+them until a name is used (PEP 562), and creating a model is what imports its runtime.
+``agents_core.utils`` re-exports the same names.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from .._lazy import lazy_exports
+
+#: module -> the names re-exported from it, imported on first access.
+_EXPORTS: dict[str, tuple[str, ...]] = {
+    ".audio": ("StreamResampler", "to_mono_float"),
+    ".local_llm": ("LocalLLM", "LocalVLM"),
+    ".local_stt": ("LocalSTT",),
+    ".local_tts": ("LocalTTS",),
+    ".local_vision": ("LocalVisionModel",),
+    ".model_files": ("default_llm_path", "resolve_model_file"),
+}
+
+if TYPE_CHECKING:
+    from .audio import StreamResampler, to_mono_float
+    from .local_llm import LocalLLM, LocalVLM
+    from .local_stt import LocalSTT
+    from .local_tts import LocalTTS
+    from .local_vision import LocalVisionModel
+    from .model_files import default_llm_path, resolve_model_file
+else:
+    __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
+
+__all__ = ["LocalLLM", "LocalSTT", "LocalTTS", "LocalVLM", "LocalVisionModel", "StreamResampler",
+           "default_llm_path", "resolve_model_file", "to_mono_float"]

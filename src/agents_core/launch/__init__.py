@@ -1,0 +1,34 @@
+"""Launching a recipe: the launcher, and one process per component when it asks for them.
+
+:mod:`agents_core.launch.launcher` (:class:`Launcher`: builds the transport, starts the
+components, runs events and actions, stops on a signal). ``Launcher.add_pkg(...,
+multiprocessing=True)`` runs each component in a process of its own; see
+:mod:`agents_core.launch.spec` (what crosses to the child, and how),
+:mod:`agents_core.launch.child` (``python -m agents_core.launch.child``) and
+:mod:`agents_core.launch.supervisor` (start, crash respawn with backoff, ordered stop).
+
+Each name is imported from its module on first use (PEP 562): a recipe in one process never loads
+the process machinery.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from .._lazy import lazy_exports
+
+#: module -> the names re-exported from it, imported on first access.
+_EXPORTS: dict[str, tuple[str, ...]] = {
+    ".launcher": ("Launcher",),
+    ".spec": ("SPEC_VERSION", "ComponentSpec", "ValueCodec", "register_value_codec"),
+    ".supervisor": ("Supervisor",),
+}
+
+if TYPE_CHECKING:
+    from .launcher import Launcher
+    from .spec import SPEC_VERSION, ComponentSpec, ValueCodec, register_value_codec
+    from .supervisor import Supervisor
+else:
+    __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
+
+__all__ = ["SPEC_VERSION", "ComponentSpec", "Launcher", "Supervisor", "ValueCodec", "register_value_codec"]
