@@ -44,7 +44,7 @@ LAZY_NAMES = [
     ("agents_core.components", "LLM", "agents_core.components.llm"),
     ("agents_core.components", "Component", "agents_core.components.component_base"),
     ("agents_core.clients", "OllamaClient", "agents_core.clients.ollama"),
-    ("agents_core.clients", "ChromaClient", "agents_core.clients.chroma"),
+    ("agents_core.clients", "ChromaClient", "agents_core.clients.chroma.client"),
     ("agents_core.ros", "Route", "agents_core.components.semantic_router"),
     ("agents_core.ros", "String", "agents_core.supported_types"),
     ("agents_core.utils", "LocalLLM", "agents_core.engines.local_llm"),
@@ -59,7 +59,7 @@ LAZY_NAMES = [
 #: The modules whose re-exports are lazy.
 LAZY_MODULES = ["agents_core", "agents_core.ros", "agents_core.components", "agents_core.clients",
                 "agents_core.utils", "agents_core.engines", "agents_core.launch", "agents_core.components.vision",
-                "agents_core.components.vla", "agents_core.clients.lerobot"]
+                "agents_core.components.vla", "agents_core.clients.lerobot", "agents_core.clients.chroma"]
 
 _PROBE = textwrap.dedent("""
     import json, sys

@@ -297,7 +297,7 @@ def test_tenant_database_and_distance_function_are_set_up(make_client: Any, chro
 def test_precomputed_vectors_batches_and_reset(make_client: Any) -> None:
     client = make_client("vectors", embedding_client=None)
     client.initialize()
-    client._max_batch = 2  # a small server batch limit, so five records take three requests
+    client._database.max_batch = 2  # a small server batch limit, so five records take three requests
     ids = [f"p{k}" for k in range(5)]
     client.add({"ids": ids, "documents": ids, "embeddings": [[float(k), 1.0] for k in range(5)],
                 "metadatas": [{"k": k} for k in range(5)]})

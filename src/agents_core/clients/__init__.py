@@ -14,7 +14,7 @@ from .._lazy import lazy_exports
 
 #: module -> the names re-exported from it, imported on first access.
 _EXPORTS: dict[str, tuple[str, ...]] = {
-    ".chroma": ("ChromaClient",),
+    ".chroma.client": ("ChromaClient",),
     ".client_base": ("BaseClient", "client_from_spec", "client_types"),
     ".db_base": ("DBClient",),
     ".generic": ("GenericHTTPClient",),
@@ -33,7 +33,7 @@ _EXPORTS: dict[str, tuple[str, ...]] = {
 _NEED_EVERY_CLIENT = ("client_from_spec", "client_types")
 
 if TYPE_CHECKING:
-    from .chroma import ChromaClient
+    from .chroma.client import ChromaClient
     from .client_base import BaseClient, client_from_spec, client_types
     from .db_base import DBClient
     from .generic import GenericHTTPClient
