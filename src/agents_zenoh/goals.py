@@ -220,6 +220,7 @@ class ZenohActionServer:
     # -- DriverActionServer ------------------------------------------------------------------------
 
     def feedback(self, goal_id: str, feedback: dict[str, Any]) -> None:
+        """Put a feedback sample on ``<base>/@action/feedback/<goal_id>`` (see DriverActionServer)."""
         with self._lock:
             self._sent[goal_id] = self._sent.get(goal_id, 0) + 1
             self._sent.move_to_end(goal_id)
@@ -229,10 +230,12 @@ class ZenohActionServer:
                                   encoding=MSGPACK, priority=CONTROL_PRIORITY)
 
     def status(self, goal_id: str, status: GoalStatus) -> None:
+        """Put a status sample on ``<base>/@action/status/<goal_id>`` (see DriverActionServer)."""
         self._context.session.put(self._context.goal_key(self.name, "status", goal_id),
                                   pack({"status": int(status)}), encoding=MSGPACK, priority=CONTROL_PRIORITY)
 
     def finish(self, goal_id: str, status: GoalStatus, result: dict[str, Any]) -> None:
+        """Answer the goal's held result queries and put the result sample (see DriverActionServer)."""
         with self._lock:
             held = self._held.pop(goal_id, [])
             sent = self._sent.get(goal_id, 0)
@@ -244,6 +247,7 @@ class ZenohActionServer:
             self._reply_result(query, goal_id, status, result)
 
     def close(self) -> None:
+        """Stop the sweeper, finalise the held queries and undeclare the queryables."""
         with self._lock:
             self._closed = True
             held = [q for queries in self._held.values() for q, _deadline in queries]
@@ -305,6 +309,7 @@ class ZenohGoal:
         raise ServiceUnavailableError(f"nobody serves the action {self._name!r} on zenoh (key {key!r})")
 
     def send(self, goal: dict[str, Any], timeout: float) -> None:
+        """Ask the server to take the goal; if accepted, start the thread that waits for its result."""
         started = time.monotonic()
         try:
             answer = self._query("goal", {"goal_id": self._goal_id, "goal": goal}, timeout)
@@ -367,11 +372,13 @@ class ZenohGoal:
                 self._feedback_cond.wait(left)
 
     def cancel(self, timeout: float) -> bool:
+        """Ask the server to cancel the goal; False when it refuses or does not answer (see DriverGoal)."""
         try:
             return self._query("cancel", {"goal_id": self._goal_id}, timeout).get("accepted") is True
         except (ServiceUnavailableError, RemoteError, RequestTimeoutError):
             return False
 
     def close(self) -> None:
+        """Stop waiting for the result and undeclare the feedback / status subscriber."""
         self._done.set()
         undeclare(self._subscriber)
