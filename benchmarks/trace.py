@@ -88,9 +88,9 @@ def install_framework(transport: str) -> None:
         from agents_zenoh import pubsub  # noqa: PLC0415
 
         _patch(pubsub.ZenohSubscription, "_on_sample", "zenoh_callback", _bench_topic)
-        from agents_zenoh import codecs  # noqa: PLC0415
+        from agents_zenoh.codecs import registry  # noqa: PLC0415
 
-        _patch(codecs, "unpack", "decode")
+        _patch(registry, "unpack", "decode")  # where decode_value and decoder_for look it up
         _patch(pubsub.ZenohPublisher, "send", "send", _bench_topic)
         _patch(pubsub, "encode_value", "encode", _bench_type)
     elif transport == "ros2":

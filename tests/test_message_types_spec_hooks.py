@@ -62,9 +62,9 @@ def _forget_the_sample() -> Iterator[None]:
     if registered_types().get("SemanticLabel") is SemanticLabel:
         supported_types._registry.unregister("SemanticLabel")
     with contextlib.suppress(ImportError):
-        from agents_zenoh import codecs  # noqa: PLC0415  # only where the zenoh extra is installed
+        from agents_zenoh.codecs import registry  # noqa: PLC0415  # only where the zenoh extra is installed
 
-        codecs._codecs.unregister("SemanticLabel")
+        registry._codecs.unregister("SemanticLabel")
     with contextlib.suppress(ImportError):
         from agents_ros2 import conversions  # noqa: PLC0415  # only where the ros2 extra is installed
 

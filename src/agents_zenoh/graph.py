@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import itertools
 import logging
-from typing import Any
+from typing import TYPE_CHECKING, Any
 from urllib.parse import quote, unquote
 
 import zenoh
@@ -26,6 +26,9 @@ from agents_core.topics import Topic
 from agents_core.transport.graph import Graph, merge_topic_counts
 
 from .keys import PRESENCE_CHUNK
+
+if TYPE_CHECKING:
+    from .context import ZenohContext
 
 __all__ = ["EntityToken", "discover_graph", "entity_token_key"]
 
@@ -53,10 +56,11 @@ def entity_token_key(namespace: str, role: str, entity: str, type_name: str, top
 class EntityToken:
     """The liveliness token of one publisher or subscriber (undeclared by :meth:`close`)."""
 
-    def __init__(self, session: zenoh.Session, namespace: str, role: str, topic: Topic) -> None:
+    def __init__(self, context: ZenohContext, role: str, topic: Topic) -> None:
+        session = context.session
         entity = f"{session.info.zid()}_{next(_entity_ids)}"
         self._token: Any = session.liveliness().declare_token(
-            entity_token_key(namespace, role, entity, topic.type_name, topic.name))
+            entity_token_key(context.namespace, role, entity, topic.type_name, topic.name))
 
     def close(self) -> None:
         """Withdraw the token; idempotent, tolerant of a closed session."""

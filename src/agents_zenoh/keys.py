@@ -6,6 +6,8 @@
 ``<ns>/@agents/components/<name>``     a component's liveliness token
 ``<ns>/@agents/state/<name>``          queryable: the component's lifecycle state and health
 ``<ns>/@agents/transition/<name>``     queryable: ask the component to run a lifecycle transition
+``<ns>/<action>/@action/...``          an action's goal, cancel and result queryables and its
+                                       feedback / status / result samples (:mod:`agents_zenoh.goals`)
 =====================================  ==================================================
 
 ``<ns>/`` is left out when the namespace is empty. Topic, service and component names are
@@ -19,10 +21,12 @@ from __future__ import annotations
 
 from agents_core.topics import validate_topic_name
 
-__all__ = ["PRESENCE_CHUNK", "liveliness_key", "state_key", "topic_key", "transition_key"]
+__all__ = ["ACTION_CHUNK", "PRESENCE_CHUNK", "goal_key", "liveliness_key", "state_key", "topic_key", "transition_key"]
 
 #: The verbatim chunk under which component presence lives.
 PRESENCE_CHUNK = "@agents"
+#: The verbatim chunk under an action name where its goal keys live (out of ``<ns>/**`` topic subscriptions).
+ACTION_CHUNK = "@action"
 
 
 def _join(namespace: str, *parts: str) -> str:
@@ -33,6 +37,11 @@ def topic_key(namespace: str, name: str, what: str = "topic") -> str:
     """The key expression of a topic or service ``name`` under ``namespace``."""
     validate_topic_name(name, what)
     return _join(namespace, name.lstrip("/"))
+
+
+def goal_key(namespace: str, action: str, *parts: str) -> str:
+    """The key ``<ns>/<action>/@action/<parts...>`` of one goal queryable or sample stream."""
+    return "/".join((topic_key(namespace, action, "action"), ACTION_CHUNK, *parts))
 
 
 def liveliness_key(namespace: str, component: str) -> str:

@@ -2,10 +2,9 @@
 
 from __future__ import annotations
 
-import logging
 import threading
 import time
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import msgpack  # type: ignore[import-untyped]  # msgpack ships no type information
 import zenoh
@@ -15,22 +14,18 @@ from agents_core.topics import Topic
 from agents_core.transport.driver import Sink
 
 from .codecs import MSGPACK, CodecError, decoder_for, encode_value
+from .context import ZenohContext, undeclare
 from .graph import EntityToken
 
-if TYPE_CHECKING:
-    from .transport import ZenohDriver
-
-__all__ = ["ZenohPublisher", "ZenohSubscription", "undeclare"]
-
-logger = logging.getLogger(__name__)
+__all__ = ["ZenohPublisher", "ZenohSubscription"]
 
 
 class ZenohPublisher:
     """Puts one topic's values on ``<namespace>/<topic>`` (see :mod:`agents_zenoh.transport`)."""
 
-    def __init__(self, transport: ZenohDriver, topic: Topic) -> None:
+    def __init__(self, context: ZenohContext, topic: Topic) -> None:
         self.topic = topic
-        self._transport = transport
+        self._context = context
         self._lock = threading.Lock()
         self._seq = 0
         self._closed = False
@@ -41,21 +36,21 @@ class ZenohPublisher:
             "encoding": zenoh.Encoding(MSGPACK).with_schema(topic.type_name),
             "congestion_control": zenoh.CongestionControl.BLOCK if reliable else zenoh.CongestionControl.DROP,
             "reliability": zenoh.Reliability.RELIABLE if reliable else zenoh.Reliability.BEST_EFFORT,
-            "priority": transport._priority(topic),
+            "priority": context.priority(topic),
         }
-        key = transport._key(topic.name)
+        key = context.key(topic.name)
         self._pub: zenoh.Publisher | zenoh.ext.AdvancedPublisher
         if qos.durability == "transient_local":
             self._pub = zenoh.ext.declare_advanced_publisher(
-                transport._session, key, cache=zenoh.ext.CacheConfig(qos.depth), publisher_detection=True,
+                context.session, key, cache=zenoh.ext.CacheConfig(qos.depth), publisher_detection=True,
                 **options)
             # Late joiners fetch the cache, so there is no discovery race to wait out.
             self._match_deadline = 0.0
         else:
-            self._pub = transport._session.declare_publisher(key, **options)
-            self._match_deadline = time.monotonic() + transport.config.match_timeout
+            self._pub = context.session.declare_publisher(key, **options)
+            self._match_deadline = time.monotonic() + context.match_timeout
         # For graph discovery (agents_zenoh.graph): who publishes what, seen by any peer.
-        self._token = EntityToken(transport._session, transport.config.namespace, "pub", topic)
+        self._token = EntityToken(context, "pub", topic)
 
     def send(self, value: Any) -> None:
         """Encode and put ``value`` (validated by the core)."""
@@ -71,7 +66,7 @@ class ZenohPublisher:
             try:
                 self._pub.put(payload, attachment=attachment)
             except zenoh.ZError as exc:
-                self._transport._check_open(f"publish on {self.topic.name!r}")
+                self._context.check_open(f"publish on {self.topic.name!r}")
                 raise TransportError(f"publishing on {self.topic.name!r} failed: {exc}") from exc
 
     def _wait_for_match(self) -> None:
@@ -100,22 +95,21 @@ class ZenohPublisher:
 class ZenohSubscription:
     """Decodes one topic's samples into the core's sink, on Zenoh's thread (see :mod:`agents_zenoh.transport`)."""
 
-    def __init__(self, transport: ZenohDriver, topic: Topic, sink: Sink) -> None:
+    def __init__(self, context: ZenohContext, topic: Topic, sink: Sink) -> None:
         self.topic = topic
-        self._transport = transport
         self._closed = False
         self._schema = topic.type_name
         self._delivery = sink
         self._decode = decoder_for(topic.msg_type)
-        key = transport._key(topic.name)
+        key = context.key(topic.name)
         self._sub: zenoh.Subscriber[None] | zenoh.ext.AdvancedSubscriber[None]
         if topic.qos_profile.durability == "transient_local":
             history = zenoh.ext.HistoryConfig(detect_late_publishers=True, max_samples=topic.qos_profile.depth)
-            self._sub = zenoh.ext.declare_advanced_subscriber(transport._session, key, self._on_sample,
+            self._sub = zenoh.ext.declare_advanced_subscriber(context.session, key, self._on_sample,
                                                               history=history)
         else:
-            self._sub = transport._session.declare_subscriber(key, self._on_sample)
-        self._token = EntityToken(transport._session, transport.config.namespace, "sub", topic)
+            self._sub = context.session.declare_subscriber(key, self._on_sample)
+        self._token = EntityToken(context, "sub", topic)
 
     def _on_sample(self, sample: zenoh.Sample) -> None:
         # Runs on a Zenoh thread: it must never raise, and never block for long.
@@ -145,11 +139,3 @@ class ZenohSubscription:
         self._token.close()
         undeclare(self._sub)
 
-
-def undeclare(entity: Any) -> None:
-    """Undeclare a Zenoh entity, tolerating a session that is already closed."""
-    try:
-        entity.undeclare()
-    except zenoh.ZError as exc:
-        # Fails harmlessly once the session is closed; keep a trace at debug level anyway.
-        logger.debug("undeclare failed: %s", exc)

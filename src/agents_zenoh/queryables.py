@@ -11,7 +11,7 @@ from __future__ import annotations
 import json
 import logging
 import threading
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import zenoh
 
@@ -24,11 +24,8 @@ from agents_core.transport.driver import Lane
 from agents_core.transport.requests import serve_with_caller_deadline
 
 from .codecs import MSGPACK, CodecError, codec_for, encode_value, pack, unpack
+from .context import ZenohContext, undeclare
 from .keys import liveliness_key, state_key, transition_key
-from .pubsub import undeclare
-
-if TYPE_CHECKING:
-    from .transport import ZenohDriver
 
 __all__ = ["ERROR_ENCODING", "ZenohPresence", "ZenohService", "read_reply"]
 
@@ -74,12 +71,12 @@ def _reply_error(query: zenoh.Query, exc: BaseException, as_json: bool) -> None:
 class ZenohService:
     """A queryable on ``<namespace>/<service>`` whose queries run ``handler`` on the owner's lane."""
 
-    def __init__(self, transport: ZenohDriver, name: str, handler: ServiceHandler, lane: Lane) -> None:
+    def __init__(self, context: ZenohContext, name: str, handler: ServiceHandler, lane: Lane) -> None:
         self.name = name
         self._handler = handler
         self._lane = lane
-        self._key = transport._key(name, "service")
-        self._queryable = transport._session.declare_queryable(self._key, self._on_query)
+        self._key = context.key(name, "service")
+        self._queryable = context.session.declare_queryable(self._key, self._on_query)
 
     def _on_query(self, query: zenoh.Query) -> None:
         # Zenoh's thread must not run user code that may block: hand the query to its owner's lane.
@@ -106,7 +103,7 @@ class ZenohService:
 class ZenohPresence:
     """A component as Zenoh users see it: a liveliness token and the state / transition queryables."""
 
-    def __init__(self, transport: ZenohDriver, name: str, on_transition: TransitionHandler, lane: Lane) -> None:
+    def __init__(self, context: ZenohContext, name: str, on_transition: TransitionHandler, lane: Lane) -> None:
         self.name = name
         self._lane = lane
         self._on_transition = on_transition
@@ -115,10 +112,10 @@ class ZenohPresence:
         self._health = HealthStatus.HEALTHY
         self._message = ""
         self._closed = False
-        ns = transport.config.namespace
+        ns = context.namespace
         self._state_key = state_key(ns, name)
         self._transition_key = transition_key(ns, name)
-        session = transport._session
+        session = context.session
         self._entities: list[Any] = [
             session.declare_queryable(self._state_key, self._on_state_query),
             session.declare_queryable(self._transition_key, self._on_transition_query),

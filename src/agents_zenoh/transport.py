@@ -17,7 +17,7 @@
   :mod:`agents_zenoh.keys`;
 - graph discovery to a liveliness token per publisher and subscriber (:mod:`agents_zenoh.graph`).
 - long-running goals to queryables (goal, cancel, result) and topics (feedback, status) under
-  ``<namespace>/<action>/@action/``, see :mod:`agents_zenoh.actions`.
+  ``<namespace>/<action>/@action/``, see :mod:`agents_zenoh.goals`.
 
 QoS: ``reliable`` -> Zenoh reliable + congestion control *block*; ``best_effort`` -> best
 effort + *drop*; ``depth`` / ``history`` -> the subscriber's BoundedDelivery queue;
@@ -43,7 +43,6 @@ from agents_core.errors import (
     ConfigError,
     RequestTimeoutError,
     ServiceUnavailableError,
-    TransportClosedError,
     TransportError,
 )
 from agents_core.messages import ComponentStatusMsg
@@ -56,11 +55,12 @@ from agents_core.transport.goals import ActionType
 from agents_core.transport.graph import Graph
 from agents_core.transport.requests import with_caller_timeout
 
-from .actions import ZenohActionServer, ZenohGoal
 from .codecs import MSGPACK, CodecError, codec_for, decode_value, pack
 from .config import ZenohConfig
+from .context import CONTROL_PRIORITY, ZenohContext
+from .goals import ZenohActionServer, ZenohGoal
 from .graph import discover_graph
-from .keys import state_key, topic_key, transition_key
+from .keys import state_key, transition_key
 from .pubsub import ZenohPublisher, ZenohSubscription
 from .queryables import ZenohPresence, ZenohService, read_reply
 from .session import open_session
@@ -69,11 +69,7 @@ __all__ = ["ZenohDriver", "ZenohTransport", "options_from_environment"]
 
 logger = logging.getLogger(__name__)
 
-_CONTROL_PRIORITY = zenoh.Priority.INTERACTIVE_HIGH
-
-
-def _closed_error(what: str) -> TransportClosedError:
-    return TransportClosedError(f"{what}: the zenoh transport is closed")
+_CONTROL_PRIORITY = CONTROL_PRIORITY
 
 
 # -- the transport ------------------------------------------------------------------------------
@@ -87,35 +83,30 @@ class ZenohDriver:
 
     def __init__(self, config: ZenohConfig) -> None:
         self.config = config
-        self._closed = False
         self._session = open_session(config)
+        #: What the handles (publishers, services, goals, ...) get instead of this driver.
+        self.context = ZenohContext(self._session, config)
 
     # -- helpers ----------------------------------------------------------------------------
 
     def _check_open(self, what: str) -> None:
-        if self._closed:
-            raise _closed_error(what)
+        self.context.check_open(what)
 
     def _key(self, name: str, what: str = "topic") -> str:
-        return topic_key(self.config.namespace, name, what)
-
-    def _priority(self, topic: Topic) -> zenoh.Priority:
-        name = self.config.priorities.get(topic.name, "data")
-        priority: zenoh.Priority = getattr(zenoh.Priority, name.upper())
-        return priority
+        return self.context.key(name, what)
 
     # -- primitives -------------------------------------------------------------------------
 
     def open_publisher(self, topic: Topic, owner: str | None) -> ZenohPublisher:
         codec_for(topic.msg_type)  # a type without codec fails here, not at the first sample
-        return ZenohPublisher(self, topic)
+        return ZenohPublisher(self.context, topic)
 
     def open_subscriber(self, topic: Topic, sink: Sink, owner: str | None) -> ZenohSubscription:
         codec_for(topic.msg_type)
-        return ZenohSubscription(self, topic, sink)
+        return ZenohSubscription(self.context, topic, sink)
 
     def serve(self, name: str, handler: ServiceHandler, owner: str | None, lane: Lane) -> ZenohService:
-        return ZenohService(self, name, handler, lane)
+        return ZenohService(self.context, name, handler, lane)
 
     def call(self, name: str, payload: dict[str, Any], timeout: float) -> dict[str, Any]:
         return self._query(self._key(name, "service"), repr(name), pack(payload), timeout)
@@ -139,12 +130,12 @@ class ZenohDriver:
     def serve_goals(self, name: str, definition: ActionType, hooks: GoalServerHooks, owner: str | None,
                     lane: Lane) -> ZenohActionServer:
         self._check_open(f"serve the action {name!r}")
-        return ZenohActionServer(self, name, hooks, lane)
+        return ZenohActionServer(self.context, name, hooks, lane)
 
     def send_goal(self, name: str, definition: ActionType, goal_id: str, goal: dict[str, Any], events: GoalEvents,
                   timeout: float) -> ZenohGoal:
         self._check_open(f"send a goal to {name!r}")
-        sent = ZenohGoal(self, name, goal_id, events)
+        sent = ZenohGoal(self.context, name, goal_id, events)
         try:
             sent.send(goal, timeout)
         except zenoh.ZError as exc:
@@ -158,7 +149,7 @@ class ZenohDriver:
 
     def declare_presence(self, name: str, on_transition: TransitionHandler, lane: Lane) -> ZenohPresence:
         self._key(name, "component")
-        return ZenohPresence(self, name, on_transition, lane)
+        return ZenohPresence(self.context, name, on_transition, lane)
 
     def observe(self, name: str, transition: str | None, timeout: float) -> ComponentStatusMsg | bool | None:
         if transition is not None:
@@ -189,16 +180,16 @@ class ZenohDriver:
 
     def close(self) -> None:
         """Close the session (the core has closed every publisher, subscriber and queryable)."""
-        if self._closed:
+        if self.context.closed:
             return
-        self._closed = True
+        self.context.close()  # first: a handle or call racing the close fails as closed, not on a dead session
         try:
             self._session.close()  # type: ignore[no-untyped-call]  # zenoh's stub leaves it unannotated
         except zenoh.ZError as exc:
             logger.debug("closing the zenoh session failed: %s", exc)
         # Zenoh unlinks its shared-memory segment when the last reference to the session is
         # dropped; a step still running on a daemon thread at exit keeps this driver alive,
-        # so the reference goes now (every later call fails on the closed check first).
+        # so the references go now (every later call fails on the closed check first).
         del self._session
 
     def __repr__(self) -> str:
@@ -257,7 +248,7 @@ class ZenohTransport(DriverTransport):
 
     def key_expr(self, topic: Topic | str) -> str:
         """The key expression that carries ``topic`` (a Topic or a topic / service name)."""
-        return self._zenoh._key(topic.name if isinstance(topic, Topic) else topic)
+        return self._zenoh.context.key(topic.name if isinstance(topic, Topic) else topic)
 
     def peer_process_options(self) -> dict[str, Any]:
         """Options that open, in another process, a transport reaching this one (``multiprocessing=True``).

@@ -31,7 +31,7 @@ import collections
 import logging
 import threading
 import time
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import zenoh
 
@@ -40,35 +40,24 @@ from agents_core.transport.driver import GoalEvents, GoalServerHooks, Lane
 from agents_core.transport.goals import GoalStatus
 
 from .codecs import MSGPACK, CodecError, pack, unpack
-from .pubsub import undeclare
+from .context import CONTROL_PRIORITY, ZenohContext, undeclare
 from .queryables import read_reply
 
-if TYPE_CHECKING:
-    from .transport import ZenohDriver
-
-__all__ = ["ACTION_CHUNK", "ZenohActionServer", "ZenohGoal", "action_key"]
+__all__ = ["ZenohActionServer", "ZenohGoal"]
 
 logger = logging.getLogger(__name__)
 
-#: The verbatim chunk under an action name where its keys live.
-ACTION_CHUNK = "@action"
 #: How long one result query waits on the server before it answers ``pending`` (client asks, server caps).
 RESULT_WAIT_S = 1.0
 MAX_RESULT_WAIT_S = 5.0
 #: Result queries a server holds at once per goal (a bound on what a peer can pile up).
 MAX_HELD_QUERIES = 16
-_PRIORITY = zenoh.Priority.INTERACTIVE_HIGH
 #: Goals whose feedback count a server remembers (for their result replies).
 KEPT_COUNTS = 1024
 #: How long a client waits, after the result, for feedback the server says it sent.
 FEEDBACK_GRACE_S = 1.0
 #: How long a client whose result query found no server waits for the result sample a closing server sends.
 RESULT_SAMPLE_GRACE_S = 0.3
-
-
-def action_key(driver: ZenohDriver, name: str, *parts: str) -> str:
-    """The key ``<ns>/<name>/@action/<parts...>``."""
-    return "/".join((driver._key(name, "action"), ACTION_CHUNK, *parts))
 
 
 def _request(query: zenoh.Query) -> dict[str, Any]:
@@ -103,9 +92,9 @@ def _finalize(query: zenoh.Query) -> None:
 class ZenohActionServer:
     """The driver side of one action server (see the module docstring)."""
 
-    def __init__(self, driver: ZenohDriver, name: str, hooks: GoalServerHooks, lane: Lane) -> None:
+    def __init__(self, context: ZenohContext, name: str, hooks: GoalServerHooks, lane: Lane) -> None:
         self.name = name
-        self._driver = driver
+        self._context = context
         self._hooks = hooks
         self._lane = lane
         self._lock = threading.Lock()
@@ -116,11 +105,11 @@ class ZenohActionServer:
         # path than the feedback, so the client waits (bounded) for the feedback still on its way.
         self._sent: collections.OrderedDict[str, int] = collections.OrderedDict()
         self._closed = False
-        session = driver._session
+        session = context.session
         self._entities = [
-            session.declare_queryable(action_key(driver, name, "goal"), self._on_goal),
-            session.declare_queryable(action_key(driver, name, "cancel"), self._on_cancel),
-            session.declare_queryable(action_key(driver, name, "result"), self._on_result),
+            session.declare_queryable(context.goal_key(name, "goal"), self._on_goal),
+            session.declare_queryable(context.goal_key(name, "cancel"), self._on_cancel),
+            session.declare_queryable(context.goal_key(name, "result"), self._on_result),
         ]
         self._sweeper = threading.Thread(target=self._sweep, daemon=True, name=f"{name}:result-queries")
         self._sweeper.start()
@@ -231,30 +220,34 @@ class ZenohActionServer:
     # -- DriverActionServer ------------------------------------------------------------------------
 
     def feedback(self, goal_id: str, feedback: dict[str, Any]) -> None:
+        """Put a feedback sample on ``<base>/@action/feedback/<goal_id>`` (see DriverActionServer)."""
         with self._lock:
             self._sent[goal_id] = self._sent.get(goal_id, 0) + 1
             self._sent.move_to_end(goal_id)
             while len(self._sent) > KEPT_COUNTS:
                 self._sent.popitem(last=False)
-        self._driver._session.put(action_key(self._driver, self.name, "feedback", goal_id), pack(feedback),
-                                  encoding=MSGPACK, priority=_PRIORITY)
+        self._context.session.put(self._context.goal_key(self.name, "feedback", goal_id), pack(feedback),
+                                  encoding=MSGPACK, priority=CONTROL_PRIORITY)
 
     def status(self, goal_id: str, status: GoalStatus) -> None:
-        self._driver._session.put(action_key(self._driver, self.name, "status", goal_id),
-                                  pack({"status": int(status)}), encoding=MSGPACK, priority=_PRIORITY)
+        """Put a status sample on ``<base>/@action/status/<goal_id>`` (see DriverActionServer)."""
+        self._context.session.put(self._context.goal_key(self.name, "status", goal_id),
+                                  pack({"status": int(status)}), encoding=MSGPACK, priority=CONTROL_PRIORITY)
 
     def finish(self, goal_id: str, status: GoalStatus, result: dict[str, Any]) -> None:
+        """Answer the goal's held result queries and put the result sample (see DriverActionServer)."""
         with self._lock:
             held = self._held.pop(goal_id, [])
             sent = self._sent.get(goal_id, 0)
         # Also as a sample: a client between two result queries still gets it if the server then closes.
-        self._driver._session.put(action_key(self._driver, self.name, "result", goal_id),
+        self._context.session.put(self._context.goal_key(self.name, "result", goal_id),
                                   pack({"status": int(status), "result": result, "feedback_sent": sent}),
-                                  encoding=MSGPACK, priority=_PRIORITY)
+                                  encoding=MSGPACK, priority=CONTROL_PRIORITY)
         for query, _deadline in held:
             self._reply_result(query, goal_id, status, result)
 
     def close(self) -> None:
+        """Stop the sweeper, finalise the held queries and undeclare the queryables."""
         with self._lock:
             self._closed = True
             held = [q for queries in self._held.values() for q, _deadline in queries]
@@ -270,19 +263,19 @@ class ZenohActionServer:
 class ZenohGoal:
     """A sent goal: its feedback / status subscriber and the thread that waits for its result."""
 
-    def __init__(self, driver: ZenohDriver, name: str, goal_id: str, events: GoalEvents) -> None:
+    def __init__(self, context: ZenohContext, name: str, goal_id: str, events: GoalEvents) -> None:
         self.accepted = False
         self.reason = ""
-        self._driver = driver
+        self._context = context
         self._name = name
         self._goal_id = goal_id
         self._events = events
         self._done = threading.Event()
-        self._feedback_key = action_key(driver, name, "feedback", goal_id)
-        self._result_key = action_key(driver, name, "result", goal_id)
+        self._feedback_key = context.goal_key(name, "feedback", goal_id)
+        self._result_key = context.goal_key(name, "result", goal_id)
         self._result_sample = threading.Event()
         self._result_doc: dict[str, Any] = {}
-        self._subscriber: Any = driver._session.declare_subscriber(action_key(driver, name, "*", goal_id),
+        self._subscriber: Any = context.session.declare_subscriber(context.goal_key(name, "*", goal_id),
                                                                    self._on_sample)
         self._thread: threading.Thread | None = None
         self._feedback_seen = 0
@@ -308,14 +301,15 @@ class ZenohGoal:
             self._events.reject(exc)
 
     def _query(self, part: str, request: dict[str, Any], timeout: float) -> dict[str, Any]:
-        key = action_key(self._driver, self._name, part)
-        replies = self._driver._session.get(key, payload=pack(request), encoding=MSGPACK, timeout=timeout,
-                                            consolidation=zenoh.ConsolidationMode.NONE, priority=_PRIORITY)
+        key = self._context.goal_key(self._name, part)
+        replies = self._context.session.get(key, payload=pack(request), encoding=MSGPACK, timeout=timeout,
+                                            consolidation=zenoh.ConsolidationMode.NONE, priority=CONTROL_PRIORITY)
         for reply in replies:
             return read_reply(reply, f"{part} of action {self._name!r}", timeout)
         raise ServiceUnavailableError(f"nobody serves the action {self._name!r} on zenoh (key {key!r})")
 
     def send(self, goal: dict[str, Any], timeout: float) -> None:
+        """Ask the server to take the goal; if accepted, start the thread that waits for its result."""
         started = time.monotonic()
         try:
             answer = self._query("goal", {"goal_id": self._goal_id, "goal": goal}, timeout)
@@ -378,11 +372,13 @@ class ZenohGoal:
                 self._feedback_cond.wait(left)
 
     def cancel(self, timeout: float) -> bool:
+        """Ask the server to cancel the goal; False when it refuses or does not answer (see DriverGoal)."""
         try:
             return self._query("cancel", {"goal_id": self._goal_id}, timeout).get("accepted") is True
         except (ServiceUnavailableError, RemoteError, RequestTimeoutError):
             return False
 
     def close(self) -> None:
+        """Stop waiting for the result and undeclare the feedback / status subscriber."""
         self._done.set()
         undeclare(self._subscriber)
