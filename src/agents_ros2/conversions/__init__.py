@@ -16,18 +16,21 @@ one: on receipt they get the enclosing message's header, or a fresh one.
 message that has no valid value form (an image encoding other than rgb8, bgr8, rgba8, bgra8,
 mono8, mono16, 16UC1; a data length that does not match the declared size; ...).
 
-The conversions are grouped by the families of the core's types, one module each:
-:mod:`.text` (scalars, strings, multi-arrays), :mod:`.media` (images, audio, video, RGBD),
+The conversions are grouped by the families of the core's types, one module each: :mod:`.text`
+(strings), :mod:`.scalars` (numbers, multi-arrays), :mod:`.media` (images, audio, video, RGBD),
 :mod:`.perception` (detections, trackings, points of interest), :mod:`.geometry` (points, poses,
-twists, odometry, paths), :mod:`.control` (joint states, trajectories, jogs), :mod:`.maps`
-(occupancy grids, map metadata), :mod:`.sensors` (laser scans, point clouds, IMU, satellite fixes,
-camera info) and :mod:`.status` (component status); :mod:`.base` holds what they share,
+twists, odometry, paths), :mod:`.joints` (joint states, trajectories, jogs), :mod:`.maps`
+(occupancy grids, map metadata), :mod:`.sensors` (laser scans, point clouds, IMU, satellite
+fixes, camera info) and :mod:`.component_status`; :mod:`.base` holds what they share,
 :mod:`.registry` the table and :mod:`.derive` the conversions derived from a ``_ros_type``.
+To add a built-in conversion: put it in its family's ``CONVERSIONS``.
 """
 
 from __future__ import annotations
 
-from . import control, geometry, maps, media, perception, sensors, status, text
+from agents_core.supported_types import registered_types
+
+from . import component_status, geometry, joints, maps, media, perception, scalars, sensors, text
 from .base import RosConversion
 from .derive import derive_conversion
 from .registry import (
@@ -52,7 +55,18 @@ __all__ = [
     "to_ros",
 ]
 
-# One family after the other, in this fixed order: the table (and registered_conversions()) lists them so.
-for _family in (text, media, perception, geometry, control, maps, sensors, status):
-    register_builtin(_family.CONVERSIONS)
-del _family
+
+def _builtin_table() -> dict[str, RosConversion]:
+    """Every family's built-in conversions, in the order the core registered the types.
+
+    The core's order predates the families, so registered_conversions() lists the types as the
+    core's registry does; a conversion for a type the core does not know (none today) comes last.
+    """
+    families = (text, scalars, media, perception, geometry, joints, maps, sensors, component_status)
+    table = {name: c for family in families for name, c in family.CONVERSIONS.items()}
+    order = [name for name in registered_types() if name in table]
+    order += [name for name in table if name not in order]
+    return {name: table[name] for name in order}
+
+
+register_builtin(_builtin_table())

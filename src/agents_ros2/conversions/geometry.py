@@ -116,7 +116,7 @@ def _pose_array_from_ros(msg: RosPoseArray) -> m.PoseArrayMsg:
     return m.PoseArrayMsg(poses=[pose_from_ros(p, header) for p in msg.poses], header=header)
 
 
-#: The built-in conversions of this family, registered by the package in this order.
+#: The built-in conversions of this family.
 CONVERSIONS: dict[str, RosConversion] = {
     "Point": RosConversion(RosPoint, _point_to_ros, _point_from_ros),
     "PointStamped": RosConversion(RosPointStamped, _point_stamped_to_ros, _point_stamped_from_ros),

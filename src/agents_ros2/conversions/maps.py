@@ -61,7 +61,7 @@ def _map_info_from_ros(msg: RosMapMetaData) -> m.MapMetaDataMsg:
                             origin=pose_from_ros(msg.origin), map_load_time_ns=t.sec * NS_PER_S + t.nanosec)
 
 
-#: The built-in conversions of this family, registered by the package in this order.
+#: The built-in conversions of this family.
 CONVERSIONS: dict[str, RosConversion] = {
     "OccupancyGrid": RosConversion(RosOccupancyGrid, _grid_to_ros, _grid_from_ros),
     "MapMetaData": RosConversion(RosMapMetaData, _map_info_to_ros, _map_info_from_ros),

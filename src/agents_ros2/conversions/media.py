@@ -148,7 +148,7 @@ def _rgbd_from_ros(msg: Any) -> m.RGBDMsg:
                      header=header_from_ros(msg.header))
 
 
-#: The built-in conversions of this family, registered by the package in this order.
+#: The built-in conversions of this family.
 CONVERSIONS: dict[str, RosConversion] = {
     "Image": RosConversion(RosImage, image_to_ros, image_from_ros),
     "CompressedImage": RosConversion(RosCompressedImage, _compressed_to_ros, _compressed_from_ros),

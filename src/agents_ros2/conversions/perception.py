@@ -91,7 +91,7 @@ def _poi_from_ros(msg: Any) -> m.PointsOfInterestMsg:
                                  header=header_from_ros(msg.header))
 
 
-#: The built-in conversions of this family, registered by the package in this order.
+#: The built-in conversions of this family.
 CONVERSIONS: dict[str, RosConversion] = {
     "Detections": RosConversion(ai.Detections2D, _detections_to_ros, _detections_from_ros),
     "DetectionsMultiSource": _multi_source(ai.Detections2DMultiSource, "detections", _detections_to_ros,

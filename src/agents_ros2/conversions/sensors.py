@@ -164,7 +164,7 @@ def _camera_info_from_ros(msg: RosCameraInfo) -> m.CameraInfoMsg:
                            header=header_from_ros(msg.header))
 
 
-#: The built-in conversions of this family, registered by the package in this order.
+#: The built-in conversions of this family.
 CONVERSIONS: dict[str, RosConversion] = {
     "LaserScan": RosConversion(RosLaserScan, _scan_to_ros, _scan_from_ros),
     "PointCloud2": RosConversion(RosPointCloud2, _cloud_to_ros, _cloud_from_ros),

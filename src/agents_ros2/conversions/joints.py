@@ -1,4 +1,4 @@
-"""ROS 2 conversions of robot state and control: ``sensor_msgs/JointState``, ``trajectory_msgs``
+"""ROS 2 conversions of joint states and commands: ``sensor_msgs/JointState``, ``trajectory_msgs``
 JointTrajectory(Point) and ``agents_interfaces/JointJog``."""
 
 from __future__ import annotations
@@ -75,7 +75,7 @@ def _jog_from_ros(msg: Any) -> m.JointJogMsg:
                          header=header_from_ros(msg.header))
 
 
-#: The built-in conversions of this family, registered by the package in this order.
+#: The built-in conversions of this family.
 CONVERSIONS: dict[str, RosConversion] = {
     "JointState": RosConversion(RosJointState, _joint_state_to_ros, _joint_state_from_ros),
     "JointTrajectoryPoint": RosConversion(RosJointTrajectoryPoint, _trajectory_point_to_ros,

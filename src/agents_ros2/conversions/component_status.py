@@ -34,7 +34,7 @@ def _status_from_ros(msg: Any) -> m.ComponentStatusMsg:
                                 message=msg.message, header=header_from_ros(msg.header))
 
 
-#: The built-in conversions of this family, registered by the package in this order.
+#: The built-in conversions of this family.
 CONVERSIONS: dict[str, RosConversion] = {
     "ComponentStatus": RosConversion(ai.ComponentStatus, _status_to_ros, _status_from_ros),
 }
