@@ -6,5 +6,6 @@ Importing this package does not import ``rclpy``; its modules do:
   ``Launcher(transport="ros2")``;
 - :mod:`agents_ros2.lifecycle`: components as ROS 2 lifecycle nodes;
 - :mod:`agents_ros2.conversions`: values <-> ROS messages for every registered type;
+- :mod:`agents_ros2.goals`: long-running goals as rclpy action servers and clients;
 - :mod:`agents_ros2.qos`: Topic QoS -> ROS QoS, and the Fast DDS shared-memory profile.
 """

@@ -24,7 +24,7 @@ around :class:`Ros2Driver`, which maps:
   ``/<component>/status`` through a publisher on that node;
 * **discovery**: the rclpy graph API (:mod:`agents_ros2.graph`).
 * **long-running goals**: a real rclpy action server of the action type's ROS 2 type on the
-  owner's node, and rclpy action clients (see :mod:`agents_ros2.actions`).
+  owner's node, and rclpy action clients (see :mod:`agents_ros2.goals`).
 
 Options (all keyword): ``domain_id`` (default: ``ROS_DOMAIN_ID``), ``shared_memory`` (the 16 MB
 Fast DDS shared-memory profile; default on, ``AGENTS_ROS2_SHM=0`` turns it off),
@@ -78,9 +78,9 @@ from agents_core.transport.driver import GoalEvents, GoalServerHooks, Lane, Sink
 from agents_core.transport.goals import ActionType
 from agents_core.transport.graph import Graph
 
-from .actions import Ros2ActionServer, Ros2Goal, ros_action_class
 from .conversions import RosConversion, conversion_for
 from .executor import OffloadingExecutor
+from .goals import Ros2ActionServer, Ros2Goal, ros_action_class
 from .graph import discover_graph
 from .lifecycle import STATUS_QOS, ComponentLifecycle, absolute_name
 from .qos import (
