@@ -112,14 +112,13 @@ class Component:
         self.trig_callbacks: dict[str, GenericCallback] = {}
         for t in trigger_topics(trigger):
             self.trig_callbacks[t.name] = self.callbacks.pop(t.name)
-        self.publishers_dict: dict[str, ComponentPublisher] = {t.name: ComponentPublisher(t, self)
-                                                               for t in self.outputs}
         self.status_topic = status_topic(self.component_name)
-
         self.events_actions: dict[Event, list[Action]] = {}
         #: What runs this component: transport, worker, lifecycle, health and fallbacks, services.
         #: The one door between a Launcher (or a test) and the running component.
         self.runtime = ComponentRuntime(self)
+        self.publishers_dict: dict[str, ComponentPublisher] = {
+            t.name: ComponentPublisher(t, self.component_name, self.runtime) for t in self.outputs}
 
         for cb_name, cb in self.trig_callbacks.items():
             cb.on_callback_execute(self._make_topic_trigger(self._topic(cb_name)))

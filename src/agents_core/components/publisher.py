@@ -13,8 +13,8 @@ from ..errors import ComponentError, TransportClosedError
 from ..topics import Topic
 
 if TYPE_CHECKING:
+    from ..runtime.component_runtime import ComponentRuntime
     from ..transport.contract import Publisher
-    from .component_base import Component
 
 __all__ = ["ComponentPublisher"]
 
@@ -22,9 +22,10 @@ __all__ = ["ComponentPublisher"]
 class ComponentPublisher:
     """A component's publisher for one output topic, applying its pre-processors before sending."""
 
-    def __init__(self, topic: Topic, component: Component) -> None:
+    def __init__(self, topic: Topic, component_name: str, runtime: ComponentRuntime) -> None:
         self.topic = topic
-        self._component = component
+        self._component_name = component_name
+        self._runtime = runtime
         self._preprocessors: list[Callable[[Any], Any]] = []
         self._publisher: Publisher | None = None
 
@@ -48,19 +49,19 @@ class ComponentPublisher:
         An output of a step that a deactivate overtook is discarded and counted
         (``Component.discarded_outputs``), not an error: the component was asked to stop.
         """
-        component = self._component
+        runtime = self._runtime
         publisher = self._publisher
         if publisher is None:
-            if component.runtime.in_overtaken_step():
-                component.runtime.discard_output(self.topic.name)
+            if runtime.in_overtaken_step():
+                runtime.discard_output(self.topic.name)
                 return
-            raise ComponentError(f"component {component.component_name!r}: output {self.topic.name!r} is not active")
+            raise ComponentError(f"component {self._component_name!r}: output {self.topic.name!r} is not active")
         for func in self._preprocessors:
             value = func(value)
         try:
             publisher.publish(value)
         except TransportClosedError:
-            if component.runtime.in_overtaken_step():
-                component.runtime.discard_output(self.topic.name)
+            if runtime.in_overtaken_step():
+                runtime.discard_output(self.topic.name)
                 return
             raise

@@ -37,9 +37,9 @@ from .services import SERVICE_NAMES, ComponentServices
 from .worker import PeriodicTimer, StepWorker, WorkerStatistics
 
 if TYPE_CHECKING:
-    from ..components.component_base import Component
     from ..transport.contract import ActionServer, ComponentPresence, ServiceServer, Subscription, Transport
     from ..transport.delivery import SubscriptionStatistics
+    from .hooks import ComponentHooks
 
 __all__ = ["ComponentRuntime"]
 
@@ -47,14 +47,14 @@ __all__ = ["ComponentRuntime"]
 class ComponentRuntime:
     """What runs ``component`` (see the module docstring)."""
 
-    def __init__(self, component: Component) -> None:
+    def __init__(self, component: ComponentHooks) -> None:
         self._component = component
         self._name = component.component_name
         self._logger = component.get_logger()
         self.lifecycle = LifecycleMachine(self._name, on_failed=self._on_transition_failed,
                                           on_done=self._on_transition_done)
         self.health = Health(self._logger, self.report_status)
-        self._services = ComponentServices(component, self)
+        self._services = ComponentServices(component, self.run_on_worker, self.set_params)
         self._transport: Transport | None = None
         self._worker: StepWorker | None = None
         self._presence: ComponentPresence | None = None

@@ -3,21 +3,20 @@
 ``describe`` answers what the component is (type, run type, state, health, inputs, outputs,
 callable actions), for tools such as the CLI and the web UI. ``execute_method`` runs a method
 marked with ``@component_action`` (an allow-list) on the component's worker, between steps;
-``set_param`` changes validated config fields (see :meth:`ComponentRuntime.set_params
-<agents_core.runtime.component_runtime.ComponentRuntime.set_params>`). Both honour the caller's
+``set_param`` changes validated config fields (``ComponentRuntime.set_params``). Both honour the caller's
 deadline.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from ..errors import ComponentError, ConfigError
 from ..transport.requests import check_timeout
 
 if TYPE_CHECKING:
-    from ..components.component_base import Component
-    from .component_runtime import ComponentRuntime
+    from .hooks import ComponentHooks
 
 __all__ = ["SERVICE_NAMES", "ComponentServices"]
 
@@ -31,9 +30,11 @@ _PLAIN_RESULT = (str, int, float, bool, type(None), list, dict)
 class ComponentServices:
     """The handlers of one component's services (each takes a JSON-like request, returns a reply)."""
 
-    def __init__(self, component: Component, runtime: ComponentRuntime) -> None:
+    def __init__(self, component: ComponentHooks, run_on_worker: Callable[[Callable[[], Any], float], Any],
+                 set_params: Callable[[dict[str, Any]], None]) -> None:
         self._component = component
-        self._runtime = runtime
+        self._run_on_worker = run_on_worker
+        self._set_params = set_params
 
     def handler(self, service: str) -> Any:
         """The handler of ``service`` (one of :data:`SERVICE_NAMES`)."""
@@ -61,7 +62,7 @@ class ComponentServices:
         method = getattr(component, str(method_name))
         timeout = check_timeout(request.get("timeout", 30.0),
                                 f"component {component.component_name!r}: execute_method")
-        result = self._runtime.run_on_worker(lambda: method(*args, **kwargs), timeout=timeout)
+        result = self._run_on_worker(lambda: method(*args, **kwargs), timeout)
         return {"result": result if isinstance(result, _PLAIN_RESULT) else repr(result)}
 
     def set_param(self, request: dict[str, Any]) -> dict[str, Any]:
@@ -71,5 +72,5 @@ class ComponentServices:
             params = {request["name"]: request.get("value")}
         if not isinstance(params, dict) or not params:
             raise ConfigError("set_param needs {'name': ..., 'value': ...} or {'params': {...}}")
-        self._runtime.set_params(params)
+        self._set_params(params)
         return {"ok": True, "params": sorted(params)}
