@@ -74,7 +74,7 @@ def install_framework(transport: str) -> None:
     """Wrap the framework's message path (core, and the ``transport`` adapter)."""
     from agents_core.callbacks import GenericCallback  # noqa: PLC0415
     from agents_core.components.component_base import Component  # noqa: PLC0415
-    from agents_core.components.worker import StepWorker  # noqa: PLC0415
+    from agents_core.runtime.worker import StepWorker  # noqa: PLC0415
     from agents_core.transport.core import CorePublisher  # noqa: PLC0415
     from agents_core.transport.delivery import BoundedDelivery, InlineDelivery  # noqa: PLC0415
 

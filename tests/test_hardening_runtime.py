@@ -105,16 +105,16 @@ def test_set_param_refuses_bad_types_and_applies_live_settings() -> None:
         with pytest.raises(RemoteError, match="execution_queue_depth must be int"):
             transport.request("relay/set_param", {"name": "execution_queue_depth", "value": 2.5})
         assert relay.config.execution_queue_depth == 10
-        assert relay._worker is not None and relay._worker.depth == 10
+        assert relay.runtime.worker is not None and relay.runtime.worker.depth == 10
 
         assert transport.request("relay/set_param", {"params": {"execution_queue_depth": 3,
                                                                  "queue_full_policy": "drop_newest",
                                                                  "log_level": "debug",
                                                                  "status_rate": 5.0}})["ok"] is True
-        assert relay._worker.depth == 3
-        assert relay._worker.policy == "drop_newest"
+        assert relay.runtime.worker.depth == 3
+        assert relay.runtime.worker.policy == "drop_newest"
         assert relay.get_logger().level == logging.DEBUG
-        assert relay._status_timer is not None and relay._status_timer.period == pytest.approx(0.2)
+        assert relay.runtime.status_timer is not None and relay.runtime.status_timer.period == pytest.approx(0.2)
         # The status timer really runs at the new rate: ~5 status messages a second.
         seen: list[Any] = []
         transport.create_subscription(relay.status_topic, seen.append)

@@ -241,7 +241,7 @@ def test_a_database_that_is_down_sets_health_buffers_boundedly_and_retries() -> 
             send(HEARD, word)
         assert wait_for(lambda: m.health_status == HealthStatus.COMPONENT_FAILURE)
         assert wait_for(lambda: m.stats["pending"] == 3 and m.stats["dropped"] == 2)
-        assert m.stats["db_errors"] >= 1 and "ClientConnectionError" in m._health_message
+        assert m.stats["db_errors"] >= 1 and "ClientConnectionError" in m.health_message
         db.down = False
         settle(m, 3)
         assert wait_for(lambda: m.health_status == HealthStatus.HEALTHY)

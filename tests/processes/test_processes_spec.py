@@ -194,10 +194,10 @@ def test_fallbacks_on_the_components_own_methods_are_carried() -> None:
     spec = ComponentSpec.from_component(component, "zenoh", {}, os.getpid())
     check_rebuild(component, spec)
     rebuilt = ComponentSpec.from_dict(json.loads(json.dumps(spec.to_dict()))).build()
-    fallback = rebuilt._fallbacks["COMPONENT_FAILURE"]
+    fallback = rebuilt.runtime.health.fallbacks["COMPONENT_FAILURE"]
     assert fallback.max_retries == 2
     assert fallback.actions[0].method.__self__ is rebuilt and fallback.actions[0].args == ("!!",)
-    assert rebuilt._giveup_actions[0].name == "deactivate"
+    assert rebuilt.runtime.health.giveup_actions[0].name == "deactivate"
 
 
 def test_a_fallback_on_another_object_is_refused() -> None:

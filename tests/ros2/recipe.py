@@ -32,8 +32,7 @@ class _Counted(Component):
         """This component's subscription counters, summed over its inputs."""
         names = ("delivered", "dropped", "callback_errors", "decode_errors")
         totals = dict.fromkeys(names, 0)
-        for subscription in self._subscriptions:
-            stats = subscription.statistics()
+        for stats in self.input_statistics().values():
             for name in names:
                 totals[name] += int(getattr(stats, name))
         return totals

@@ -28,8 +28,7 @@ class _CountingComponent(Component):
     def input_statistics(self) -> dict[str, int]:
         """Subscription counters of this component's inputs, summed."""
         totals = {"delivered": 0, "dropped": 0, "callback_errors": 0, "decode_errors": 0}
-        for sub in self._subscriptions:
-            stats = sub.statistics()
+        for stats in super().input_statistics().values():
             for name in totals:
                 totals[name] += getattr(stats, name, 0)
         return totals

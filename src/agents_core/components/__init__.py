@@ -12,12 +12,13 @@ from .._lazy import lazy_exports
 
 #: module -> the names re-exported from it, imported on first access.
 _EXPORTS: dict[str, tuple[str, ...]] = {
-    ".component_base": ("Component", "ComponentPublisher"),
+    ".component_base": ("Component",),
+    ".publisher": ("ComponentPublisher",),
     ".llm": ("LLM",),
     ".map_encoding": ("MapEncoding", "MapLayer"),
     ".mllm": ("MLLM", "VLM"),
     ".model_component": ("ModelComponent",),
-    ".run_type": ("ComponentRunType",),
+    "..runtime.run_type": ("ComponentRunType",),
     ".semantic_router": ("Route", "SemanticRouter"),
     ".speech_to_text": ("SpeechToText",),
     ".text_to_speech": ("TextToSpeech",),
@@ -27,12 +28,13 @@ _EXPORTS: dict[str, tuple[str, ...]] = {
 }
 
 if TYPE_CHECKING:
-    from .component_base import Component, ComponentPublisher
+    from ..runtime.run_type import ComponentRunType
+    from .component_base import Component
     from .llm import LLM
     from .map_encoding import MapEncoding, MapLayer
     from .mllm import MLLM, VLM
     from .model_component import ModelComponent
-    from .run_type import ComponentRunType
+    from .publisher import ComponentPublisher
     from .semantic_router import Route, SemanticRouter
     from .speech_to_text import SpeechToText
     from .text_to_speech import TextToSpeech

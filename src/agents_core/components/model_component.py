@@ -23,10 +23,10 @@ from ..clients.db_base import DBClient
 from ..clients.model_base import ModelClient
 from ..config import ModelComponentConfig
 from ..errors import ComponentError, InferenceError, RequestTimeoutError, WiringError
+from ..runtime.worker import control_deadline_passed
 from ..supported_types import SupportedType
 from ..topics import Topic
 from .component_base import Component, TriggerType
-from .worker import control_deadline_passed
 
 __all__ = ["ModelComponent"]
 

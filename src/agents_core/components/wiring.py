@@ -17,10 +17,10 @@ from typing import Any
 
 from ..errors import ConfigError, WiringError
 from ..events import Event
+from ..runtime.run_type import ComponentRunType
+from ..runtime.worker import MAX_TIMER_RATE_HZ
 from ..supported_types import SupportedType
 from ..topics import FixedInput, Topic
-from .run_type import ComponentRunType
-from .worker import MAX_TIMER_RATE_HZ
 
 __all__ = [
     "AllowedTypes",

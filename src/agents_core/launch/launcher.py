@@ -43,10 +43,10 @@ from typing import TYPE_CHECKING, Any
 
 from ..actions import Action
 from ..components.component_base import Component
-from ..components.worker import StepWorker
 from ..config import load_config_file
 from ..errors import ComponentError, ConfigError, WiringError
 from ..events import Event, EventListener
+from ..runtime.worker import StepWorker
 from ..status import LifecycleState
 from ..transport.contract import Subscription, Transport
 from ..transport.registry import TRANSPORT_ENV_VAR, resolve_transport

@@ -230,8 +230,8 @@ class ComponentSpec:
                    parent_pid=parent_pid,
                    fallbacks={kind: {"actions": [_encode_own_action(component, a) for a in fallback.actions],
                                      "max_retries": fallback.max_retries}
-                              for kind, fallback in component._fallbacks.items()},
-                   giveup=[_encode_own_action(component, a) for a in component._giveup_actions])
+                              for kind, fallback in component.runtime.health.fallbacks.items()},
+                   giveup=[_encode_own_action(component, a) for a in component.runtime.health.giveup_actions])
         if type(component).__module__ == "__main__" or _mentions_recipe(spec):
             main_file = getattr(sys.modules.get("__main__"), "__file__", None)
             if main_file is None:
@@ -275,15 +275,17 @@ class ComponentSpec:
     def _restore_fallbacks(self, component: Component) -> None:
         from ..actions import Action, Fallback  # noqa: PLC0415
 
+        health = component.runtime.health
+
         def action(data: dict[str, Any]) -> Action:
             return Action(getattr(component, data["method"]), args=decode_value(data["args"]),
                           kwargs=decode_value(data["kwargs"]))
 
         # Replaced, not added to: what the constructor set is part of what the parent had.
         for kind, data in self.fallbacks.items():
-            component._fallbacks[kind] = Fallback([action(a) for a in data["actions"]], data["max_retries"])
+            health.set_fallback(kind, Fallback([action(a) for a in data["actions"]], data["max_retries"]))
         if self.giveup:
-            component._giveup_actions = [action(a) for a in self.giveup]
+            health.set_giveup([action(a) for a in self.giveup])
 
     def __repr__(self) -> str:
         # Never the arguments: a client's spec may hold an API key.
@@ -340,7 +342,8 @@ def _encode_own_action(component: Component, action: Any) -> dict[str, Any]:
 
 def _extra_state(component: Component) -> dict[str, int]:
     """What a component holds beyond its constructor's doing that a child could not rebuild."""
-    return {"fallbacks": len(component._fallbacks) + len(component._giveup_actions),
+    health = component.runtime.health
+    return {"fallbacks": len(health.fallbacks) + len(health.giveup_actions),
             "publisher pre-processors": sum(len(p._preprocessors) for p in component.publishers_dict.values()),
             "callback post-processors": sum(len(cb._postprocessors) for cb in
                                             (*component.callbacks.values(), *component.trig_callbacks.values()))}

@@ -37,11 +37,11 @@ from ...config import VLAConfig
 from ...errors import AlgorithmFailure, ComponentError, ConfigError, ModelClientError, WiringError
 from ...events import Event
 from ...messages import JointJogMsg, JointStateMsg, JointTrajectoryMsg, JointTrajectoryPointMsg
+from ...runtime.run_type import ComponentRunType
 from ...status import HealthStatus, LifecycleState
 from ...supported_types import RGBD, Image, JointJog, JointState, JointTrajectory
 from ...topics import Topic
 from ..model_component import ModelComponent
-from ..run_type import ComponentRunType
 from ..wiring import AllowedTypes
 from .action_chunks import ActionChunkQueue, AggregationFunction, aggregation_function
 from .urdf import JointLimits, joint_limits_from_config, read_urdf_joint_limits

@@ -1,0 +1,67 @@
+"""``ComponentPublisher``: a component's publisher for one output topic.
+
+Its pre-processors run before the value is validated and sent; an output of a step that a
+deactivate overtook is discarded and counted, not an error.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
+
+from ..errors import ComponentError, TransportClosedError
+from ..topics import Topic
+
+if TYPE_CHECKING:
+    from ..runtime.component_runtime import ComponentRuntime
+    from ..transport.contract import Publisher
+
+__all__ = ["ComponentPublisher"]
+
+
+class ComponentPublisher:
+    """A component's publisher for one output topic, applying its pre-processors before sending."""
+
+    def __init__(self, topic: Topic, component_name: str, runtime: ComponentRuntime) -> None:
+        self.topic = topic
+        self._component_name = component_name
+        self._runtime = runtime
+        self._preprocessors: list[Callable[[Any], Any]] = []
+        self._publisher: Publisher | None = None
+
+    def attach(self, publisher: Publisher) -> None:
+        """Publish through ``publisher`` from now on (at activate)."""
+        self._publisher = publisher
+
+    def detach(self) -> None:
+        """Close the transport publisher (at deactivate); publishing is refused until attached again."""
+        publisher, self._publisher = self._publisher, None
+        if publisher is not None:
+            publisher.close()
+
+    def add_preprocessor(self, func: Callable[[Any], Any]) -> None:
+        """Transform every value with ``func`` before it is published (in the order added)."""
+        self._preprocessors.append(func)
+
+    def publish(self, value: Any) -> None:
+        """Apply pre-processors, validate against the topic type and send.
+
+        An output of a step that a deactivate overtook is discarded and counted
+        (``Component.discarded_outputs``), not an error: the component was asked to stop.
+        """
+        runtime = self._runtime
+        publisher = self._publisher
+        if publisher is None:
+            if runtime.in_overtaken_step():
+                runtime.discard_output(self.topic.name)
+                return
+            raise ComponentError(f"component {self._component_name!r}: output {self.topic.name!r} is not active")
+        for func in self._preprocessors:
+            value = func(value)
+        try:
+            publisher.publish(value)
+        except TransportClosedError:
+            if runtime.in_overtaken_step():
+                runtime.discard_output(self.topic.name)
+                return
+            raise

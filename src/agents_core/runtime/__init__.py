@@ -1,0 +1,39 @@
+"""The component runtime: what runs a component, apart from what the component declares.
+
+- :mod:`.component_runtime`: :class:`ComponentRuntime`, one per component (``component.runtime``);
+- :mod:`.lifecycle`: the lifecycle state machine;
+- :mod:`.health`: health status and fallbacks;
+- :mod:`.services`: the ``execute_method`` / ``set_param`` / ``describe`` services;
+- :mod:`.worker`: the serial step worker and the periodic timer;
+- :mod:`.run_type`: :class:`ComponentRunType`.
+
+Nothing here imports a domain component; components import this package.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from .._lazy import lazy_exports
+
+_EXPORTS: dict[str, tuple[str, ...]] = {
+    ".component_runtime": ("ComponentRuntime",),
+    ".health": ("Health",),
+    ".lifecycle": ("LifecycleMachine",),
+    ".run_type": ("ComponentRunType",),
+    ".services": ("ComponentServices",),
+    ".worker": ("PeriodicTimer", "StepWorker", "WorkerStatistics"),
+}
+
+if TYPE_CHECKING:
+    from .component_runtime import ComponentRuntime
+    from .health import Health
+    from .lifecycle import LifecycleMachine
+    from .run_type import ComponentRunType
+    from .services import ComponentServices
+    from .worker import PeriodicTimer, StepWorker, WorkerStatistics
+else:
+    __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
+
+__all__ = ["ComponentRunType", "ComponentRuntime", "ComponentServices", "Health", "LifecycleMachine",
+           "PeriodicTimer", "StepWorker", "WorkerStatistics"]

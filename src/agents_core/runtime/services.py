@@ -1,0 +1,76 @@
+"""The services every component serves: ``<name>/execute_method``, ``<name>/set_param`` and ``<name>/describe``.
+
+``describe`` answers what the component is (type, run type, state, health, inputs, outputs,
+callable actions), for tools such as the CLI and the web UI. ``execute_method`` runs a method
+marked with ``@component_action`` (an allow-list) on the component's worker, between steps;
+``set_param`` changes validated config fields (``ComponentRuntime.set_params``). Both honour the caller's
+deadline.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
+
+from ..errors import ComponentError, ConfigError
+from ..transport.requests import check_timeout
+
+if TYPE_CHECKING:
+    from .hooks import ComponentHooks
+
+__all__ = ["SERVICE_NAMES", "ComponentServices"]
+
+#: The services of every component, each served on ``<component name>/<service>``.
+SERVICE_NAMES = ("execute_method", "set_param", "describe")
+
+#: Results sent back as they are; anything else is sent as its repr.
+_PLAIN_RESULT = (str, int, float, bool, type(None), list, dict)
+
+
+class ComponentServices:
+    """The handlers of one component's services (each takes a JSON-like request, returns a reply)."""
+
+    def __init__(self, component: ComponentHooks, run_on_worker: Callable[[Callable[[], Any], float], Any],
+                 set_params: Callable[[dict[str, Any]], None]) -> None:
+        self._component = component
+        self._run_on_worker = run_on_worker
+        self._set_params = set_params
+
+    def handler(self, service: str) -> Any:
+        """The handler of ``service`` (one of :data:`SERVICE_NAMES`)."""
+        return {"execute_method": self.execute_method, "set_param": self.set_param,
+                "describe": self.describe}[service]
+
+    def describe(self, request: dict[str, Any]) -> dict[str, Any]:
+        """What the component is (see :meth:`Component.component_description`)."""
+        # Answered on the request lane, not the worker: a component busy with a long step can
+        # still say what it is (the fields read are each updated atomically).
+        return self._component.component_description()
+
+    def execute_method(self, request: dict[str, Any]) -> dict[str, Any]:
+        """Run the ``@component_action`` named ``request["method"]`` with ``args`` / ``kwargs``, on the worker."""
+        component = self._component
+        method_name = request.get("method")
+        actions = component.available_actions()
+        if method_name not in actions:
+            raise ComponentError(f"component {component.component_name!r} has no action {method_name!r}; "
+                                 f"available: {sorted(actions)}")
+        args = request.get("args", [])
+        kwargs = request.get("kwargs", {})
+        if not isinstance(args, list) or not isinstance(kwargs, dict):
+            raise ConfigError("execute_method needs 'args' as a list and 'kwargs' as a mapping")
+        method = getattr(component, str(method_name))
+        timeout = check_timeout(request.get("timeout", 30.0),
+                                f"component {component.component_name!r}: execute_method")
+        result = self._run_on_worker(lambda: method(*args, **kwargs), timeout)
+        return {"result": result if isinstance(result, _PLAIN_RESULT) else repr(result)}
+
+    def set_param(self, request: dict[str, Any]) -> dict[str, Any]:
+        """Change config fields: ``{"name": ..., "value": ...}`` or ``{"params": {...}}``."""
+        params = request.get("params")
+        if params is None and "name" in request:
+            params = {request["name"]: request.get("value")}
+        if not isinstance(params, dict) or not params:
+            raise ConfigError("set_param needs {'name': ..., 'value': ...} or {'params': {...}}")
+        self._set_params(params)
+        return {"ok": True, "params": sorted(params)}
