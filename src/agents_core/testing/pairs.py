@@ -177,21 +177,21 @@ def missing_requirement(name: str) -> str | None:
             f"(no module {module!r}); pip install 'agents-core[{extra}]'")
 
 
-def skip_unless_installed(transport: str, *modules: str) -> None:
+def skip_unless_installed(transport: str, *modules: str, reason: str | None = None) -> None:
     """Skip the calling test when ``transport``'s extra, or one of ``modules``, is not installed.
 
     ``transport`` is a built-in transport's name (``"zenoh"``, ``"ros2"``), or ``""`` to check
-    ``modules`` only. The reason names what is missing; a module that is installed but broken
-    is left to fail the test.
+    ``modules`` only. The skip's reason names what is missing (``reason``, if given, says it
+    instead: how to install it, say); a module that is installed but broken is left to fail the test.
     """
     import pytest  # noqa: PLC0415 - importing this module must not need pytest
 
-    reason = missing_requirement(transport) if transport else None
+    why = missing_requirement(transport) if transport else None
     absent = [m for m in modules if importlib.util.find_spec(m) is None]
-    if reason is None and absent:
-        reason = f"{transport or 'this test'} needs {', '.join(absent)}, which is not installed"
-    if reason is not None:
-        pytest.skip(reason)
+    if why is None and absent:
+        why = f"{transport or 'this test'} needs {', '.join(absent)}, which is not installed"
+    if why is not None:
+        pytest.skip(reason or why)
 
 
 def pair_factory(name: str) -> PairFactory:
