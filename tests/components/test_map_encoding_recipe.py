@@ -2,12 +2,12 @@
 
 "Where is the cup?" must come back with the cup's coordinates (within one cell), and after the cup
 moved (a temporal layer), with its new place; an LLM with RAG on the map gets the coordinates in
-its context. Memory and zenoh (in this process, one zenoh session) run the same recipe.
+its context. Memory and each cross-process transport (the ``recipe_transport`` fixture, in this
+process: one Zenoh session; on ROS 2 with a plain rclpy robot beside it) run the same recipe.
 """
 
 from __future__ import annotations
 
-import importlib.util
 import math
 from collections.abc import Callable
 from typing import Any
@@ -17,12 +17,13 @@ import pytest
 from agents_core import MemoryTransport, Topic
 from agents_core.components import LLM
 from agents_core.config import LLMConfig
+from agents_core.testing.recipes import RecipeTransport
 from agents_core.transport.contract import Transport
 
 from ..clients.test_chroma_client import chroma_port  # noqa: F401  (fixtures, used by name)
 from ..clients.test_components_on_real_servers import chroma  # noqa: F401
 from ..clients.test_generic_client import llama_server  # noqa: F401
-from ..conftest import free_tcp_port, wait_for
+from ..conftest import wait_for
 from . import map_recipe
 from .scripted_client import ScriptedChatClient
 
@@ -77,19 +78,6 @@ def test_where_is_the_cup_on_memory(chroma: Any) -> None:  # noqa: F811
         transport.close()
 
 
-def test_where_is_the_cup_on_zenoh(chroma: Any) -> None:  # noqa: F811
-    if importlib.util.find_spec("zenoh") is None:
-        pytest.skip("zenoh transport not available here: the zenoh extra is not installed")
-    from agents_zenoh.transport import ZenohTransport  # noqa: PLC0415  (only with the zenoh extra)
-
-    transport = ZenohTransport(mode="peer", listen=[f"tcp/127.0.0.1:{free_tcp_port()}"], connect=[],
-                               multicast_scouting=False)
-    try:
-        _check(_recipe_on(transport, chroma, "map_zenoh"))
-    finally:
-        transport.close()
-
-
 class _PlainRosRobot:
     """A plain rclpy node in a ROS context of its own (no agents_core): the robot's map server and odometry.
 
@@ -131,25 +119,33 @@ class _PlainRosRobot:
         self._context.try_shutdown()
 
 
-@pytest.mark.ros2
-def test_where_is_the_cup_on_ros2(chroma: Any) -> None:  # noqa: F811
-    if importlib.util.find_spec("rclpy") is None:
-        pytest.skip("ros2 transport not available here: the ros2 extra is not installed")
-    from agents_core.testing.pairs import private_ros_environment  # noqa: PLC0415
-    from agents_ros2.transport import Ros2Transport  # noqa: PLC0415  (only with the ros2 extra)
+def _on_the_framework(recipe_transport: RecipeTransport, db_factory: Callable[..., Any]) -> None:
+    collection = f"map_{recipe_transport.name}"
+    _check(_recipe_on(recipe_transport.open_recipe_side(), db_factory, collection))
 
-    domain_id = private_ros_environment()
-    robot = _PlainRosRobot(domain_id)
-    transport = Ros2Transport(domain_id=domain_id)
+
+def _with_a_plain_ros_robot(recipe_transport: RecipeTransport, db_factory: Callable[..., Any]) -> None:
+    """The map and odometry come from a plain rclpy node (the robot's own stack), not from the recipe."""
+    assert recipe_transport.domain_id is not None
+    robot = _PlainRosRobot(recipe_transport.domain_id)
     try:
         collection = "map_ros2"
-        found = map_recipe.run(transport, chroma(collection), collection, send_odometry=robot.send_odometry,
-                               serve_map=False)
+        found = map_recipe.run(recipe_transport.open_recipe_side(), db_factory(collection), collection,
+                               send_odometry=robot.send_odometry, serve_map=False)
         cell = map_recipe.RESOLUTION
         assert found["first"][0]["text"] == "cup" and _near(found["first"][0], map_recipe.CUP) <= cell, found
         assert _near(found["chair"][0], map_recipe.CHAIR) <= cell, found["chair"]
         assert _near(found["later"][0], map_recipe.CUP_LATER) <= cell, found["later"]
         assert found["mapper"].stats["outside_map"] == found["mapper"].stats["dropped"] == 0
     finally:
-        transport.close()
+        recipe_transport.close()
         robot.close()
+
+
+#: How the recipe runs on each transport; on the framework alone where none is named.
+RUN_ON: dict[str, Callable[[RecipeTransport, Callable[..., Any]], None]] = {"ros2": _with_a_plain_ros_robot}
+
+
+def test_where_is_the_cup_on_a_cross_process_transport(recipe_transport: RecipeTransport,
+                                                        chroma: Any) -> None:  # noqa: F811
+    RUN_ON.get(recipe_transport.name, _on_the_framework)(recipe_transport, chroma)

@@ -1,32 +1,32 @@
 """The voice-loop recipe (voice_recipe.py) on memory, Zenoh and ROS 2, and the voice demo.
 
 A spoken question streamed in 20 ms Audio chunks comes back as spoken Audio: SpeechToText (Whisper
-tiny.en + Silero VAD) -> LLM (SmolLM2) -> TextToSpeech (Piper). Memory runs in this process; Zenoh
-and ROS 2 run the recipe in a child process, and on ROS 2 a plain rclpy node sends
-agents_interfaces/Audio and reads the transcript and the spoken answer.
+tiny.en + Silero VAD) -> LLM (SmolLM2) -> TextToSpeech (Piper). Memory runs in this process; each
+cross-process transport (the ``recipe_transport`` fixture: Zenoh, ROS 2) runs the recipe in a child
+process, and on ROS 2 a plain rclpy node sends agents_interfaces/Audio and reads the transcript and
+the spoken answer.
 """
 
 from __future__ import annotations
 
-import importlib.util
-import os
 import re
 import subprocess
 import sys
 import threading
 import time
 import warnings
-from collections.abc import Iterator
-from contextlib import contextmanager
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
 
+from agents_core.testing.pairs import skip_unless_installed
+from agents_core.testing.recipes import RecipeTransport, run_recipe
 from agents_core.transport.contract import Transport
 
-from ..conftest import free_tcp_port, wait_for
+from ..conftest import wait_for
 from . import voice_recipe
 from .models_dir import REPO
 from .voice_recipe import HEARD, MIC, SPOKEN, chunks, clip, needs_voice_loop, silence
@@ -64,60 +64,20 @@ def test_voice_loop_on_memory() -> None:
         _check(launcher.transport)
 
 
-@contextmanager
-def _recipe(args: list[str], tmp_path: Path) -> Iterator[None]:
-    log = (tmp_path / "recipe.log").open("w")
-    proc = subprocess.Popen([sys.executable, "-m", "tests.components.voice_recipe", *args], cwd=REPO,
-                            env=dict(os.environ, PYTHONUNBUFFERED="1"), stdout=subprocess.PIPE, stderr=log, text=True)
-    try:
-        ready: list[str] = []
-        reader = threading.Thread(target=lambda: ready.append(proc.stdout.readline()),  # type: ignore[union-attr]
-                                  daemon=True)
-        reader.start()
-        reader.join(90)
-        if not ready or ready[0].strip() != "READY":
-            log.flush()
-            pytest.fail(f"recipe did not start: {(tmp_path / 'recipe.log').read_text()[-2000:]}")
-        yield
-    finally:
-        if proc.poll() is None:
-            proc.terminate()
-            try:
-                proc.wait(timeout=15)
-            except subprocess.TimeoutExpired:
-                proc.kill()
-                proc.wait(timeout=10)
-        if proc.stdout is not None:
-            proc.stdout.close()
-        log.close()
+def _ask_through_the_framework(recipe_transport: RecipeTransport) -> None:
+    _check(recipe_transport.open_asker())
 
 
-@pytest.mark.zenoh
-def test_voice_loop_on_zenoh(tmp_path: Path) -> None:
+#: How a user of each transport talks to the recipe; the framework's own transport where none is named.
+USER_SIDE: dict[str, Callable[[RecipeTransport], None]] = {"ros2": lambda _: _plain_rclpy_side()}
+
+
+def test_voice_loop_in_its_own_process(recipe_transport: RecipeTransport, tmp_path: Path) -> None:
     needs_voice_loop()
-    if importlib.util.find_spec("zenoh") is None:
-        pytest.skip("zenoh transport not available here: the zenoh extra is not installed")
-    from agents_zenoh.transport import ZenohTransport  # noqa: PLC0415
-
-    endpoint = f"tcp/127.0.0.1:{free_tcp_port()}"
-    with _recipe(["--transport", "zenoh", "--listen", endpoint], tmp_path):
-        asker = ZenohTransport(mode="peer", listen=[], connect=[endpoint], multicast_scouting=False)
-        try:
-            _check(asker)
-        finally:
-            asker.close()
-
-
-@pytest.mark.ros2
-def test_voice_loop_on_ros2_seen_by_a_plain_rclpy_node(tmp_path: Path) -> None:
-    needs_voice_loop()
-    if importlib.util.find_spec("rclpy") is None or importlib.util.find_spec("agents_interfaces") is None:
-        pytest.skip("ros2 transport not available here: rclpy or agents_interfaces is not installed")
-    from agents_core.testing.pairs import private_ros_environment  # noqa: PLC0415
-
-    private_ros_environment()
-    with _recipe(["--transport", "ros2"], tmp_path):
-        _plain_rclpy_side()
+    if recipe_transport.name == "ros2":
+        skip_unless_installed("ros2", "agents_interfaces")
+    with run_recipe("tests.components.voice_recipe", recipe_transport, tmp_path, cwd=REPO, ready_timeout=90):
+        USER_SIDE.get(recipe_transport.name, _ask_through_the_framework)(recipe_transport)
 
 
 def _plain_rclpy_side() -> None:

@@ -10,6 +10,7 @@ import pytest
 
 from agents_core.engines.local_vision import LocalVisionModel, coco90_labels, nms, read_labels_file
 from agents_core.errors import ConfigError, InferenceError
+from agents_core.testing.pairs import skip_unless_installed
 
 from .models_dir import TINY
 from .vision_recipe import KNOWN, found_on, needs_ssd, photo
@@ -18,10 +19,9 @@ pytestmark = pytest.mark.local_models
 
 
 def _onnx() -> object:
-    if importlib.util.find_spec("onnxruntime") is None:
-        pytest.skip("onnxruntime is not installed (pip install 'agents-core[local]')")
-    if importlib.util.find_spec("onnx") is None:
-        pytest.skip("the onnx package is not installed (pip install 'agents-core[dev]'): it builds the tiny models")
+    skip_unless_installed("", "onnxruntime", reason="onnxruntime is not installed (pip install 'agents-core[local]')")
+    skip_unless_installed("", "onnx", reason="the onnx package is not installed (pip install 'agents-core[dev]'): it "
+                                             "builds the tiny models")
     import onnx  # noqa: PLC0415
 
     return onnx
@@ -113,8 +113,7 @@ def test_an_unknown_signature_is_a_config_error_listing_what_was_found(tmp_path:
 
 
 def test_files_that_are_not_models_and_missing_files(tmp_path: Path) -> None:
-    if importlib.util.find_spec("onnxruntime") is None:
-        pytest.skip("onnxruntime is not installed")
+    skip_unless_installed("", "onnxruntime", reason="onnxruntime is not installed")
     bogus = tmp_path / "model.onnx"
     bogus.write_bytes(b"\x00\x01 not a protobuf")
     with pytest.raises(ConfigError, match="not a loadable ONNX model"):

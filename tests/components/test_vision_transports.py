@@ -1,22 +1,18 @@
 """The same Vision recipe file (vision_recipe.py) detects and tracks on memory, zenoh and ros2.
 
-Memory runs in this process; zenoh and ros2 run the recipe in a child process (stopped by PID
-afterwards). On Zenoh this process asks through the framework's transport; on ROS 2 through a
-plain rclpy node (sensor_msgs/Image out, agents_interfaces Detections2D / Trackings in), as any
-ROS 2 user would. Transports whose extra is missing are skipped with the reason.
+Memory runs in this process; on each cross-process transport (the ``recipe_transport`` fixture)
+the recipe runs in a child process (stopped by PID afterwards). On Zenoh this process asks through
+the framework's transport; on ROS 2 through a plain rclpy node (sensor_msgs/Image out,
+agents_interfaces Detections2D / Trackings in), as any ROS 2 user would. Transports whose extra is
+missing are skipped with the reason.
 """
 
 from __future__ import annotations
 
-import importlib.util
-import os
-import subprocess
-import sys
 import threading
 import time
 import warnings
-from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -25,9 +21,11 @@ import pytest
 
 from agents_core import Launcher
 from agents_core.messages import Header, ImageMsg
+from agents_core.testing.pairs import skip_unless_installed
+from agents_core.testing.recipes import RecipeTransport, run_recipe
 from agents_core.transport.contract import Transport
 
-from ..conftest import free_tcp_port, wait_for
+from ..conftest import wait_for
 from . import vision_recipe
 from .models_dir import REPO
 from .vision_recipe import found_on, needs_ssd, photo
@@ -86,59 +84,20 @@ def test_recipe_on_memory() -> None:
         _check_framework_side(launcher.transport)
 
 
-@contextmanager
-def _recipe(args: list[str], tmp_path: Path) -> Iterator[subprocess.Popen[str]]:
-    log = (tmp_path / "recipe.log").open("w")
-    proc = subprocess.Popen([sys.executable, "-m", "tests.components.vision_recipe", *args], cwd=REPO,
-                            env=dict(os.environ, PYTHONUNBUFFERED="1"), stdout=subprocess.PIPE, stderr=log, text=True)
-    try:
-        ready: list[str] = []
-        reader = threading.Thread(target=lambda: ready.append(proc.stdout.readline()), daemon=True)  # type: ignore[union-attr]
-        reader.start()
-        reader.join(60)
-        if not ready or ready[0].strip() != "READY":
-            log.flush()
-            pytest.fail(f"recipe did not start: {(tmp_path / 'recipe.log').read_text()[-2000:]}")
-        yield proc
-    finally:
-        if proc.poll() is None:
-            proc.terminate()
-            try:
-                proc.wait(timeout=15)
-            except subprocess.TimeoutExpired:
-                proc.kill()
-                proc.wait(timeout=10)
-        if proc.stdout is not None:
-            proc.stdout.close()
-        log.close()
+def _ask_through_the_framework(recipe_transport: RecipeTransport) -> None:
+    _check_framework_side(recipe_transport.open_asker())
 
 
-@pytest.mark.zenoh
-def test_recipe_on_zenoh(tmp_path: Path) -> None:
+#: How a user of each transport asks the recipe; the framework's own transport where none is named.
+USER_SIDE: dict[str, Callable[[RecipeTransport], None]] = {"ros2": lambda _: _plain_rclpy_side()}
+
+
+def test_recipe_in_its_own_process(recipe_transport: RecipeTransport, tmp_path: Path) -> None:
     needs_ssd()
-    if importlib.util.find_spec("zenoh") is None:
-        pytest.skip("zenoh transport not available here: the zenoh extra is not installed")
-    from agents_zenoh.transport import ZenohTransport  # noqa: PLC0415
-
-    endpoint = f"tcp/127.0.0.1:{free_tcp_port()}"
-    with _recipe(["--transport", "zenoh", "--listen", endpoint], tmp_path):
-        asker = ZenohTransport(mode="peer", listen=[], connect=[endpoint], multicast_scouting=False)
-        try:
-            _check_framework_side(asker)
-        finally:
-            asker.close()
-
-
-@pytest.mark.ros2
-def test_recipe_on_ros2_seen_by_a_plain_rclpy_node(tmp_path: Path) -> None:
-    needs_ssd()
-    if importlib.util.find_spec("rclpy") is None or importlib.util.find_spec("agents_interfaces") is None:
-        pytest.skip("ros2 transport not available here: rclpy or agents_interfaces is not installed")
-    from agents_core.testing.pairs import private_ros_environment  # noqa: PLC0415
-
-    private_ros_environment()
-    with _recipe(["--transport", "ros2"], tmp_path):
-        _plain_rclpy_side()
+    if recipe_transport.name == "ros2":
+        skip_unless_installed("ros2", "agents_interfaces")
+    with run_recipe("tests.components.vision_recipe", recipe_transport, tmp_path, cwd=REPO):
+        USER_SIDE.get(recipe_transport.name, _ask_through_the_framework)(recipe_transport)
 
 
 def _plain_rclpy_side() -> None:

@@ -1,19 +1,15 @@
-"""The VLA recipe (vla_recipe.py) on memory, and in its own process on Zenoh and on ROS 2: a simulated arm and the goal
-client in this process, a gRPC policy server on 127.0.0.1; the arm reaches the pose within its limits,
-and a cancel mid-goal stops it with a hold command. On ROS 2 the arm and the client are plain rclpy
+"""The VLA recipe (vla_recipe.py) on memory, and in its own process on each cross-process transport (the
+``recipe_transport`` fixture: Zenoh, ROS 2): a simulated arm and the goal client in this process, a
+gRPC policy server on 127.0.0.1; the arm reaches the pose within its limits, and a cancel mid-goal
+stops it with a hold command. On ROS 2 the arm and the client are plain rclpy
 (sensor_msgs/JointState, sensor_msgs/Image, an rclpy ActionClient for VisionLanguageAction)."""
 
 from __future__ import annotations
 
-import importlib.util
-import os
-import subprocess
-import sys
 import threading
 import time
 import warnings
-from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -24,7 +20,9 @@ pytest.importorskip("grpc", reason="the vla extra (grpcio) is not installed")
 
 from agents_core.errors import RequestTimeoutError, ServiceUnavailableError
 from agents_core.messages import JointStateMsg
-from agents_core.testing.helpers import free_tcp_port, wait_for
+from agents_core.testing.helpers import wait_for
+from agents_core.testing.pairs import skip_unless_installed
+from agents_core.testing.recipes import RecipeTransport, run_recipe
 from agents_core.transport.goals import GoalStatus
 from tests.components import vla_recipe
 from tests.components.sim_arm import SimulatedArm
@@ -33,33 +31,6 @@ from tests.servers.policy_server import PolicyTestServer, ReachPolicy
 REPO = Path(__file__).resolve().parents[2]
 TARGET = {"shoulder": 0.8, "elbow": -0.5}
 FAR = {"shoulder": 1.9, "elbow": 0.9}
-
-
-@contextmanager
-def recipe(args: list[str], tmp_path: Path) -> Iterator[subprocess.Popen[str]]:
-    log = (tmp_path / "recipe.log").open("w")
-    proc = subprocess.Popen([sys.executable, "-m", "tests.components.vla_recipe", *args], cwd=REPO,
-                            env=dict(os.environ, PYTHONUNBUFFERED="1"), stdout=subprocess.PIPE, stderr=log, text=True)
-    try:
-        ready: list[str] = []
-        reader = threading.Thread(target=lambda: ready.append(proc.stdout.readline()), daemon=True)  # type: ignore[union-attr]
-        reader.start()
-        reader.join(60)
-        if not ready or ready[0].strip() != "READY":
-            log.flush()
-            pytest.fail(f"recipe did not start: {(tmp_path / 'recipe.log').read_text()[-2000:]}")
-        yield proc
-    finally:
-        if proc.poll() is None:
-            proc.terminate()
-            try:
-                proc.wait(timeout=15)
-            except subprocess.TimeoutExpired:
-                proc.kill()
-                proc.wait(timeout=10)
-        if proc.stdout is not None:
-            proc.stdout.close()
-        log.close()
 
 
 def check_reach(commands: list[list[float]], final: dict[str, float]) -> None:
@@ -82,68 +53,61 @@ def check_hold(hold: list[float], last_moves: list[list[float]], before: dict[st
     assert 0 < after["shoulder"] < FAR["shoulder"]
 
 
-@pytest.mark.zenoh
-def test_recipe_on_zenoh(tmp_path: Path) -> None:
-    if importlib.util.find_spec("zenoh") is None:
-        pytest.skip("zenoh transport not available here: the zenoh extra is not installed")
-    from agents_zenoh.transport import ZenohTransport  # noqa: PLC0415
+def _ask_through_the_framework(recipe_transport: RecipeTransport, server: PolicyTestServer) -> None:
+    user = recipe_transport.open_asker()
+    arm = SimulatedArm(user, {"shoulder": 0.0, "elbow": 0.0}, state_topic=vla_recipe.STATE,
+                       command_topic=vla_recipe.COMMANDS, camera_topic=vla_recipe.CAMERA)
+    try:
+        feedback: list[dict[str, Any]] = []
 
-    endpoint = f"tcp/127.0.0.1:{free_tcp_port()}"
+        def send(max_steps: int) -> Any:
+            deadline = time.monotonic() + 15
+            while True:
+                try:
+                    return user.send_goal("arm_vla", "VisionLanguageAction", {"task": "reach", "max_steps":
+                                                                               max_steps},
+                                          feedback=feedback.append, timeout=5.0)
+                except (ServiceUnavailableError, RequestTimeoutError):
+                    if time.monotonic() > deadline:
+                        raise
+                    time.sleep(0.2)
+
+        time.sleep(0.5)  # the recipe sees the arm's state before the goal's first observation
+        status, result = send(80).result(timeout=30)
+        assert status == GoalStatus.SUCCEEDED, result
+        assert result["steps"] == 80
+        commands = [c.position.tolist() for c in arm.commands if isinstance(c, JointStateMsg)]
+        check_reach(commands, arm.snapshot())
+        assert wait_for(lambda: len(feedback) == 80, 5.0)
+
+        server.policy = ReachPolicy(FAR, step=0.01)
+        feedback.clear()
+        goal = send(100_000)
+        assert wait_for(lambda: len(feedback) >= 10, 15.0)
+        assert goal.cancel(timeout=5.0)
+        status, result = goal.result(timeout=15)
+        assert status == GoalStatus.CANCELED and result["message"] == "canceled"
+        time.sleep(0.2)  # the hold command travels
+        before = arm.snapshot()
+        time.sleep(0.3)
+        moves = [c.position.tolist() for c in arm.commands if isinstance(c, JointStateMsg)]
+        check_hold(moves[-1], moves[-4:-1], before, arm.snapshot())
+    finally:
+        arm.close()
+
+
+#: How a user of each transport drives the recipe; the framework's own transport where none is named.
+USER_SIDE: dict[str, Callable[[RecipeTransport, PolicyTestServer], None]] = {
+    "ros2": lambda _, server: _plain_rclpy_side(server)}
+
+
+def test_recipe_in_its_own_process(recipe_transport: RecipeTransport, tmp_path: Path) -> None:
+    if recipe_transport.name == "ros2":
+        skip_unless_installed("ros2", "agents_interfaces")
     with PolicyTestServer(ReachPolicy(TARGET, step=0.05)) as server, \
-            recipe(["--transport", "zenoh", "--listen", endpoint, "--policy-port", str(server.port)], tmp_path):
-        user = ZenohTransport(mode="peer", listen=[], connect=[endpoint], multicast_scouting=False)
-        arm = SimulatedArm(user, {"shoulder": 0.0, "elbow": 0.0}, state_topic=vla_recipe.STATE,
-                           command_topic=vla_recipe.COMMANDS, camera_topic=vla_recipe.CAMERA)
-        try:
-            feedback: list[dict[str, Any]] = []
-
-            def send(max_steps: int) -> Any:
-                deadline = time.monotonic() + 15
-                while True:
-                    try:
-                        return user.send_goal("arm_vla", "VisionLanguageAction", {"task": "reach", "max_steps":
-                                                                                   max_steps},
-                                              feedback=feedback.append, timeout=5.0)
-                    except (ServiceUnavailableError, RequestTimeoutError):
-                        if time.monotonic() > deadline:
-                            raise
-                        time.sleep(0.2)
-
-            time.sleep(0.5)  # the recipe sees the arm's state before the goal's first observation
-            status, result = send(80).result(timeout=30)
-            assert status == GoalStatus.SUCCEEDED, result
-            assert result["steps"] == 80
-            commands = [c.position.tolist() for c in arm.commands if isinstance(c, JointStateMsg)]
-            check_reach(commands, arm.snapshot())
-            assert wait_for(lambda: len(feedback) == 80, 5.0)
-
-            server.policy = ReachPolicy(FAR, step=0.01)
-            feedback.clear()
-            goal = send(100_000)
-            assert wait_for(lambda: len(feedback) >= 10, 15.0)
-            assert goal.cancel(timeout=5.0)
-            status, result = goal.result(timeout=15)
-            assert status == GoalStatus.CANCELED and result["message"] == "canceled"
-            time.sleep(0.2)  # the hold command travels
-            before = arm.snapshot()
-            time.sleep(0.3)
-            moves = [c.position.tolist() for c in arm.commands if isinstance(c, JointStateMsg)]
-            check_hold(moves[-1], moves[-4:-1], before, arm.snapshot())
-        finally:
-            arm.close()
-            user.close()
-
-
-@pytest.mark.ros2
-def test_recipe_on_ros2_driven_by_plain_rclpy(tmp_path: Path) -> None:
-    if importlib.util.find_spec("rclpy") is None or importlib.util.find_spec("agents_interfaces") is None:
-        pytest.skip("ros2 transport not available here: rclpy or agents_interfaces is not installed")
-    from agents_core.testing.pairs import private_ros_environment  # noqa: PLC0415
-
-    private_ros_environment()
-    with PolicyTestServer(ReachPolicy(TARGET, step=0.05)) as server, \
-            recipe(["--transport", "ros2", "--policy-port", str(server.port)], tmp_path):
-        _plain_rclpy_side(server)
+            run_recipe("tests.components.vla_recipe", recipe_transport, tmp_path, ["--policy-port", str(server.port)],
+                       cwd=REPO):
+        USER_SIDE.get(recipe_transport.name, _ask_through_the_framework)(recipe_transport, server)
 
 
 class _PlainArm:

@@ -10,7 +10,6 @@ out. It prints ``READY`` on stdout once active and runs until SIGTERM / SIGINT.
 from __future__ import annotations
 
 import argparse
-import importlib.util
 from typing import Any
 
 import numpy as np
@@ -20,6 +19,7 @@ import pytest
 from agents_core import Launcher, Topic
 from agents_core.components import Vision
 from agents_core.config import VisionConfig
+from agents_core.testing.pairs import skip_unless_installed
 
 from .models_dir import SHARED_MODELS
 from .recipe_main import serve, transport_options
@@ -35,10 +35,9 @@ KNOWN = {"astronaut.png": ("person", (0, 0, 420, 512)), "chelsea.png": ("cat", (
 
 def needs_ssd() -> str:
     """The SSD model file, or a skip naming what is missing."""
-    if importlib.util.find_spec("onnxruntime") is None:
-        pytest.skip("onnxruntime is not installed (pip install 'agents-core[local]')")
-    if importlib.util.find_spec("PIL") is None:
-        pytest.skip("Pillow is not installed (pip install 'agents-core[local]'): it reads the test photos")
+    skip_unless_installed("", "onnxruntime", reason="onnxruntime is not installed (pip install 'agents-core[local]')")
+    skip_unless_installed("", "PIL", reason="Pillow is not installed (pip install 'agents-core[local]'): it reads the "
+                                            "test photos")
     if not SSD_MODEL.is_file() or not (SHARED_IMAGES / "astronaut.png").is_file():
         pytest.skip(f"the COCO SSD model or the test images are not in {SHARED_MODELS} (set AGENTS_SHARED_MODELS)")
     return str(SSD_MODEL)

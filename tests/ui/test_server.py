@@ -146,14 +146,13 @@ def test_enable_ui_is_refused_after_start_and_off_loopback_without_a_token(monke
 
 @pytest.mark.ros2
 def test_the_ui_attached_over_ros2_to_a_recipe_in_another_process() -> None:
-    import importlib.util  # noqa: PLC0415
     import subprocess  # noqa: PLC0415
     import sys  # noqa: PLC0415
     from pathlib import Path  # noqa: PLC0415
 
-    if importlib.util.find_spec("rclpy") is None or importlib.util.find_spec("agents_interfaces") is None:
-        pytest.skip("ros2 transport not available here: rclpy or agents_interfaces is not installed")
-    from agents_core.testing.pairs import private_ros_environment  # noqa: PLC0415
+    from agents_core.testing.pairs import private_ros_environment, skip_unless_installed  # noqa: PLC0415
+
+    skip_unless_installed("ros2", "agents_interfaces")
     from agents_core.transport.registry import resolve_transport  # noqa: PLC0415
     from agents_core.ui.attach import attach  # noqa: PLC0415
 

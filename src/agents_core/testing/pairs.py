@@ -53,6 +53,7 @@ __all__ = [
     "private_ros_environment",
     "ros2_pair",
     "shared_instance_pair",
+    "skip_unless_installed",
     "zenoh_pair",
 ]
 
@@ -174,6 +175,23 @@ def missing_requirement(name: str) -> str | None:
     extra = TRANSPORT_ALIASES[name][1]
     return (f"{name} transport not available here: the '{extra}' extra is not installed "
             f"(no module {module!r}); pip install 'agents-core[{extra}]'")
+
+
+def skip_unless_installed(transport: str, *modules: str, reason: str | None = None) -> None:
+    """Skip the calling test when ``transport``'s extra, or one of ``modules``, is not installed.
+
+    ``transport`` is a built-in transport's name (``"zenoh"``, ``"ros2"``), or ``""`` to check
+    ``modules`` only. The skip's reason names what is missing (``reason``, if given, says it
+    instead: how to install it, say); a module that is installed but broken is left to fail the test.
+    """
+    import pytest  # noqa: PLC0415 - importing this module must not need pytest
+
+    why = missing_requirement(transport) if transport else None
+    absent = [m for m in modules if importlib.util.find_spec(m) is None]
+    if why is None and absent:
+        why = f"{transport or 'this test'} needs {', '.join(absent)}, which is not installed"
+    if why is not None:
+        pytest.skip(reason or why)
 
 
 def pair_factory(name: str) -> PairFactory:

@@ -1,8 +1,11 @@
-"""One process per component on Zenoh: real launcher and component processes, a real observer peer.
+"""One process per component, on each cross-process transport: real launcher and component processes.
 
-Each test runs ``mp_recipe.py`` as the launcher process (two ``Shout`` components defined in
-the recipe file itself, each in its own process) and looks at it from the test process
-through a Zenoh peer connected to the launcher's loopback port, and through ``/proc``.
+Each test runs ``mp_recipe.py`` as the launcher process (two ``Shout`` components defined in the
+recipe file itself, each in its own process) and looks at it from the test process through an
+observer transport and through ``/proc``. The observer asks ``mp/in`` -> ``mp/out`` and reads the
+components' lifecycle states the same way on both transports (:func:`_ask`, :func:`_all_active`);
+what only one middleware has is checked on that one: Zenoh's liveliness tokens, shared memory and
+config-file endpoints; the ROS 2 graph (a plain rclpy node watches the nodes come and go).
 """
 
 from __future__ import annotations
@@ -13,45 +16,34 @@ import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
 
 from agents_core import Topic
+from agents_core.testing.pairs import skip_unless_installed
 
 from .helpers import SECRET, RecipeRun, alive, leftover_segments, mapped_shm, recipe_run, shm_files, wait_for
 
-zenoh = pytest.importorskip("zenoh")
-pytestmark = [pytest.mark.zenoh, pytest.mark.slow]
+pytestmark = pytest.mark.slow
 
 NAMES = ("shout_a", "shout_b")
 
-
-@pytest.fixture
-def observer_factory() -> Iterator[object]:
-    opened = []
-
-    def make(port: int):  # type: ignore[no-untyped-def]
-        from agents_zenoh.transport import ZenohTransport  # noqa: PLC0415  # needs the zenoh extra
-
-        t = ZenohTransport(mode="peer", listen=["tcp/127.0.0.1:0"], connect=[f"tcp/127.0.0.1:{port}"],
-                           multicast_scouting=False, zenoh_options={"scouting/delay": 50})
-        opened.append(t)
-        return t
-
-    yield make
-    for t in opened:
-        t.close()
+# The run's own domain when it sets one (ROS_DOMAIN_ID=...), else one derived from this process,
+# as agents_core.testing.pairs does, so parallel runs on one host never see each other.
+DOMAIN = int(os.environ.get("ROS_DOMAIN_ID") or 1 + os.getpid() % 100)
 
 
-def _all_active(observer, names=NAMES) -> bool:  # type: ignore[no-untyped-def]
+def _all_active(observer: Any, names: tuple[str, ...] = NAMES, timeout: float = 0.5) -> bool:
+    """Whether every component in ``names`` reports the active lifecycle state to ``observer``."""
     for name in names:
-        status = observer.get_component_state(name, timeout=0.5)
+        status = observer.get_component_state(name, timeout=timeout)
         if status is None or status.lifecycle_state != "active":
             return False
     return True
 
 
-def _ask(observer, text: str, timeout: float = 10.0) -> str:  # type: ignore[no-untyped-def]
+def _ask(observer: Any, text: str, timeout: float = 10.0) -> str:
     """Publish ``text`` on mp/in until an answer for it arrives on mp/out."""
     got: list[str] = []
     sub = observer.create_subscription(Topic("mp/out", "String"), got.append)
@@ -72,12 +64,33 @@ def _ask(observer, text: str, timeout: float = 10.0) -> str:  # type: ignore[no-
         pub.close()
 
 
+# --- Zenoh ---------------------------------------------------------------------------------------
+
+
+@pytest.fixture
+def observer_factory() -> Iterator[object]:
+    skip_unless_installed("zenoh")
+    opened = []
+
+    def make(port: int):  # type: ignore[no-untyped-def]
+        from agents_zenoh.transport import ZenohTransport  # noqa: PLC0415  # needs the zenoh extra
+
+        t = ZenohTransport(mode="peer", listen=["tcp/127.0.0.1:0"], connect=[f"tcp/127.0.0.1:{port}"],
+                           multicast_scouting=False, zenoh_options={"scouting/delay": 50})
+        opened.append(t)
+        return t
+
+    yield make
+    for t in opened:
+        t.close()
+
+
 def _started(run: RecipeRun, observer) -> list[int]:  # type: ignore[no-untyped-def]
     pids = run.wait_children(2)
     wait_for(lambda: _all_active(observer), timeout=30.0, what="both components active")
     return pids
 
-
+@pytest.mark.zenoh
 def test_components_run_in_their_own_processes_and_events_cross_them(tmp_path: Path, observer_factory) -> None:
     with recipe_run(tmp_path) as run:
         observer = observer_factory(run.port)
@@ -94,6 +107,7 @@ def test_components_run_in_their_own_processes_and_events_cross_them(tmp_path: P
         wait_for(lambda: "~~[" in _ask(observer, "again"), timeout=10.0, what="the new suffix from shout_b")
 
 
+@pytest.mark.zenoh
 def test_no_secret_in_any_child_cmdline_environ_or_log(tmp_path: Path, observer_factory) -> None:
     with recipe_run(tmp_path) as run:
         observer = observer_factory(run.port)
@@ -108,6 +122,7 @@ def test_no_secret_in_any_child_cmdline_environ_or_log(tmp_path: Path, observer_
     # test would see it if it leaked is in test_processes_spec.py.
 
 
+@pytest.mark.zenoh
 def test_crashed_child_respawns_and_its_token_vanishes_at_once(tmp_path: Path, observer_factory) -> None:
     shm_before = shm_files()
     with recipe_run(tmp_path) as run:
@@ -118,6 +133,8 @@ def test_crashed_child_respawns_and_its_token_vanishes_at_once(tmp_path: Path, o
         assert victim in pids
         gone = threading.Event()
         token_gone_at: list[float] = []
+        import zenoh  # noqa: PLC0415  # needs the zenoh extra
+
         session = observer._zenoh._session
 
         def on_token(sample) -> None:  # type: ignore[no-untyped-def]
@@ -150,6 +167,7 @@ def test_crashed_child_respawns_and_its_token_vanishes_at_once(tmp_path: Path, o
     assert wait_for(lambda: not leftover_segments(shm_before), timeout=5.0, what="no /dev/shm leftovers")
 
 
+@pytest.mark.zenoh
 def test_gives_up_after_max_retries_and_runs_on_giveup(tmp_path: Path, observer_factory) -> None:
     with recipe_run(tmp_path, retries=1) as run:
         observer = observer_factory(run.port)
@@ -166,6 +184,7 @@ def test_gives_up_after_max_retries_and_runs_on_giveup(tmp_path: Path, observer_
         assert _all_active(observer, ("shout_b",))
 
 
+@pytest.mark.zenoh
 @pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
 def test_signal_stops_every_child_in_order_and_cleanly(tmp_path: Path, observer_factory, signum: int) -> None:
     with recipe_run(tmp_path) as run:
@@ -181,6 +200,7 @@ def test_signal_stops_every_child_in_order_and_cleanly(tmp_path: Path, observer_
     # /dev/shm is checked in test_a_clean_stop_leaves_no_shared_memory, without an observer here.
 
 
+@pytest.mark.zenoh
 @pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
 def test_a_clean_stop_leaves_no_shared_memory(tmp_path: Path, signum: int) -> None:
     """The recipe's processes remove every segment they made.
@@ -189,6 +209,7 @@ def test_a_clean_stop_leaves_no_shared_memory(tmp_path: Path, signum: int) -> No
     with a peer can leave a segment of that process's own until it exits (seen with the observer
     of the other tests: the segment went away when pytest ended), which would be counted here.
     """
+    skip_unless_installed("zenoh")
     shm_before = shm_files()
     with recipe_run(tmp_path) as run:
         wait_for(lambda: "launched 2 component(s)" in run.log(), timeout=60.0, what="the recipe to launch")
@@ -201,6 +222,7 @@ def test_a_clean_stop_leaves_no_shared_memory(tmp_path: Path, signum: int) -> No
     assert wait_for(lambda: not leftover_segments(shm_before), timeout=5.0, what="no /dev/shm leftovers")
 
 
+@pytest.mark.zenoh
 def test_children_exit_by_themselves_when_the_launcher_is_killed(tmp_path: Path, observer_factory) -> None:
     shm_before = shm_files()
     with recipe_run(tmp_path) as run:
@@ -220,6 +242,7 @@ def test_children_exit_by_themselves_when_the_launcher_is_killed(tmp_path: Path,
         (Path("/dev/shm") / name).unlink(missing_ok=True)
 
 
+@pytest.mark.zenoh
 def test_config_file_sets_the_transport_and_component_sections(tmp_path: Path, observer_factory) -> None:
     from .helpers import free_tcp_port  # noqa: PLC0415
 
@@ -280,6 +303,7 @@ launcher.bringup()
 '''
 
 
+@pytest.mark.zenoh
 def test_a_recipe_without_main_guard_is_not_launched_again_in_its_component_process(
         tmp_path: Path, observer_factory) -> None:
     import subprocess  # noqa: PLC0415
@@ -313,3 +337,110 @@ def test_a_recipe_without_main_guard_is_not_launched_again_in_its_component_proc
             proc.kill()
             proc.wait(timeout=5.0)
         log.close()
+
+
+# --- ROS 2 ---------------------------------------------------------------------------------------
+
+
+@pytest.fixture
+def ros_env(monkeypatch: pytest.MonkeyPatch) -> dict[str, str]:
+    skip_unless_installed("ros2")
+    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    monkeypatch.setenv("ROS_DOMAIN_ID", str(DOMAIN))
+    return dict(os.environ)
+
+
+@pytest.fixture
+def graph(ros_env: dict[str, str]) -> Iterator[Any]:
+    import rclpy  # noqa: PLC0415
+    from rclpy.context import Context  # noqa: PLC0415
+    from rclpy.signals import SignalHandlerOptions  # noqa: PLC0415
+
+    import agents_ros2.conversions  # noqa: F401, PLC0415  # imports rosidl's parser with its warning silenced
+
+    context = Context()
+    rclpy.init(context=context, domain_id=DOMAIN, signal_handler_options=SignalHandlerOptions.NO)
+    node = rclpy.create_node("mp_graph_observer", context=context)
+    try:
+        yield node
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown(context=context)
+
+
+@pytest.fixture
+def observer(ros_env: dict[str, str]) -> Iterator[Any]:
+    from agents_ros2.transport import Ros2Transport  # noqa: PLC0415
+
+    transport = Ros2Transport(domain_id=DOMAIN)
+    try:
+        yield transport
+    finally:
+        transport.close()
+
+
+def _nodes(graph: Any) -> set[str]:
+    return {name for name, _ns in graph.get_node_names_and_namespaces()}
+
+
+def _active(observer: Any, name: str) -> bool:
+    try:
+        return _all_active(observer, (name,), timeout=1.0)
+    except Exception:  # the node is (re)appearing: its services are not matched yet
+        return False
+
+
+def _answer(observer: Any, text: str, timeout: float = 20.0) -> str:
+    return _ask(observer, text, timeout)
+
+
+@pytest.mark.ros2
+def test_ros2_components_in_processes_respawn_and_leave_the_graph(tmp_path: Path, ros_env: dict[str, str],
+                                                                   graph: Any, observer: Any) -> None:
+    with recipe_run(tmp_path, transport="ros2", env=ros_env) as run:
+        pids = run.wait_children(2, timeout=60.0)
+        wait_for(lambda: {"shout_a", "shout_b"} <= _nodes(graph), timeout=30.0, what="both nodes in the graph")
+        wait_for(lambda: _active(observer, "shout_a") and _active(observer, "shout_b"), timeout=30.0,
+                 what="both lifecycle nodes active")
+        first = _answer(observer, "ros")
+        for pid in (*pids, run.pid):
+            assert SECRET.encode() not in Path(f"/proc/{pid}/cmdline").read_bytes()
+            assert SECRET.encode() not in Path(f"/proc/{pid}/environ").read_bytes()
+        victim = int(first.split("[")[2].split("]")[0])
+        assert victim in pids
+        # Respawns are off for this check: the dead node must leave the graph (not be replaced).
+        os.kill(victim, signal.SIGKILL)
+        killed_at = time.monotonic()
+        wait_for(lambda: victim not in run.children() or not alive(victim), timeout=5.0, what="the victim gone")
+        wait_for(lambda: _active(observer, "shout_b") and victim not in run.children(), timeout=30.0,
+                 what="shout_b active again in a new process")
+        print(f"shout_b active again {time.monotonic() - killed_at:.2f} s after SIGKILL")
+        second = _answer(observer, "again")
+        assert int(second.split("[")[2].split("]")[0]) != victim
+        # Stop with the max_retries spent: give the launcher SIGTERM; every node leaves the graph.
+        run.proc.send_signal(signal.SIGTERM)
+        assert run.proc.wait(timeout=30.0) == 0
+        wait_for(lambda: "shout_a" not in _nodes(graph), timeout=15.0, what="shout_a gone from the graph",
+                 step=0.1)
+        # shout_b's SIGKILLed participant stays listed until Fast DDS's lease (20 s) after the kill.
+        wait_for(lambda: "shout_b" not in _nodes(graph), timeout=max(1.0, 35.0 - (time.monotonic() - killed_at)),
+                 what="shout_b gone from the graph", step=0.1)
+    assert SECRET not in run.log()
+
+
+@pytest.mark.ros2
+def test_ros2_node_of_a_crashed_child_leaves_the_graph_when_not_respawned(tmp_path: Path, ros_env: dict[str, str],
+                                                                          graph: Any, observer: Any) -> None:
+    with recipe_run(tmp_path, transport="ros2", retries=0, env=ros_env) as run:
+        run.wait_children(2, timeout=60.0)
+        wait_for(lambda: _active(observer, "shout_a") and _active(observer, "shout_b"), timeout=30.0,
+                 what="both lifecycle nodes active")
+        victim = int(_answer(observer, "bye").split("[")[2].split("]")[0])
+        os.kill(victim, signal.SIGKILL)
+        killed_at = time.monotonic()
+        wait_for(lambda: "GAVE_UP" in run.output(), timeout=10.0, what="the give-up with max_retries=0")
+        # Fast DDS drops a participant that vanished without saying goodbye after its lease.
+        wait_for(lambda: "shout_b" not in _nodes(graph), timeout=30.0, what="shout_b gone from the graph",
+                 step=0.1)
+        print(f"shout_b left the graph {time.monotonic() - killed_at:.2f} s after SIGKILL")
+        assert "shout_a" in _nodes(graph)
