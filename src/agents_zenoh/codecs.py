@@ -53,6 +53,7 @@ from agents_core import messages as m
 from agents_core.errors import TypeValidationError
 from agents_core.registry import NotRegisteredError, Registry
 from agents_core.supported_types import SupportedType, get_type, registered_types, shares_value_class
+from agents_core.types import is_builtin_type
 
 __all__ = [
     "DEFAULT_DECODE_LIMITS",
@@ -855,7 +856,6 @@ _TYPE_LIMITS: dict[str, DecodeLimits] = {
     "JointTrajectory": _TRAJECTORY_LIMITS,
 }
 # Every other built-in type (Header, StreamingString, Pose, Twist, Odometry, JointState, ...) is a fixed-shape message.
-_BUILTIN_MODULE = "agents_core.supported_types"
 
 
 class MissingCodecError(CodecError, NotRegisteredError):
@@ -875,7 +875,7 @@ def _limits_for(msg_type: type[SupportedType]) -> DecodeLimits:
     name = msg_type.type_name()
     if name in _TYPE_LIMITS:
         return _TYPE_LIMITS[name]
-    return _STRUCT_LIMITS if msg_type.__module__ == _BUILTIN_MODULE else DEFAULT_DECODE_LIMITS
+    return _STRUCT_LIMITS if is_builtin_type(msg_type) else DEFAULT_DECODE_LIMITS
 
 
 def _register_derived(msg_type: type[SupportedType]) -> Codec | None:
@@ -1021,7 +1021,7 @@ def schema_list(names: Iterable[str] | None = None) -> str:
 
 def builtin_schema_names() -> list[str]:
     """The schemas the wire-format document lists: Header and every framework type."""
-    return ["Header", *(n for n, t in registered_types().items() if t.__module__ == _BUILTIN_MODULE)]
+    return ["Header", *(n for n, t in registered_types().items() if is_builtin_type(t))]
 
 
 def update_schema_doc(path: str) -> bool:
@@ -1048,7 +1048,7 @@ _SCHEMA_LIST = re.compile(r"^- \*\*Header\*\*: `.*?\n(?:- \*\*\w+\*\*: `.*\n)*",
 def _init_builtin() -> None:
     _codecs.register("Header", attrs.evolve(_derived_struct(m.Header), limits=_STRUCT_LIMITS))
     for msg_type in registered_types().values():
-        if msg_type.__module__ == _BUILTIN_MODULE:
+        if is_builtin_type(msg_type):
             _register_derived(msg_type)
 
 
