@@ -28,7 +28,6 @@ from .fields import (
     to_array,
     wire,
 )
-from .geometry import _orientation
 
 __all__ = [
     "POINT_FIELD_DTYPES",
@@ -137,6 +136,10 @@ def _linear_acceleration_covariance(value: Any) -> npt.NDArray[np.float64]:
 
 def _position_covariance(value: Any) -> npt.NDArray[np.float64]:
     return _covariance_9(value, "position_covariance")
+
+
+def _orientation(value: Any) -> npt.NDArray[np.float64]:
+    return to_array(value, np.float64, (4,), "orientation")
 
 
 def _angular_velocity(value: Any) -> npt.NDArray[np.float64]:
