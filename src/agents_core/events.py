@@ -20,8 +20,8 @@ from typing import Any
 
 from .conditions import Condition
 from .errors import ConfigError
-from .messages import values_equal
 from .topics import Topic, validate_topic_name
+from .types.fields import values_equal
 
 __all__ = ["Event", "EventListener"]
 

@@ -16,7 +16,7 @@ from attrs import define, field
 from . import base_validators
 from .checked_attrs import CheckedFieldsMeta
 from .errors import ConfigError, TopicNameError, TypeValidationError
-from .supported_types import SupportedType, get_type
+from .types.base import SupportedType, get_type
 
 if TYPE_CHECKING:
     from .conditions import FieldRef

@@ -31,6 +31,7 @@ from std_msgs.msg import MultiArrayDimension
 from agents_core import messages as m
 from agents_core.errors import TypeValidationError
 from agents_core.supported_types import SupportedType, get_type, registered_types
+from agents_core.types import is_builtin_type
 from agents_ros2.conversions import from_ros, to_ros
 
 pytestmark = pytest.mark.ros2
@@ -43,8 +44,7 @@ BOUND_SLACK = 2 * 1024 * 1024
 _PROFILE = settings(deadline=None, derandomize=True, database=None, print_blob=True,
                     suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
 
-TYPES: dict[str, type[SupportedType]] = {n: t for n, t in registered_types().items()
-                                         if t.__module__ == "agents_core.supported_types"}
+TYPES: dict[str, type[SupportedType]] = {n: t for n, t in registered_types().items() if is_builtin_type(t)}
 TYPE_NAMES = sorted(TYPES)
 
 _INTS = {"uint8": (0, 2**8 - 1), "int8": (-(2**7), 2**7 - 1), "uint16": (0, 2**16 - 1), "int16": (-(2**15), 2**15 - 1),

@@ -22,6 +22,7 @@ from hypothesis.extra import numpy as hnp
 from agents_core.errors import AgentsError
 from agents_core.messages import values_equal
 from agents_core.supported_types import SupportedType, registered_types
+from agents_core.types import is_builtin_type
 
 pytest.importorskip("zenoh")
 
@@ -33,7 +34,7 @@ pytestmark = pytest.mark.zenoh
 def _builtin_types() -> dict[str, type[SupportedType]]:
     # Other tests register their own types in the process-wide registry; only the framework's own
     # types are promised a built-in codec.
-    return {n: t for n, t in registered_types().items() if t.__module__ == "agents_core.supported_types"}
+    return {n: t for n, t in registered_types().items() if is_builtin_type(t)}
 
 
 def _like(value: Any) -> st.SearchStrategy[Any]:

@@ -14,6 +14,7 @@ import msgpack
 
 from agents_core.messages import Header, ImageMsg, values_equal
 from agents_core.supported_types import SupportedType, get_type, registered_types
+from agents_core.types import is_builtin_type
 from agents_zenoh.codecs import (
     REUSE_ABOVE,
     CodecError,
@@ -35,7 +36,7 @@ pytestmark = pytest.mark.zenoh
 def _builtin_types() -> dict[str, type[SupportedType]]:
     # Other tests register their own types in the process-wide registry; only the framework's
     # own types are promised a built-in codec.
-    return {n: t for n, t in registered_types().items() if t.__module__ == "agents_core.supported_types"}
+    return {n: t for n, t in registered_types().items() if is_builtin_type(t)}
 
 
 @pytest.mark.parametrize("type_name", sorted(_builtin_types()))

@@ -36,6 +36,7 @@ from hypothesis import strategies as st
 from agents_core.messages import DetectionsMsg, ImageMsg, values_equal
 from agents_core.supported_types import SupportedType, get_type, registered_types
 from agents_core.topics import QoSConfig, Topic
+from agents_core.types import is_builtin_type
 from agents_zenoh.codecs import (
     DEFAULT_DECODE_LIMITS,
     CodecError,
@@ -65,7 +66,7 @@ def _builtin_types() -> dict[str, type[SupportedType]]:
     # Other tests register types of their own in the process-wide registry; these have codecs.
     schemas = describe_schemas()
     return {n: t for n, t in registered_types().items()
-            if t.__module__ == "agents_core.supported_types" and n in schemas}
+            if is_builtin_type(t) and n in schemas}
 
 
 TYPES = _builtin_types()

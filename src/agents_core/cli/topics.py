@@ -12,9 +12,9 @@ from typing import Annotated, Any
 import typer
 
 from ..errors import ConfigError, UnknownTypeError
-from ..supported_types import SupportedType, get_type
 from ..topics import Topic, validate_topic_name
 from ..transport.core import DriverTransport
+from ..types.base import SupportedType, get_type
 from .connection import discovery_timeout, one_line_errors, open_transport
 from .output import console, print_json, print_table
 from .values import parse_value, summarize

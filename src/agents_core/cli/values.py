@@ -16,7 +16,7 @@ import attrs
 import numpy as np
 
 from ..errors import ConfigError
-from ..supported_types import SupportedType
+from ..types.base import SupportedType
 
 __all__ = ["parse_call_argument", "parse_value", "summarize"]
 

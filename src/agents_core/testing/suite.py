@@ -23,11 +23,11 @@ from agents_core.errors import (
     TransportClosedError,
     TypeValidationError,
 )
-from agents_core.messages import values_equal
 from agents_core.status import HealthStatus, LifecycleState
-from agents_core.supported_types import registered_types
 from agents_core.topics import QoSConfig, Topic
 from agents_core.transport import Transport
+from agents_core.types.base import registered_types
+from agents_core.types.fields import values_equal
 
 from .goals_suite import (  # noqa: F401 - collected as part of this suite
     test_goal_a_raising_execute_aborts_with_its_message,

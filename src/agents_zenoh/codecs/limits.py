@@ -16,13 +16,14 @@ from typing import TYPE_CHECKING, Any
 import attrs
 from attrs import define, field
 
+from agents_core.types import is_builtin_type
+
 from .errors import CodecError
 
 if TYPE_CHECKING:
     from agents_core.supported_types import SupportedType
 
 __all__ = [
-    "BUILTIN_MODULE",
     "DEFAULT_DECODE_LIMITS",
     "MAX_DIM",
     "MAX_NDIM",
@@ -159,7 +160,6 @@ _TYPE_LIMITS: dict[str, DecodeLimits] = {
     "JointTrajectory": _TRAJECTORY_LIMITS,
 }
 #: The module of the framework's own message types (each has limits fitted to its schema).
-BUILTIN_MODULE = "agents_core.supported_types"
 
 
 def limits_for(msg_type: type[SupportedType]) -> DecodeLimits:
@@ -168,7 +168,7 @@ def limits_for(msg_type: type[SupportedType]) -> DecodeLimits:
     if name in _TYPE_LIMITS:
         return _TYPE_LIMITS[name]
     # Every other built-in type (Header, StreamingString, Pose, Twist, Odometry, ...) is a fixed-shape message.
-    return STRUCT_LIMITS if msg_type.__module__ == BUILTIN_MODULE else DEFAULT_DECODE_LIMITS
+    return STRUCT_LIMITS if is_builtin_type(msg_type) else DEFAULT_DECODE_LIMITS
 
 
 def counting_hooks(limits: DecodeLimits, size: int, resolve: Callable[[dict[Any, Any]], Any]) -> dict[str, Any]:

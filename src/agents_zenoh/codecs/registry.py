@@ -20,11 +20,12 @@ import attrs
 from agents_core import messages as m
 from agents_core.registry import NotRegisteredError, Registry
 from agents_core.supported_types import SupportedType, get_type, registered_types, shares_value_class
+from agents_core.types import is_builtin_type
 
 from .derivation import Codec, list_codec, struct_codec, value_class_codec
 from .errors import CodecError
 from .framing import pack, unpack
-from .limits import BUILTIN_MODULE, DEFAULT_DECODE_LIMITS, STRUCT_LIMITS, DecodeLimits, limits_for
+from .limits import DEFAULT_DECODE_LIMITS, STRUCT_LIMITS, DecodeLimits, limits_for
 from .ros_messages import ros_codec
 
 __all__ = [
@@ -203,7 +204,7 @@ def registered_codecs() -> dict[str, Codec]:
 def _init_builtin() -> None:
     _codecs.register("Header", attrs.evolve(struct_codec(m.Header), limits=STRUCT_LIMITS))
     for msg_type in registered_types().values():
-        if msg_type.__module__ == BUILTIN_MODULE:
+        if is_builtin_type(msg_type):
             _register_derived(msg_type)
 
 

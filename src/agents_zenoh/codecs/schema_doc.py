@@ -12,9 +12,9 @@ import re
 from collections.abc import Iterable
 
 from agents_core.supported_types import registered_types
+from agents_core.types import is_builtin_type
 
 from .errors import CodecError
-from .limits import BUILTIN_MODULE
 from .registry import codec_for, registered_codecs
 
 __all__ = ["builtin_schema_names", "describe_schemas", "schema_list", "update_schema_doc"]
@@ -43,7 +43,7 @@ def schema_list(names: Iterable[str] | None = None) -> str:
 
 def builtin_schema_names() -> list[str]:
     """The schemas the wire-format document lists: Header and every framework type."""
-    return ["Header", *(n for n, t in registered_types().items() if t.__module__ == BUILTIN_MODULE)]
+    return ["Header", *(n for n, t in registered_types().items() if is_builtin_type(t))]
 
 
 def update_schema_doc(path: str) -> bool:
