@@ -393,15 +393,16 @@ def test_an_action_server_needs_a_transport_with_actions() -> None:
         def _server_capable(cls) -> bool:
             return True
 
-    from agents_core.transport.contract import TransportCapabilities  # noqa: PLC0415
     from agents_core.transport.core import DriverTransport  # noqa: PLC0415
+    from agents_core.transport.driver import DriverBase  # noqa: PLC0415
     from agents_core.transport.memory import MemoryDriver  # noqa: PLC0415
 
     class NoGoalsDriver(MemoryDriver):
-        """A driver without the goal primitives (as a third party's may be)."""
+        """A driver without the goal primitives (as a third party's may be): the base's defaults."""
 
         name = "nogoals"
-        capabilities = TransportCapabilities(cross_process=False, actions=False)
+        serve_goals = DriverBase.serve_goals
+        send_goal = DriverBase.send_goal
 
     server = Server(trigger=None, run_type="ActionServer", component_name="mover")
     transport = DriverTransport(NoGoalsDriver())

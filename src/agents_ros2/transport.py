@@ -72,9 +72,16 @@ from agents_core.errors import (
 from agents_core.messages import ComponentStatusMsg
 from agents_core.supported_types import ComponentStatus
 from agents_core.topics import Topic
-from agents_core.transport.contract import ServiceHandler, TransitionHandler, TransportCapabilities
 from agents_core.transport.core import DriverTransport
-from agents_core.transport.driver import GoalEvents, GoalServerHooks, Lane, Sink
+from agents_core.transport.driver import (
+    DriverBase,
+    GoalEvents,
+    GoalServerHooks,
+    Lane,
+    ServiceHandler,
+    Sink,
+    TransitionHandler,
+)
 from agents_core.transport.goals import ActionType
 from agents_core.transport.graph import Graph
 
@@ -217,12 +224,13 @@ class _Ros2Service:
             _destroy(self._node.destroy_service, self._service, f"the service {self.name!r}")
 
 
-class Ros2Driver:
+class Ros2Driver(DriverBase):
     """The rclpy primitives under :class:`Ros2Transport` (options: see :class:`Ros2Transport`)."""
 
     name = "ros2"
-    # On the class, like the other drivers': what the driver offers is known before it is opened.
-    capabilities = TransportCapabilities(cross_process=True, actions=True)
+    cross_process = True
+    # DDS takes up to ~2 s to show a new participant the graph.
+    discovery_settle_s = 4.0
 
     def __init__(self, *, domain_id: int | None = None, shared_memory: bool | None = None,
                  executor: ExecutorKind = "single", reader_depth_floor: int = READER_DEPTH_FLOOR,
@@ -408,10 +416,8 @@ class Ros2Driver:
             self._status_watches[name] = self.node.create_subscription(
                 conversion.ros_type, absolute_name(f"{name}/status"), on_status, STATUS_QOS)
 
-    def observe(self, name: str, transition: str | None, timeout: float) -> ComponentStatusMsg | bool | None:
-        """State via ``get_state`` and ``<name>/status``; a transition via ``change_state``."""
-        if transition is not None:
-            return self._request_transition(name, transition, timeout)
+    def read_state(self, name: str, timeout: float) -> ComponentStatusMsg | None:
+        """The lifecycle state via ``get_state``, the health from ``<name>/status``."""
         deadline = time.monotonic() + timeout
         self._watch_status(name)
         client = self._client(GetState, absolute_name(f"{name}/get_state"))
@@ -432,7 +438,8 @@ class Ros2Driver:
         return ComponentStatusMsg(component=name, lifecycle_state=state, health=status.health,
                                   message=status.message, header=status.header)
 
-    def _request_transition(self, name: str, transition: str, timeout: float) -> bool:
+    def request_transition(self, name: str, transition: str, timeout: float) -> bool:
+        """The transition via the lifecycle node's ``change_state`` service."""
         deadline = time.monotonic() + timeout
         client = self._client(ChangeState, absolute_name(f"{name}/change_state"))
         if not self._wait_for_server(client, deadline):
@@ -473,7 +480,9 @@ class Ros2Driver:
 
 
 class Ros2Transport(DriverTransport):
-    """A transport on ROS 2 (rclpy, Fast DDS). See the module docstring for what maps to what.
+    """A transport on ROS 2 (rclpy, Fast DDS): a :class:`DriverTransport` around a :class:`Ros2Driver`.
+
+    See the module docstring for what maps to what.
 
     :param domain_id: ROS domain id; None reads ``ROS_DOMAIN_ID`` (default 0).
     :param shared_memory: use the 16 MB Fast DDS shared-memory profile for large messages between
@@ -492,34 +501,15 @@ class Ros2Transport(DriverTransport):
     :param node_name: name of the transport's own node (default ``agents_<pid>_<n>``).
     """
 
+    driver: Ros2Driver
+
     def __init__(self, *, domain_id: int | None = None, shared_memory: bool | None = None,
                  executor: ExecutorKind = "single", executor_threads: int = 4,
                  reader_depth_floor: int = READER_DEPTH_FLOOR, first_publish_wait: float = 0.5,
                  node_name: str | None = None) -> None:
         if isinstance(executor_threads, bool) or not isinstance(executor_threads, int) or executor_threads < 1:
             raise ConfigError(f"executor_threads must be an int of at least 1, got {executor_threads!r}")
-        self._ros = Ros2Driver(domain_id=domain_id, shared_memory=shared_memory, executor=executor,
-                               reader_depth_floor=reader_depth_floor, first_publish_wait=first_publish_wait,
-                               node_name=node_name)
-        super().__init__(self._ros, request_workers=executor_threads)
-
-    @property
-    def _node(self) -> Node:
-        """The transport's own node (publishers, subscriptions and services of no component)."""
-        return self._ros.node
-
-    def __enter__(self) -> Ros2Transport:
-        return self
-
-    def __repr__(self) -> str:
-        return f"<Ros2Transport node={self._ros.node.get_name()!r} closed={self._closed}>"
-
-
-if TYPE_CHECKING:
-    from agents_core.transport.contract import Transport
-    from agents_core.transport.driver import DiscoveringDriver, TransportDriver
-
-    # mypy checks here that the classes satisfy their protocols.
-    _driver: TransportDriver = Ros2Driver()
-    _discovering: DiscoveringDriver = Ros2Driver()
-    _conforms: Transport = Ros2Transport()
+        driver = Ros2Driver(domain_id=domain_id, shared_memory=shared_memory, executor=executor,
+                             reader_depth_floor=reader_depth_floor, first_publish_wait=first_publish_wait,
+                             node_name=node_name)
+        super().__init__(driver, request_workers=executor_threads)

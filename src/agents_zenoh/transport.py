@@ -34,7 +34,7 @@ from __future__ import annotations
 import logging
 import os
 import time
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import attrs
 import zenoh
@@ -48,9 +48,16 @@ from agents_core.errors import (
 from agents_core.messages import ComponentStatusMsg
 from agents_core.supported_types import ComponentStatus
 from agents_core.topics import Topic
-from agents_core.transport.contract import ServiceHandler, TransitionHandler, TransportCapabilities
 from agents_core.transport.core import DriverTransport
-from agents_core.transport.driver import GoalEvents, GoalServerHooks, Lane, Sink
+from agents_core.transport.driver import (
+    DriverBase,
+    GoalEvents,
+    GoalServerHooks,
+    Lane,
+    ServiceHandler,
+    Sink,
+    TransitionHandler,
+)
 from agents_core.transport.goals import ActionType
 from agents_core.transport.graph import Graph
 from agents_core.transport.requests import with_caller_timeout
@@ -75,11 +82,11 @@ _CONTROL_PRIORITY = CONTROL_PRIORITY
 # -- the transport ------------------------------------------------------------------------------
 
 
-class ZenohDriver:
+class ZenohDriver(DriverBase):
     """The Zenoh primitives under :class:`ZenohTransport` (see the module docstring)."""
 
     name = "zenoh"
-    capabilities = TransportCapabilities(cross_process=True, actions=True)
+    cross_process = True
 
     def __init__(self, config: ZenohConfig) -> None:
         self.config = config
@@ -151,11 +158,12 @@ class ZenohDriver:
         self._key(name, "component")
         return ZenohPresence(self.context, name, on_transition, lane)
 
-    def observe(self, name: str, transition: str | None, timeout: float) -> ComponentStatusMsg | bool | None:
-        if transition is not None:
-            answer = self._query(transition_key(self.config.namespace, name), f"{name!r} lifecycle",
-                                 pack(with_caller_timeout({"transition": transition}, timeout)), timeout)
-            return bool(answer.get("ok"))
+    def request_transition(self, name: str, transition: str, timeout: float) -> bool:
+        answer = self._query(transition_key(self.config.namespace, name), f"{name!r} lifecycle",
+                             pack(with_caller_timeout({"transition": transition}, timeout)), timeout)
+        return bool(answer.get("ok"))
+
+    def read_state(self, name: str, timeout: float) -> ComponentStatusMsg | None:
         key = state_key(self.config.namespace, name)
         try:
             for reply in self._session.get(key, timeout=timeout, consolidation=zenoh.ConsolidationMode.NONE,
@@ -177,6 +185,23 @@ class ZenohDriver:
         """Topics and components from the liveliness tokens of every reachable session (:mod:`agents_zenoh.graph`)."""
         self._check_open("discover the graph")
         return discover_graph(self._session, self.config.namespace, timeout)
+
+    def peer_process_options(self) -> dict[str, Any]:
+        """ZenohTransport options reaching this session from another process (``multiprocessing=True``).
+
+        A peer listening on fixed endpoints is joined by connecting to them (each child listens
+        on its own OS-chosen loopback port, so that Zenoh's gossip links the children to each
+        other); a client, a config file or the loopback rendezvous are reused as they are.
+        """
+        options = attrs.asdict(self.config, recurse=False)
+        listen = self.config.listen or []
+        if self.config.mode in (None, "peer", "router") and self.config.config_file is None and listen:
+            fixed = [ep for ep in listen if not ep.endswith(":0")]
+            if not fixed:
+                raise ConfigError("multiprocessing on zenoh needs this process to listen on a fixed port "
+                                  f"(listen={listen}); give one, or leave listen/connect unset for the rendezvous")
+            options.update(mode="peer", listen=["tcp/127.0.0.1:0"], connect=[*fixed, *(self.config.connect or [])])
+        return options
 
     def close(self) -> None:
         """Close the session (the core has closed every publisher, subscriber and queryable)."""
@@ -227,12 +252,14 @@ def options_from_environment() -> dict[str, Any]:
 
 
 class ZenohTransport(DriverTransport):
-    """The core's transport on one Zenoh session (see the module docstring).
+    """The core's transport on one Zenoh session: a :class:`DriverTransport` around a :class:`ZenohDriver`.
 
     :param config: a :class:`ZenohConfig`; or pass its fields as keyword options instead
         (what ``Launcher(transport="zenoh", transport_options={...})`` does). With options, the
         ones not given are read from the environment (:func:`options_from_environment`).
     """
+
+    driver: ZenohDriver
 
     def __init__(self, config: ZenohConfig | None = None, **options: Any) -> None:
         if config is None:
@@ -242,44 +269,13 @@ class ZenohTransport(DriverTransport):
             raise ConfigError("pass either config=ZenohConfig(...) or its fields as options, not both")
         elif not isinstance(config, ZenohConfig):
             raise ConfigError(f"config must be a ZenohConfig, got {type(config).__name__}")
-        self.config = config
-        self._zenoh = ZenohDriver(config)
-        super().__init__(self._zenoh, request_workers=config.request_workers)
+        super().__init__(ZenohDriver(config), request_workers=config.request_workers)
+
+    @property
+    def config(self) -> ZenohConfig:
+        """The options of the session."""
+        return self.driver.config
 
     def key_expr(self, topic: Topic | str) -> str:
         """The key expression that carries ``topic`` (a Topic or a topic / service name)."""
-        return self._zenoh.context.key(topic.name if isinstance(topic, Topic) else topic)
-
-    def peer_process_options(self) -> dict[str, Any]:
-        """Options that open, in another process, a transport reaching this one (``multiprocessing=True``).
-
-        A peer listening on fixed endpoints is joined by connecting to them (each child listens
-        on its own OS-chosen loopback port, so that Zenoh's gossip links the children to each
-        other); a client, a config file or the loopback rendezvous are reused as they are.
-        """
-        options = attrs.asdict(self.config, recurse=False)
-        listen = self.config.listen or []
-        if self.config.mode in (None, "peer", "router") and self.config.config_file is None and listen:
-            fixed = [ep for ep in listen if not ep.endswith(":0")]
-            if not fixed:
-                raise ConfigError("multiprocessing on zenoh needs this process to listen on a fixed port "
-                                  f"(listen={listen}); give one, or leave listen/connect unset for the rendezvous")
-            options.update(mode="peer", listen=["tcp/127.0.0.1:0"], connect=[*fixed, *(self.config.connect or [])])
-        return options
-
-    def __enter__(self) -> ZenohTransport:
-        return self
-
-    def __repr__(self) -> str:
-        return (f"<ZenohTransport mode={self.config.mode or 'peer'} namespace={self.config.namespace!r} "
-                f"closed={self._closed}>")
-
-
-if TYPE_CHECKING:
-    from agents_core.transport.contract import Transport
-    from agents_core.transport.driver import DiscoveringDriver, TransportDriver
-
-    # mypy checks here that the classes satisfy their protocols.
-    _driver: TransportDriver = ZenohDriver(ZenohConfig())
-    _discovering: DiscoveringDriver = ZenohDriver(ZenohConfig())
-    _conforms: Transport = ZenohTransport()
+        return self.driver.context.key(topic.name if isinstance(topic, Topic) else topic)

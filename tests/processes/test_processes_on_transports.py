@@ -135,7 +135,7 @@ def test_crashed_child_respawns_and_its_token_vanishes_at_once(tmp_path: Path, o
         token_gone_at: list[float] = []
         import zenoh  # noqa: PLC0415  # needs the zenoh extra
 
-        session = observer._zenoh._session
+        session = observer.driver._session
 
         def on_token(sample) -> None:  # type: ignore[no-untyped-def]
             if sample.kind == zenoh.SampleKind.DELETE and str(sample.key_expr).endswith("/shout_b"):

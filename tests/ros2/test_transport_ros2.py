@@ -96,7 +96,7 @@ def test_a_components_own_status_publisher_shares_the_status_stream(
 
     assert wait_for(seen, timeout=10.0, interval=0.1)
     # One writer on the status topic: the presence's, shared with the component's publisher.
-    assert a._node.count_publishers(f"/camera_driver{SUFFIX}/status") == 1
+    assert a.driver.node.count_publishers(f"/camera_driver{SUFFIX}/status") == 1
     own.close()
     presence.close()
 

@@ -13,7 +13,6 @@ import typer
 
 from ..errors import AgentsError, ConfigError
 from ..transport.contract import Transport
-from ..transport.core import DriverTransport
 from ..transport.registry import TRANSPORT_ENV_VAR, resolve_transport
 
 __all__ = ["DEFAULT_TRANSPORT", "discovery_timeout", "fail", "one_line_errors", "open_transport", "transport_default"]
@@ -48,13 +47,9 @@ def one_line_errors(func: F) -> F:
     return wrapper  # type: ignore[return-value]
 
 
-#: How long discovery may wait by default: DDS takes up to ~2 s to show a new participant the graph.
-DISCOVERY_TIMEOUTS = {"ros2": 4.0}
-
-
-def discovery_timeout(transport: DriverTransport, given: float | None) -> float:
-    """``given``, else the transport's default discovery wait (1 s, more on ROS 2)."""
-    return given if given is not None else DISCOVERY_TIMEOUTS.get(transport.name, 1.0)
+def discovery_timeout(transport: Transport, given: float | None) -> float:
+    """``given``, else the transport's default discovery wait (``capabilities.discovery_settle_s``)."""
+    return given if given is not None else transport.capabilities.discovery_settle_s
 
 
 def zenoh_options(connect: list[str] | None) -> dict[str, Any]:
@@ -66,7 +61,7 @@ def zenoh_options(connect: list[str] | None) -> dict[str, Any]:
 
 
 @contextlib.contextmanager
-def open_transport(name: str | None, connect: list[str] | None = None) -> Iterator[DriverTransport]:
+def open_transport(name: str | None, connect: list[str] | None = None) -> Iterator[Transport]:
     """Open transport ``name`` (None: :func:`transport_default`) as an observer of other processes' graph."""
     name = (name or transport_default()).strip().lower()
     if name == "memory":
@@ -74,10 +69,8 @@ def open_transport(name: str | None, connect: list[str] | None = None) -> Iterat
                           "outside; use --transport zenoh or --transport ros2")
     if connect and name != "zenoh":
         raise ConfigError(f"--connect is a Zenoh option; the {name} transport does not take it")
-    transport: Transport = resolve_transport(name, **(zenoh_options(connect) if name == "zenoh" else {}))
+    transport = resolve_transport(name, **(zenoh_options(connect) if name == "zenoh" else {}))
     try:
-        if not isinstance(transport, DriverTransport):
-            raise ConfigError(f"the {name} transport cannot be inspected by the CLI (it is not a DriverTransport)")
         yield transport
     finally:
         transport.close()

@@ -254,9 +254,8 @@ class Launcher:
 
         transport = self.transport
         # A transport may say how another process reaches it (Zenoh: connect to this session's
-        # listening endpoints); by default a child opens it with the same options.
-        peer_options = getattr(transport, "peer_process_options", None)
-        options = peer_options() if callable(peer_options) else dict(self._transport_options)
+        # listening endpoints); by default ({}) a child opens it with the same options.
+        options = transport.peer_process_options() or dict(self._transport_options)
         specs = []
         for c in self.components:
             spec = ComponentSpec.from_component(c, transport.name, options, os.getpid())

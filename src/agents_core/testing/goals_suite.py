@@ -212,11 +212,15 @@ def test_goal_several_goals_run_at_once(transport_pair: tuple[Transport, Transpo
 def test_goal_unsupported_transport_says_so() -> None:
     """A driver without the goal primitives keeps actions off, and the transport says so clearly."""
     from agents_core.transport.core import DriverTransport  # noqa: PLC0415
+    from agents_core.transport.driver import DriverBase  # noqa: PLC0415
     from agents_core.transport.memory import MemoryDriver  # noqa: PLC0415
 
     class NoGoals(MemoryDriver):
-        capabilities = MemoryDriver.capabilities.__class__(cross_process=False, actions=False)
+        # Back to the base's defaults: no long-running goals (the narrower memory types do not apply).
+        serve_goals = DriverBase.serve_goals  # type: ignore[assignment]
+        send_goal = DriverBase.send_goal  # type: ignore[assignment]
 
+    assert not NoGoals.capabilities.actions
     transport = DriverTransport(NoGoals())
     try:
         with pytest.raises(TransportError, match="no long-running goals"):

@@ -1,4 +1,4 @@
-"""Transports: the contract every middleware adapter implements, the in-memory one, lookup by name, goals."""
+"""Transports: the one transport on a middleware driver, the driver contract, the in-memory one, lookup, goals."""
 
 from __future__ import annotations
 
@@ -14,7 +14,9 @@ from .contract import (
     Transport,
     TransportCapabilities,
 )
+from .core import DriverTransport
 from .delivery import BoundedDelivery, SubscriptionStatistics
+from .driver import DriverBase, TransportDriver
 from .goals import ActionType, FieldSpec, GoalClient, GoalHandle, GoalStatus, register_action_type
 from .graph import Graph, TopicInfo, describe_component
 from .memory import MemoryTransport, TopicStatistics
@@ -27,6 +29,8 @@ __all__ = [
     "ActionType",
     "BoundedDelivery",
     "ComponentPresence",
+    "DriverBase",
+    "DriverTransport",
     "FieldSpec",
     "GoalClient",
     "GoalHandle",
@@ -44,6 +48,7 @@ __all__ = [
     "TransitionHandler",
     "Transport",
     "TransportCapabilities",
+    "TransportDriver",
     "available_transports",
     "describe_component",
     "register_action_type",

@@ -1,42 +1,23 @@
-"""The transport contract: what every transport offers its users (components, recipes, tests).
+"""The transport contract as its users see it: ``Transport`` and the handles it returns.
 
-Triggers, scheduling, events, fallbacks, validation and retries live once in the core. A
-middleware adapter implements only the small driver contract in
-:mod:`agents_core.transport.driver`; :class:`~agents_core.transport.core.DriverTransport` turns
-any driver into a :class:`Transport`, which promises:
-
-1. publishers for a :class:`~agents_core.topics.Topic` (values validated with the topic's type,
-   then encoded with the adapter's conversion for that type);
-2. subscriptions that decode into the core value and hand it to a
-   :class:`~agents_core.transport.delivery.BoundedDelivery`, which applies the shared queue
-   policy (depth from the topic's QoS, drop oldest, counted) and calls back on its own thread,
-   so a slow or raising callback never stalls the middleware;
-3. request/reply by service name, with JSON-like payloads (dicts of str, int, float, bool,
-   None, lists and dicts) and a timeout that always fires;
-4. component presence: a component declared here is visible to the middleware's users with its
-   lifecycle state and health, and may be driven through ``on_transition``;
-5. ``close()``, after which every call raises :class:`~agents_core.errors.TransportClosedError`;
-6. per-topic ``statistics()`` (published, delivered, dropped, callback errors, discarded,
-   decode errors), so that no value is ever lost uncounted;
-7. where ``capabilities.actions`` is True, long-running goals: ``create_action_server`` and
-   ``send_goal`` (:mod:`agents_core.transport.goals`); elsewhere both raise
-   :class:`~agents_core.errors.TransportError`.
-
-What a transport can do beyond that is data (:class:`TransportCapabilities`), not subclassing.
+:class:`Transport` is :class:`~agents_core.transport.core.DriverTransport`, the one transport
+(every middleware is a driver under it). What each primitive promises is specified once, on
+:class:`~agents_core.transport.driver.TransportDriver`; what the core adds (validation, the closed
+state, statistics, request lanes, status topics, delivery) is listed in
+:mod:`agents_core.transport.core`. The protocols below name the handles a transport returns, for
+annotations; what a transport offers beyond the required primitives is data
+(:class:`TransportCapabilities`).
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from typing import Any, Protocol, runtime_checkable
 
-from attrs import define
-
-from ..messages import ComponentStatusMsg
 from ..status import HealthStatus, LifecycleState
 from ..topics import Topic
-from .delivery import SubscriptionStatistics, TopicStatistics
-from .goals import ActionType, GoalClient, GoalHandle
+from .core import DriverTransport
+from .delivery import SubscriptionStatistics
+from .driver import ServiceHandler, SubscriptionCallback, TransitionHandler, TransportCapabilities
 
 __all__ = [
     "ActionServer",
@@ -51,22 +32,8 @@ __all__ = [
     "TransportCapabilities",
 ]
 
-#: Called with each received value (already decoded and validated).
-SubscriptionCallback = Callable[[Any], None]
-#: Serves one request: JSON-like dict in, JSON-like dict out. Raising sends the error back.
-ServiceHandler = Callable[[dict[str, Any]], dict[str, Any]]
-#: Asked to run a lifecycle transition ("configure", "activate", ...); returns success.
-TransitionHandler = Callable[[str], bool]
-
-
-@define(frozen=True, kw_only=True)
-class TransportCapabilities:
-    """What a transport offers beyond the contract, as data the core decides on (never its name)."""
-
-    #: Components may live in different processes (read by the Launcher for ``multiprocessing``).
-    cross_process: bool
-    #: Long-running goals with feedback (read by components that run as action servers).
-    actions: bool = False
+#: The transport: every one is a :class:`~agents_core.transport.core.DriverTransport` around a driver.
+Transport = DriverTransport
 
 
 @runtime_checkable
@@ -137,86 +104,4 @@ class ComponentPresence(Protocol):
 
     def close(self) -> None:
         """Withdraw the component (it disappears for observers); idempotent."""
-        ...
-
-
-@runtime_checkable
-class Transport(Protocol):
-    """A middleware adapter. See the module docstring for the promises an implementer makes."""
-
-    #: The name it is resolved by ("memory", "zenoh", "ros2", or a third party's).
-    name: str
-    capabilities: TransportCapabilities
-
-    def create_publisher(self, topic: Topic, *, owner: str | None = None) -> Publisher:
-        """A publisher for ``topic``. ``owner`` names a declared component it belongs to, if any."""
-        ...
-
-    def create_subscription(
-        self, topic: Topic, callback: SubscriptionCallback, *, owner: str | None = None, inline: bool = False
-    ) -> Subscription:
-        """Call ``callback(value)`` for each value received on ``topic``.
-
-        By default off the publisher's and the middleware's threads, on a bounded delivery
-        thread; ``inline=True`` calls it on the middleware's thread, for callbacks that return
-        at once (the core's component inputs, which only enqueue a step).
-        """
-        ...
-
-    def create_service(self, name: str, handler: ServiceHandler, *, owner: str | None = None) -> ServiceServer:
-        """Serve requests on ``name`` (a topic-like name) with ``handler``."""
-        ...
-
-    def statistics(self, topic_name: str | None = None) -> dict[str, TopicStatistics]:
-        """Per-topic counters of this transport instance (every topic, or ``topic_name`` only).
-
-        ``published`` counts values sent from here; the other counters sum over the local
-        subscriptions of the topic, so that each value received ends in exactly one of
-        delivered, dropped, callback_errors or discarded, and a payload that does not decode is
-        counted in decode_errors.
-        """
-        ...
-
-    def request(self, name: str, payload: dict[str, Any], *, timeout: float = 5.0) -> dict[str, Any]:
-        """Send ``payload`` to the service ``name`` and wait for its reply.
-
-        ``timeout`` must be a finite number of seconds > 0 (else ConfigError); the handler of a
-        request still queued when the caller's timeout expires is never run (see
-        :mod:`agents_core.transport.requests`). Raises
-        :class:`~agents_core.errors.RequestTimeoutError` after ``timeout`` seconds,
-        :class:`~agents_core.errors.ServiceUnavailableError` when nobody serves ``name``, and
-        :class:`~agents_core.errors.RemoteError` with the handler's message when it raised.
-        """
-        ...
-
-    def declare_component(self, name: str, *, on_transition: TransitionHandler,
-                          pending: Callable[[], int] | None = None) -> ComponentPresence:
-        """Make the component ``name`` visible; ``on_transition`` runs transitions asked from outside.
-
-        Its status topic ``<name>/status`` is the transport's: :meth:`ComponentPresence.update`
-        publishes there. ``pending`` reports the component's queued and running work.
-        """
-        ...
-
-    def get_component_state(self, name: str, *, timeout: float = 2.0) -> ComponentStatusMsg | None:
-        """Read a component's lifecycle state and health as an observer would; None if not present."""
-        ...
-
-    def create_action_server(self, name: str, action_type_name: str | ActionType,
-                             execute: Callable[[GoalHandle], dict[str, Any]], *, owner: str | None = None,
-                             accept: Callable[[dict[str, Any]], bool] | None = None) -> ActionServer:
-        """Serve goals on ``name``; each accepted goal runs ``execute(handle)`` on a thread of its own."""
-        ...
-
-    def send_goal(self, name: str, action_type_name: str | ActionType, goal: dict[str, Any], *,
-                  feedback: Callable[[dict[str, Any]], None] | None = None, timeout: float = 5.0) -> GoalClient:
-        """Send a goal to the action ``name``; returns once it is accepted or rejected."""
-        ...
-
-    def request_transition(self, name: str, transition: str, *, timeout: float = 5.0) -> bool:
-        """Ask the component ``name`` to run a lifecycle transition, as an outside tool would."""
-        ...
-
-    def close(self) -> None:
-        """Release every publisher, subscription, service and presence; idempotent."""
         ...

@@ -1,25 +1,27 @@
-"""``DriverTransport``: the public transport surface on top of any driver, with the bookkeeping once.
+"""``DriverTransport``: the one transport (the public surface on top of any driver), with the bookkeeping once.
 
 Every transport (memory, Zenoh, ROS 2, a third party's) is a :class:`DriverTransport` around a
-:class:`~agents_core.transport.driver.TransportDriver`. What lives here and nowhere else:
+driver; what each driver primitive promises is specified in
+:class:`~agents_core.transport.driver.TransportDriver` only. What lives here and nowhere else:
 
 - the closed state (every call after :meth:`~DriverTransport.close` raises
   :class:`~agents_core.errors.TransportClosedError`), names checked, duplicate services and
   components refused, and **one type per topic** within a transport instance;
 - values validated against the topic's type before a driver sends them;
-- per-topic statistics (:class:`~agents_core.transport.delivery.TopicStatistics`);
+- per-topic statistics (:class:`~agents_core.transport.delivery.TopicStatistics`): every value
+  received ends delivered, dropped, a callback error or discarded, and a payload that does not
+  decode is counted in decode_errors, so no value is ever lost uncounted;
 - how a received value reaches its callback: a bounded delivery thread for user callbacks, or
   ``inline=True`` for component inputs, where the value goes straight to the component's worker
   from the middleware's thread (one hand-off per hop);
 - the request lanes (one per component) and the caller's deadline
   (:mod:`agents_core.transport.requests`), for services and for transitions asked from outside;
-- each component's status topic ``<name>/status``: :meth:`ComponentPresence.update` is the one
+- each component's status topic ``<name>/status``: :meth:`CorePresence.update` is the one
   path by which a component's state reaches the driver and the topic;
-- graph discovery (:meth:`~DriverTransport.discover`), where the driver has the optional primitive.
-- long-running goals (:meth:`DriverTransport.create_action_server`,
-  :meth:`DriverTransport.send_goal`) on drivers that implement
-  :class:`~agents_core.transport.driver.ActionDriver`: the bookkeeping is in
-  :mod:`agents_core.transport.goal_serving`.
+- the capabilities, derived from the driver
+  (:func:`~agents_core.transport.driver.capabilities_of`): graph discovery and long-running goals
+  (bookkeeping in :mod:`agents_core.transport.goal_serving`) raise
+  :class:`~agents_core.errors.TransportError` where the driver lacks them.
 """
 
 from __future__ import annotations
@@ -28,30 +30,36 @@ import logging
 import threading
 import time
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from ..errors import TransportClosedError, TransportError, WiringError
+from ..errors import TransportClosedError, WiringError
 from ..messages import ComponentStatusMsg
 from ..status import HealthStatus, LifecycleState
 from ..supported_types import ComponentStatus
 from ..topics import QoSConfig, Topic, validate_topic_name
-from .contract import ServiceHandler, SubscriptionCallback, TransitionHandler
 from .delivery import BoundedDelivery, InlineDelivery, SubscriptionStatistics, TopicCounters, TopicStatistics
 from .driver import (
-    ActionDriver,
     Closable,
-    DiscoveringDriver,
     DriverGoal,
     DriverPresence,
     DriverPublisher,
     Lane,
+    ServiceHandler,
+    SubscriptionCallback,
+    TransitionHandler,
     TransportDriver,
+    capabilities_of,
+    no_discovery_error,
+    no_goals_error,
 )
 from .goal_serving import CoreActionServer, GoalAccept, GoalExecute, abort_locally
 from .goal_serving import send_goal as _send_goal
 from .goals import ActionType, GoalClient, action_type
 from .graph import Graph
 from .requests import RequestLanes, check_timeout, serve_with_caller_deadline, with_caller_timeout
+
+if TYPE_CHECKING:
+    from typing import Self
 
 __all__ = [
     "CorePresence",
@@ -222,17 +230,23 @@ def _close_quietly(handle: Closable, what: str) -> None:
 
 
 class DriverTransport:
-    """The :class:`~agents_core.transport.contract.Transport` surface on a driver (module docstring).
+    """The transport: the surface components, recipes and tests use, on top of a driver (module docstring).
 
-    :param driver: the middleware driver.
+    ``MemoryTransport``, ``ZenohTransport`` and ``Ros2Transport`` only build their driver; a third
+    party's transport may be just ``DriverTransport(MyDriver(...))``.
+
+    :param driver: the middleware driver (see :class:`~agents_core.transport.driver.TransportDriver`).
     :param request_workers: threads for requests to services that belong to no component (each
         component's requests have a lane of their own).
     """
 
     def __init__(self, driver: TransportDriver, *, request_workers: int = 4) -> None:
+        #: The name it is resolved by ("memory", "zenoh", "ros2", or a third party's): the driver's.
         self.name = driver.name
-        self.capabilities = driver.capabilities
-        self._driver = driver
+        #: What it offers beyond the required primitives, derived from the driver.
+        self.capabilities = capabilities_of(driver)
+        #: The middleware driver underneath.
+        self.driver = driver
         self._lock = threading.RLock()
         self._closed = False
         self._types: dict[str, str] = {}
@@ -280,7 +294,12 @@ class DriverTransport:
     # -- pub / sub ----------------------------------------------------------------------------
 
     def create_publisher(self, topic: Topic, *, owner: str | None = None) -> CorePublisher:
-        """A publisher for ``topic``. ``owner`` names a declared component it belongs to, if any."""
+        """A publisher for ``topic`` (``owner``: a declared component it belongs to, if any).
+
+        ``publish(value)`` raises :class:`~agents_core.errors.TypeValidationError` for a value
+        that does not fit the topic's type, :class:`~agents_core.errors.TransportClosedError`
+        after close.
+        """
         with self._lock:
             self._check_open(f"create a publisher on {topic.name!r}")
             self._check_type(topic)
@@ -290,7 +309,7 @@ class DriverTransport:
                 # see one writer and one stream on <name>/status, on every middleware.
                 sender: DriverPublisher = _SharedSender(presence._status._sender)
             else:
-                sender = self._driver.open_publisher(topic, owner)
+                sender = self.driver.open_publisher(topic, owner)
             publisher = CorePublisher(self, topic, sender)
             self._counters.track(topic.name)
             self._open[id(publisher)] = publisher
@@ -312,7 +331,7 @@ class DriverTransport:
             delivery = (InlineDelivery if inline else BoundedDelivery)(topic, callback, self._counters)
             subscription = CoreSubscription(self, topic, delivery)
             try:
-                subscription._handle = self._driver.open_subscriber(topic, delivery, owner)
+                subscription._handle = self.driver.open_subscriber(topic, delivery, owner)
             except BaseException:
                 delivery.close()
                 raise
@@ -363,16 +382,21 @@ class DriverTransport:
             if name in self._services:
                 raise WiringError(f"service {name!r} is already served on this transport")
             service = CoreService(self, name)
-            service._handle = self._driver.serve(name, serve, owner, self._lane(owner))
+            service._handle = self.driver.serve(name, serve, owner, self._lane(owner))
             self._services[name] = service
             self._open[id(service)] = service
         return service
 
     def request(self, name: str, payload: dict[str, Any], *, timeout: float = 5.0) -> dict[str, Any]:
-        """Send ``payload`` to the service ``name`` and wait for its reply (errors: see the contract)."""
+        """Send ``payload`` (JSON-like) to the service ``name`` and wait for its reply.
+
+        ``timeout`` must be a finite number of seconds > 0 (else ConfigError); a request still
+        queued when it expires is never run. Errors: :meth:`TransportDriver.call
+        <agents_core.transport.driver.TransportDriver.call>`.
+        """
         timeout = check_timeout(timeout, f"request to {name!r}")
         self._check_open(f"request {name!r}")
-        reply = self._driver.call(name, with_caller_timeout(payload, timeout), timeout)
+        reply = self.driver.call(name, with_caller_timeout(payload, timeout), timeout)
         self._check_open(f"request {name!r}")
         return reply
 
@@ -390,7 +414,7 @@ class DriverTransport:
             if name in self._components:
                 raise WiringError(f"a component named {name!r} is already declared on this transport")
             presence = CorePresence(self, name, pending)
-            presence._driver_presence = self._driver.declare_presence(name, on_transition, self._lane(name))
+            presence._driver_presence = self.driver.declare_presence(name, on_transition, self._lane(name))
             self._components[name] = presence
             self._open[id(presence)] = presence
         try:
@@ -403,43 +427,54 @@ class DriverTransport:
         return presence
 
     def get_component_state(self, name: str, *, timeout: float = 2.0) -> ComponentStatusMsg | None:
-        """Read a component's lifecycle state and health as an observer would; None if not present."""
+        """Read a component's lifecycle state and health as an observer would; None if not present.
+
+        See :meth:`TransportDriver.read_state <agents_core.transport.driver.TransportDriver.read_state>`.
+        """
         timeout = check_timeout(timeout, f"state of {name!r}")
         self._check_open(f"read the state of {name!r}")
-        state = self._driver.observe(name, None, timeout)
-        return state if isinstance(state, ComponentStatusMsg) else None
+        return self.driver.read_state(name, timeout)
 
     def request_transition(self, name: str, transition: str, *, timeout: float = 5.0) -> bool:
-        """Ask the component ``name`` to run a lifecycle transition, as an outside tool would."""
+        """Ask the component ``name`` to run a lifecycle transition, as an outside tool would.
+
+        See :meth:`TransportDriver.request_transition
+        <agents_core.transport.driver.TransportDriver.request_transition>`.
+        """
         timeout = check_timeout(timeout, f"transition of {name!r}")
         self._check_open(f"request a transition of {name!r}")
-        return bool(self._driver.observe(name, transition, timeout))
+        return self.driver.request_transition(name, transition, timeout)
+
+    def peer_process_options(self) -> dict[str, Any]:
+        """The options that open, in another process, a transport reaching this one; ``{}``: this one's options.
+
+        See :meth:`TransportDriver.peer_process_options
+        <agents_core.transport.driver.TransportDriver.peer_process_options>`.
+        """
+        return self.driver.peer_process_options()
 
     # -- graph --------------------------------------------------------------------------------
 
     def discover(self, timeout: float = 1.0) -> Graph:
         """The topics (type, publisher and subscriber counts) and live components this transport sees.
 
-        Waits at most ``timeout`` seconds for the middleware's discovery. Raises
-        :class:`~agents_core.errors.TransportError` when the driver has no discovery primitive.
+        See :meth:`TransportDriver.discover <agents_core.transport.driver.TransportDriver.discover>`;
+        raises :class:`~agents_core.errors.TransportError` where ``capabilities.discovery`` is False.
         """
         timeout = check_timeout(timeout, "discover")
         self._check_open("discover the graph")
-        if not isinstance(self._driver, DiscoveringDriver):
-            raise TransportError(f"the {self.name} transport does not support discovery "
-                                 f"(its driver {type(self._driver).__name__} has no discover())")
-        graph = self._driver.discover(timeout)
+        if not self.capabilities.discovery:
+            raise no_discovery_error(self.name, self.driver)
+        graph = self.driver.discover(timeout)
         self._check_open("discover the graph")
         return graph
 
     # -- long-running goals ---------------------------------------------------------------------
 
-    def _action_driver(self, what: str) -> ActionDriver:
-        driver = self._driver
-        if not self.capabilities.actions or not isinstance(driver, ActionDriver):
-            raise TransportError(f"{what}: the {self.name!r} transport has no long-running goals "
-                                 "(capabilities.actions is False)")
-        return driver
+    def _action_driver(self, what: str) -> TransportDriver:
+        if not self.capabilities.actions:
+            raise no_goals_error(self.name, what)
+        return self.driver
 
     def create_action_server(self, name: str, action_type_name: str | ActionType, execute: GoalExecute, *,
                              owner: str | None = None, accept: GoalAccept | None = None) -> CoreActionServer:
@@ -523,13 +558,13 @@ class DriverTransport:
             except Exception as exc:
                 logger.debug("closing %r failed: %s", entity, exc)
         self._lanes.shutdown()
-        self._driver.close()
+        self.driver.close()
 
-    def __enter__(self) -> DriverTransport:
+    def __enter__(self) -> Self:
         return self
 
     def __exit__(self, *exc: object) -> None:
         self.close()
 
     def __repr__(self) -> str:
-        return f"<{type(self).__name__} driver={self._driver!r} closed={self._closed}>"
+        return f"<{type(self).__name__} driver={self.driver!r} closed={self._closed}>"

@@ -1,39 +1,17 @@
-"""The driver contract: the few primitives a middleware adapter implements.
+"""The driver contract: the primitives a middleware adapter implements, each specified here and only here.
 
-A middleware adapter is a *driver*. :class:`~agents_core.transport.core.DriverTransport` puts the
-public :class:`~agents_core.transport.contract.Transport` surface on top of any driver and keeps
-everything else in one place: validation against the topic's type, the closed state, duplicate
-names, one type per topic, statistics, the request lanes (one per component), the caller's
-deadline, the status topic of each component, and the delivery of received values (a thread for
-user callbacks, straight to the component's worker for component inputs).
+A middleware adapter is a *driver*: a subclass of :class:`DriverBase` that implements the
+required primitives of :class:`TransportDriver` and, where its middleware can, the optional ones.
+:class:`~agents_core.transport.core.DriverTransport` puts the public transport surface on top of
+any driver and keeps the rest once, for every driver: validation against the topic's type, the
+closed state, duplicate names, one type per topic, statistics, the request lanes (one per
+component), the caller's deadline, the status topic of each component, the delivery of received
+values (a thread for user callbacks, straight to the component's worker for component inputs),
+and the goal bookkeeping (:mod:`agents_core.transport.goal_serving`).
 
-A driver implements :class:`TransportDriver`, seven methods:
-
-1. :meth:`~TransportDriver.open_publisher`: send already validated values of one topic;
-2. :meth:`~TransportDriver.open_subscriber`: decode what arrives on one topic and hand each value
-   to the :class:`Sink` the core gives it (``sink.offer(value)``) or report a payload that does
-   not decode (``sink.reject(reason)``); both return at once and never raise, so calling them on
-   the middleware's own thread is right;
-3. :meth:`~TransportDriver.serve`: answer requests on a name; each request is run through
-   ``lane(job)`` (the owner's request lane), where ``job()`` calls ``handler`` and replies;
-4. :meth:`~TransportDriver.call`: send one request and wait for its reply;
-5. :meth:`~TransportDriver.declare_presence`: make a component visible with its lifecycle state
-   and health, and route transitions asked from outside through ``lane``;
-6. :meth:`~TransportDriver.observe`: read another component's state, or ask it for a transition,
-   as an outside tool would;
-7. :meth:`~TransportDriver.close`.
-
-One primitive is optional: a driver that can see the whole graph (every topic with its type and
-how many publishers and subscribers it has, and the live components) also implements
-:class:`DiscoveringDriver` (``discover(timeout) -> Graph``). Without it,
-:meth:`DriverTransport.discover() <agents_core.transport.core.DriverTransport.discover>` raises
-a :class:`~agents_core.errors.TransportError` saying the transport does not support discovery.
-A driver that carries long-running goals also implements :class:`ActionDriver` (two more
-methods, :meth:`~ActionDriver.serve_goals` and :meth:`~ActionDriver.send_goal`) and says so with
-``capabilities.actions=True``. The core keeps the goal bookkeeping (validation, goal ids, the
-thread of each goal, status changes, results kept for late result requests, the closed state;
-see :mod:`agents_core.transport.goal_serving`); the driver only carries goals, cancels,
-feedback, status and results between the two sides.
+What a driver offers is data, derived from the class (:func:`capabilities_of`): ``actions`` when
+it overrides both goal primitives, ``discovery`` when it overrides :meth:`~TransportDriver.discover`;
+``cross_process`` and ``discovery_settle_s`` are declared as class attributes.
 
 Errors: a driver raises the core's errors (:class:`~agents_core.errors.RequestTimeoutError`,
 :class:`~agents_core.errors.ServiceUnavailableError`, :class:`~agents_core.errors.RemoteError`,
@@ -43,32 +21,63 @@ Errors: a driver raises the core's errors (:class:`~agents_core.errors.RequestTi
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Any, Protocol, runtime_checkable
+from typing import Any, ClassVar, Protocol, runtime_checkable
 
+from attrs import define
+
+from ..errors import TransportError
 from ..messages import ComponentStatusMsg
 from ..status import HealthStatus, LifecycleState
 from ..topics import Topic
-from .contract import ServiceHandler, TransitionHandler, TransportCapabilities
 from .goals import ActionType, GoalStatus
 from .graph import Graph
 
 __all__ = [
-    "ActionDriver",
     "Closable",
-    "DiscoveringDriver",
     "DriverActionServer",
+    "DriverBase",
     "DriverGoal",
     "DriverPresence",
     "DriverPublisher",
     "GoalEvents",
     "GoalServerHooks",
     "Lane",
+    "ServiceHandler",
     "Sink",
+    "SubscriptionCallback",
+    "TransitionHandler",
+    "TransportCapabilities",
     "TransportDriver",
+    "capabilities_of",
+    "no_discovery_error",
+    "no_goals_error",
 ]
 
+#: Called with each received value (already decoded and validated).
+SubscriptionCallback = Callable[[Any], None]
+#: Serves one request: JSON-like dict in, JSON-like dict out. Raising sends the error back.
+ServiceHandler = Callable[[dict[str, Any]], dict[str, Any]]
+#: Asked to run a lifecycle transition ("configure", "activate", ...); returns success.
+TransitionHandler = Callable[[str], bool]
 #: Runs a job on the request lane of the owner of a service or component (never blocks).
 Lane = Callable[[Callable[[], None]], None]
+
+
+@define(frozen=True, kw_only=True)
+class TransportCapabilities:
+    """What a transport offers beyond the required primitives, as data the core decides on (never its name).
+
+    Derived from the driver by :func:`capabilities_of`.
+    """
+
+    #: Components may live in different processes (read by the Launcher for ``multiprocessing``).
+    cross_process: bool
+    #: Long-running goals with feedback (read by components that run as action servers).
+    actions: bool = False
+    #: ``discover()`` sees the graph (read by the CLI and the web UI).
+    discovery: bool = False
+    #: Seconds a fresh observer waits by default for the middleware's discovery to settle.
+    discovery_settle_s: float = 1.0
 
 
 @runtime_checkable
@@ -121,36 +130,80 @@ class DriverPresence(Protocol):
 
 @runtime_checkable
 class TransportDriver(Protocol):
-    """A middleware adapter's primitives (see the module docstring)."""
+    """A middleware adapter's primitives: the one specification of each (implement by subclassing :class:`DriverBase`).
+
+    Required: :meth:`open_publisher`, :meth:`open_subscriber`, :meth:`serve`, :meth:`call`,
+    :meth:`declare_presence`, :meth:`read_state`, :meth:`request_transition`, :meth:`close`.
+    Optional, with defaults on :class:`DriverBase`: :meth:`discover`, :meth:`serve_goals` with
+    :meth:`send_goal`, and :meth:`peer_process_options`.
+    """
 
     #: The name the transport is resolved by ("memory", "zenoh", "ros2", or a third party's).
     name: str
-    capabilities: TransportCapabilities
+    #: Whether components may live in different processes (``Launcher(multiprocessing=True)``).
+    cross_process: bool
+    #: Seconds a fresh observer waits by default for :meth:`discover` to see the graph.
+    discovery_settle_s: float
 
     def open_publisher(self, topic: Topic, owner: str | None) -> DriverPublisher:
-        """A publisher for ``topic`` (``owner``: the component it belongs to, if any)."""
+        """A publisher for ``topic`` (``owner``: the declared component it belongs to, if any).
+
+        The core validates each value against the topic's type, refuses it after close and counts
+        it before calling ``send``.
+        """
         ...
 
     def open_subscriber(self, topic: Topic, sink: Sink, owner: str | None) -> Closable:
-        """Hand what arrives on ``topic`` to ``sink`` until closed."""
+        """Hand what arrives on ``topic`` to ``sink`` until closed.
+
+        Decode each payload and call ``sink.offer(value)``, or ``sink.reject(reason)`` for one that
+        does not decode; both return at once and never raise, so call them from the middleware's
+        own thread. The core chooses the sink (a bounded delivery thread for user callbacks, inline
+        to a component's worker for component inputs) and counts what becomes of each value.
+        """
         ...
 
     def serve(self, name: str, handler: ServiceHandler, owner: str | None, lane: Lane) -> Closable:
-        """Answer requests on ``name``: run ``handler`` through ``lane`` and send back its reply or error."""
+        """Answer requests on ``name`` until closed.
+
+        For each request call ``lane(job)``, where ``job()`` runs ``handler(request)`` and sends back
+        its reply (a dict) or its error. The lane is the owner's (a busy component never delays
+        another's requests); the handler the core gives already drops a request whose caller gave up.
+        """
         ...
 
     def call(self, name: str, payload: dict[str, Any], timeout: float) -> dict[str, Any]:
-        """Send ``payload`` to the service ``name``; its reply, or the errors listed in the module docstring."""
+        """Send ``payload`` to the service ``name`` and return its reply.
+
+        ``timeout`` is checked by the core (finite, > 0), and ``payload`` carries the caller's
+        deadline. Raises :class:`~agents_core.errors.RequestTimeoutError` after ``timeout`` seconds,
+        :class:`~agents_core.errors.ServiceUnavailableError` when nobody serves ``name``, and
+        :class:`~agents_core.errors.RemoteError` with the handler's message when it raised.
+        """
         ...
 
     def declare_presence(self, name: str, on_transition: TransitionHandler, lane: Lane) -> DriverPresence:
-        """Make component ``name`` visible; transitions asked from outside run ``on_transition`` via ``lane``."""
+        """Make component ``name`` visible to the middleware's users until closed.
+
+        Transitions asked from outside (:meth:`request_transition` of another process) run
+        ``on_transition`` through ``lane``. The core refuses duplicate names and publishes the
+        component's status topic ``<name>/status`` on every ``update``.
+        """
         ...
 
-    def observe(self, name: str, transition: str | None, timeout: float) -> ComponentStatusMsg | bool | None:
-        """With ``transition`` None: component ``name``'s state as an observer reads it (None if absent).
+    def read_state(self, name: str, timeout: float) -> ComponentStatusMsg | None:
+        """Component ``name``'s lifecycle state and health as an outside observer reads them; None if absent.
 
-        Otherwise ask it for ``transition`` as an outside tool would, and return whether it was done.
+        Waits at most ``timeout`` seconds (checked by the core) for the component to answer.
+        """
+        ...
+
+    def request_transition(self, name: str, transition: str, timeout: float) -> bool:
+        """Ask component ``name`` for ``transition`` as an outside tool would; whether it was done.
+
+        Raises :class:`~agents_core.errors.ServiceUnavailableError` when no such component
+        appears and :class:`~agents_core.errors.RequestTimeoutError` when it does not answer
+        within ``timeout``.
         """
         ...
 
@@ -158,21 +211,56 @@ class TransportDriver(Protocol):
         """Release the session, nodes and threads; the core has closed every handle before."""
         ...
 
-
-@runtime_checkable
-class DiscoveringDriver(Protocol):
-    """The optional discovery primitive (see the module docstring)."""
+    # -- optional (defaults on DriverBase) -----------------------------------------------------
 
     def discover(self, timeout: float) -> Graph:
-        """Every topic (name, type, publisher and subscriber counts) and live component this driver sees.
+        """Optional: every topic (name, type, publisher and subscriber counts) and live component this driver sees.
 
         Waits at most ``timeout`` seconds for the middleware's discovery to settle; what was not
-        seen by then is not in the graph.
+        seen by then is not in the graph. Overriding it turns ``capabilities.discovery`` on; the
+        default raises :class:`~agents_core.errors.TransportError` saying the transport does not
+        support discovery.
+        """
+        ...
+
+    def serve_goals(self, name: str, definition: ActionType, hooks: GoalServerHooks, owner: str | None,
+                    lane: Lane) -> DriverActionServer:
+        """Optional: serve goals of ``definition`` on ``name`` until the returned server is closed.
+
+        Carry each goal to ``hooks.on_goal(goal_id, goal)`` (None means accepted, else the reason;
+        run it through ``lane`` where the middleware's thread must not wait), then
+        ``hooks.on_accepted(goal_id)``; cancels to ``hooks.on_cancel``, result requests to
+        ``hooks.wait_result``, and what does not decode to ``hooks.reject``. The core validates
+        goals, feedback and results, keeps goal ids, the ``accept`` callback, a thread per goal and
+        the results for late requests.
+
+        Overriding it together with :meth:`send_goal` turns ``capabilities.actions`` on; the
+        default raises :class:`~agents_core.errors.TransportError` (no long-running goals).
+        """
+        ...
+
+    def send_goal(self, name: str, definition: ActionType, goal_id: str, goal: dict[str, Any],
+                  events: GoalEvents, timeout: float) -> DriverGoal:
+        """Optional: send a validated goal, wait (up to ``timeout``) for its acceptance, then feed ``events``.
+
+        Feed ``events.feedback / status / finished / reject`` until the goal ends, and call
+        ``events.finished(GoalStatus.ABORTED, {"message": why})`` when the server goes away.
+        Raises :class:`~agents_core.errors.ServiceUnavailableError` when nobody serves ``name``
+        within ``timeout`` and :class:`~agents_core.errors.RequestTimeoutError` when the server
+        does not answer in time. Default and capability: see :meth:`serve_goals`.
+        """
+        ...
+
+    def peer_process_options(self) -> dict[str, Any]:
+        """Optional: the options that open, in another process, a transport reaching this one.
+
+        Read by ``Launcher(multiprocessing=True)`` for each component's process. The default,
+        ``{}``, means the options this transport was opened with.
         """
         ...
 
 
-# -- long-running goals (optional: drivers with capabilities.actions=True) -------------------------
+# -- long-running goals: what the core and a driver hand each other ---------------------------------
 
 
 @runtime_checkable
@@ -183,7 +271,7 @@ class GoalServerHooks(Protocol):
         """A goal arrived (decoded, not yet validated): None if accepted, else why it was rejected.
 
         May run the server's ``accept`` callback (user code): call it through the lane given to
-        :meth:`ActionDriver.serve_goals` where the middleware's thread must not wait. Never raises.
+        :meth:`TransportDriver.serve_goals` where the middleware's thread must not wait. Never raises.
         """
         ...
 
@@ -210,7 +298,7 @@ class GoalServerHooks(Protocol):
 
 @runtime_checkable
 class DriverActionServer(Protocol):
-    """Carries one action server's goal events to its clients (returned by :meth:`ActionDriver.serve_goals`)."""
+    """Carries one action server's goal events to its clients (returned by :meth:`TransportDriver.serve_goals`)."""
 
     def feedback(self, goal_id: str, feedback: dict[str, Any]) -> None:
         """Send validated ``feedback`` of a running goal to its client."""
@@ -256,7 +344,7 @@ class GoalEvents(Protocol):
 
 @runtime_checkable
 class DriverGoal(Protocol):
-    """One sent goal as the driver tracks it (returned by :meth:`ActionDriver.send_goal`)."""
+    """One sent goal as the driver tracks it (returned by :meth:`TransportDriver.send_goal`)."""
 
     #: Whether the server accepted the goal.
     accepted: bool
@@ -272,21 +360,77 @@ class DriverGoal(Protocol):
         ...
 
 
-@runtime_checkable
-class ActionDriver(Protocol):
-    """The two primitives of a driver that carries long-running goals (``capabilities.actions``)."""
+# -- the base class: defaults for the optional primitives, capabilities derived ---------------------
+
+
+def no_discovery_error(transport: str, driver: object) -> TransportError:
+    """The error of ``discover()`` on a transport whose driver has no discovery primitive."""
+    return TransportError(f"the {transport} transport does not support discovery "
+                          f"(its driver {type(driver).__name__} has no discover())")
+
+
+def no_goals_error(transport: str, what: str) -> TransportError:
+    """The error of a goal call (``what``) on a transport whose driver has no goal primitives."""
+    return TransportError(f"{what}: the {transport!r} transport has no long-running goals "
+                          "(capabilities.actions is False)")
+
+
+class DriverBase(TransportDriver):
+    """Subclass this to write a driver: implement the required primitives, override the optional ones you can.
+
+    The defaults (see :class:`TransportDriver` for what each primitive promises) say that the
+    transport lacks the primitive; :attr:`capabilities` is derived from what the subclass
+    overrides, once, when the class is created.
+    """
+
+    cross_process: bool = False
+    discovery_settle_s: float = 1.0
+    #: What this driver offers (set on every subclass by :func:`capabilities_of`; never declared by hand).
+    capabilities: ClassVar[TransportCapabilities]
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        cls.capabilities = capabilities_of(cls)
+
+    def discover(self, timeout: float) -> Graph:
+        """Not supported: raises :class:`~agents_core.errors.TransportError`."""
+        raise no_discovery_error(self.name, self)
 
     def serve_goals(self, name: str, definition: ActionType, hooks: GoalServerHooks, owner: str | None,
                     lane: Lane) -> DriverActionServer:
-        """Serve goals of ``definition`` on ``name``: hand goals, cancels and result requests to ``hooks``."""
-        ...
+        """Not supported: raises :class:`~agents_core.errors.TransportError`."""
+        raise no_goals_error(self.name, f"serve the action {name!r}")
 
     def send_goal(self, name: str, definition: ActionType, goal_id: str, goal: dict[str, Any],
                   events: GoalEvents, timeout: float) -> DriverGoal:
-        """Send a goal and wait (up to ``timeout``) for its acceptance; then feed ``events`` until it ends.
+        """Not supported: raises :class:`~agents_core.errors.TransportError`."""
+        raise no_goals_error(self.name, f"send a goal to {name!r}")
 
-        Raises :class:`~agents_core.errors.ServiceUnavailableError` when nobody serves ``name``
-        within ``timeout`` and :class:`~agents_core.errors.RequestTimeoutError` when the server
-        does not answer in time.
-        """
-        ...
+    def peer_process_options(self) -> dict[str, Any]:
+        """``{}``: a peer process opens the transport with this one's options."""
+        return {}
+
+
+def _overrides(driver: object, primitive: str) -> bool:
+    """Whether ``driver`` (a driver class or instance) has ``primitive`` other than :class:`DriverBase`'s default."""
+    found = getattr(driver, primitive, None)
+    return found is not None and getattr(found, "__func__", found) is not vars(DriverBase)[primitive]
+
+
+def capabilities_of(driver: object) -> TransportCapabilities:
+    """The capabilities of a driver (class or instance): derived from its primitives, with its declared data.
+
+    ``actions``: it overrides both :meth:`~TransportDriver.serve_goals` and
+    :meth:`~TransportDriver.send_goal`; ``discovery``: it overrides
+    :meth:`~TransportDriver.discover`; ``cross_process`` and ``discovery_settle_s``: its class
+    attributes (default False and 1 s).
+    """
+    return TransportCapabilities(
+        cross_process=bool(getattr(driver, "cross_process", False)),
+        actions=_overrides(driver, "serve_goals") and _overrides(driver, "send_goal"),
+        discovery=_overrides(driver, "discover"),
+        discovery_settle_s=float(getattr(driver, "discovery_settle_s", 1.0)),
+    )
+
+
+DriverBase.capabilities = capabilities_of(DriverBase)

@@ -34,7 +34,7 @@ from ..errors import ComponentError, TypeValidationError
 from .goals import ActionType, GoalClient, GoalHandle, GoalStatus
 
 if TYPE_CHECKING:
-    from .driver import ActionDriver, DriverActionServer, DriverGoal
+    from .driver import DriverActionServer, DriverGoal, TransportDriver
 
 __all__ = [
     "ActionServerStatistics",
@@ -410,8 +410,9 @@ def new_goal_id() -> str:
     return uuid.uuid4().hex
 
 
-def send_goal(driver: ActionDriver, name: str, definition: ActionType, goal: Any, feedback: Callable[[dict[str, Any]],
-              None] | None, timeout: float, on_done: Callable[[GoalClient], None]) -> tuple[GoalClient, DriverGoal]:
+def send_goal(driver: TransportDriver, name: str, definition: ActionType, goal: Any,
+              feedback: Callable[[dict[str, Any]], None] | None, timeout: float,
+              on_done: Callable[[GoalClient], None]) -> tuple[GoalClient, DriverGoal]:
     """Validate ``goal``, send it through ``driver`` and wait for its acceptance (see ``Transport.send_goal``).
 
     A rejected goal comes back finished with :attr:`GoalStatus.REJECTED` and the reason in the

@@ -3,7 +3,7 @@
 :meth:`DriverTransport.discover() <agents_core.transport.core.DriverTransport.discover>` returns a
 :class:`Graph`: every topic with its message type and how many publishers and subscribers it has,
 and the names of the live agents_core components. Drivers that can find this out implement the
-optional :class:`~agents_core.transport.driver.DiscoveringDriver` primitive (memory: its own
+optional :meth:`~agents_core.transport.driver.TransportDriver.discover` primitive (memory: its own
 tables; Zenoh: liveliness tokens; ROS 2: the ROS graph, which also shows plain ROS nodes' topics).
 
 :func:`describe_component` asks a component's ``<name>/describe`` service what it is: its type,

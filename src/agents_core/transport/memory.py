@@ -18,7 +18,7 @@ from __future__ import annotations
 import collections
 import threading
 from concurrent.futures import Future, wait
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from attrs import define
 
@@ -26,10 +26,9 @@ from ..errors import RemoteError, RequestTimeoutError, ServiceUnavailableError
 from ..messages import ComponentStatusMsg
 from ..status import HealthStatus, LifecycleState
 from ..topics import Topic
-from .contract import ServiceHandler, TransitionHandler, TransportCapabilities
 from .core import DriverTransport
 from .delivery import SubscriptionStatistics, TopicStatistics
-from .driver import GoalEvents, GoalServerHooks, Lane, Sink
+from .driver import DriverBase, GoalEvents, GoalServerHooks, Lane, ServiceHandler, Sink, TransitionHandler
 from .goals import ActionType, GoalStatus
 from .graph import Graph, TopicInfo
 
@@ -177,11 +176,10 @@ class _MemoryGoal:
             self._server._clients.pop(self._goal_id, None)
 
 
-class MemoryDriver:
+class MemoryDriver(DriverBase):
     """The memory transport's driver: subscribers, services and components in dictionaries."""
 
     name = "memory"
-    capabilities = TransportCapabilities(cross_process=False, actions=True)
 
     def __init__(self) -> None:
         self._lock = threading.Lock()
@@ -260,14 +258,17 @@ class MemoryDriver:
             self._components[name] = presence
         return presence
 
-    def observe(self, name: str, transition: str | None, timeout: float) -> ComponentStatusMsg | bool | None:
+    def read_state(self, name: str, timeout: float) -> ComponentStatusMsg | None:
         with self._lock:
             p = self._components.get(name)
-        if transition is None:
-            if p is None:
-                return None
-            return ComponentStatusMsg(component=name, lifecycle_state=p.state.value, health=p.health.name,
-                                      message=p.message)
+        if p is None:
+            return None
+        return ComponentStatusMsg(component=name, lifecycle_state=p.state.value, health=p.health.name,
+                                  message=p.message)
+
+    def request_transition(self, name: str, transition: str, timeout: float) -> bool:
+        with self._lock:
+            p = self._components.get(name)
         if p is None:
             raise ServiceUnavailableError(f"no component {name!r} on this memory transport")
         return bool(_await_reply(f"{name} lifecycle", _run_on_lane(p.lane, p.on_transition, transition), timeout))
@@ -323,29 +324,14 @@ class MemoryDriver:
 
 
 class MemoryTransport(DriverTransport):
-    """In-process transport for tests and single-process robots.
+    """In-process transport for tests and single-process robots: a DriverTransport around a :class:`MemoryDriver`.
 
     ``request_workers`` bounds how many requests for services without an owner run at once;
     each component's requests run on a lane of their own (see
     :mod:`agents_core.transport.requests`).
     """
 
+    driver: MemoryDriver
+
     def __init__(self, *, request_workers: int = 4) -> None:
-        self._memory = MemoryDriver()
-        super().__init__(self._memory, request_workers=request_workers)
-
-    def __enter__(self) -> MemoryTransport:
-        return self
-
-    def __repr__(self) -> str:
-        return f"<MemoryTransport topics={len(self._types)} closed={self._closed}>"
-
-
-if TYPE_CHECKING:
-    from .contract import Transport
-    from .driver import DiscoveringDriver, TransportDriver
-
-    # mypy checks here that the classes satisfy their protocols.
-    _driver: TransportDriver = MemoryDriver()
-    _discovering: DiscoveringDriver = MemoryDriver()
-    _conforms: Transport = MemoryTransport()
+        super().__init__(MemoryDriver(), request_workers=request_workers)

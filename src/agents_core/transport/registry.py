@@ -4,13 +4,15 @@ Adapters are imported only when asked for, so ``import agents_core`` works with 
 installed. A missing dependency becomes a :class:`~agents_core.errors.TransportNotAvailableError`
 that names the pip extra to install; a typo gets a "did you mean".
 
-A third-party package registers a transport in its ``pyproject.toml``::
+A third-party package registers its driver (a :class:`~agents_core.transport.driver.DriverBase`
+subclass) in its ``pyproject.toml``::
 
     [project.entry-points."agents_core.transports"]
-    mqtt = "my_package.transport:MqttTransport"
+    mqtt = "my_package.transport:MqttDriver"
 
 The object the entry point loads is called with the keyword options given to
-:func:`resolve_transport` and must return a :class:`~agents_core.transport.contract.Transport`.
+:func:`resolve_transport` and returns a driver (wrapped in a
+:class:`~agents_core.transport.core.DriverTransport`) or a ready transport.
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ from typing import Any
 
 from ..errors import ConfigError, TransportNotAvailableError
 from .contract import Transport
+from .driver import DriverBase
 
 __all__ = ["ENTRY_POINT_GROUP", "TRANSPORT_ALIASES", "available_transports", "resolve_transport"]
 
@@ -97,6 +100,8 @@ def resolve_transport(spec: str | Transport | None = None, **options: Any) -> Tr
             )
         factory = eps[name].load()
     transport = factory(**options)
+    if isinstance(transport, DriverBase):
+        transport = Transport(transport)
     if not isinstance(transport, Transport):
         raise TransportNotAvailableError(f"transport {name!r} does not implement the Transport contract")
     return transport

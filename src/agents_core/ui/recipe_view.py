@@ -96,11 +96,10 @@ class RemoteRecipe:
     def component_names(self) -> list[str]:
         if self._names is not None:
             return list(self._names)
-        discover = getattr(self._transport, "discover", None)
-        if discover is None:
+        if not self._transport.capabilities.discovery:
             raise ConfigError(f"the {self._transport.name!r} transport cannot discover components: "
                               "name them (components=[...])")
-        return sorted(discover(timeout=self._timeout).components)
+        return sorted(self._transport.discover(timeout=self._timeout).components)
 
     def describe(self, name: str) -> dict[str, Any]:
         if self._names is not None and name not in self._names:
