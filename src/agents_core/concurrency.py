@@ -191,6 +191,7 @@ class DrainQueue(Generic[T]):
         with self._lock:
             self._stats.offered += count
             self._stats.discarded += count
+        self._discarded(count)
 
     # -- settings and control ----------------------------------------------------------------------
 
@@ -319,7 +320,7 @@ class DrainQueue(Generic[T]):
         """``count`` items were dropped by the policy or a smaller depth (on the producer's thread)."""
 
     def _discarded(self, count: int) -> None:
-        """``count`` waiting items were discarded (on the thread that discarded or stopped)."""
+        """``count`` items were discarded (on the thread that discarded, stopped or counted them)."""
 
     # -- the drain thread --------------------------------------------------------------------------
 
