@@ -382,28 +382,25 @@ class CloseOnce:
     """Lets the first of any number of ``close()`` calls, from any threads, do the closing.
 
     ``if not self._close_once.claim(): return`` replaces the hand-written
-    ``with lock: if self._closed: return; self._closed = True``. :attr:`closed` reads the flag
-    without the lock (it only ever goes from False to True).
+    ``with lock: if self._closed: return; self._closed = True``.
     """
 
-    __slots__ = ("_closed", "_lock")
+    __slots__ = ("_lock", "closed")
 
     def __init__(self) -> None:
         self._lock = threading.Lock()
-        self._closed = False
-
-    @property
-    def closed(self) -> bool:
-        """Whether :meth:`claim` has run."""
-        return self._closed
+        #: Whether :meth:`claim` has run; read it without the lock (it only ever goes from False
+        #: to True), never assign it. A plain attribute, not a property: hot paths (``publish``)
+        #: check it on every call.
+        self.closed = False
 
     def claim(self) -> bool:
         """Mark closed; True for the first call only."""
         with self._lock:
-            if self._closed:
+            if self.closed:
                 return False
-            self._closed = True
+            self.closed = True
             return True
 
     def __repr__(self) -> str:
-        return f"<CloseOnce closed={self._closed}>"
+        return f"<CloseOnce closed={self.closed}>"
