@@ -160,7 +160,11 @@ class DrainQueue(Generic[T]):
             else:
                 items.append(item)
                 queued = True
-                wake = self._need_token()
+                # Inline (no method call): this runs for every item. One more token only if fewer
+                # wait than items (see __init__).
+                wake = self._tokens < len(items) + len(self._urgent)
+                if wake:
+                    self._tokens += 1
         if wake:
             self._wake.put(None)
         if full:
@@ -177,7 +181,9 @@ class DrainQueue(Generic[T]):
             if self._stopping or len(self._urgent) >= self._urgent_limit:
                 return False
             self._urgent.append(item)
-            wake = self._need_token()
+            wake = self._tokens < len(self._items) + len(self._urgent)
+            if wake:
+                self._tokens += 1
         if wake:
             self._wake.put(None)
         return True
@@ -324,16 +330,11 @@ class DrainQueue(Generic[T]):
 
     # -- the drain thread --------------------------------------------------------------------------
 
-    def _need_token(self) -> bool:
-        # Under the lock: one more token if fewer wait than items (see __init__).
-        if self._tokens < len(self._items) + len(self._urgent):
-            self._tokens += 1
-            return True
-        return False
-
     def _drain(self) -> None:
         get, lock, stats, items, urgent = self._wake.get, self._lock, self._stats, self._items, self._urgent
         handler = self._handler
+        # The no-op default hook is not called at all: this runs for every item.
+        on_handled = None if type(self)._handled is DrainQueue._handled else self._handled
         while True:
             get()
             with lock:
@@ -367,8 +368,8 @@ class DrainQueue(Generic[T]):
                         stats.handled += 1
                 if self._done_waiters:
                     self._item_done.notify_all()
-            if lane == _BOUNDED and not failed:
-                self._handled(item)
+            if on_handled is not None and lane == _BOUNDED and not failed:
+                on_handled(item)
 
 
 def _check_limits(depth: int, policy: str) -> None:

@@ -139,7 +139,7 @@ class BoundedDelivery(_Counted):
         super().__init__(topic, counters)
         self.topic = topic
         self._close_once = CloseOnce()
-        self._queue = _DeliveryQueue(self, callback)
+        self._queue = _DeliveryQueue(topic, callback, self._count_lock, self._stats, self._totals)
 
     def offer(self, value: Any) -> None:
         """Queue ``value`` (never blocks; drops the oldest waiting value when full)."""
@@ -156,47 +156,39 @@ class BoundedDelivery(_Counted):
         self._queue.stop(discard=True)
         self._queue.join(timeout=5.0)
 
-    def _count_delivered(self) -> None:
-        with self._count_lock:
-            self._stats.delivered += 1
-            self._totals.delivered += 1
-
-    def _count_callback_error(self) -> None:
-        logger.exception("callback on topic %r raised; the subscription keeps running", self.topic.name)
-        with self._count_lock:
-            self._stats.callback_errors += 1
-            self._totals.callback_errors += 1
-
-    def _count_dropped(self, count: int) -> None:
-        with self._count_lock:
-            self._stats.dropped += count
-            self._totals.dropped += count
-
-    def _count_discarded(self, count: int) -> None:
-        with self._count_lock:
-            self._stats.discarded += count
-            self._totals.discarded += count
-
 
 class _DeliveryQueue(DrainQueue[Any]):
-    """A :class:`BoundedDelivery`'s queue: its events go to the delivery's counters."""
+    """A :class:`BoundedDelivery`'s queue: it counts its events into the delivery's counters
+    (``stats``, kept as ``_counts``) and the topic's totals (``totals``), under ``count_lock``."""
 
-    def __init__(self, delivery: BoundedDelivery, callback: Callable[[Any], None]) -> None:
-        self._delivery = delivery
-        topic = delivery.topic
+    def __init__(self, topic: Topic, callback: Callable[[Any], None], count_lock: threading.Lock,
+                 stats: SubscriptionStatistics, totals: TopicStatistics) -> None:
+        self._topic_name = topic.name
+        self._count_lock = count_lock
+        self._counts = stats
+        self._topic_totals = totals
         super().__init__(callback, depth=topic.qos_profile.depth, policy="drop_oldest", name=f"deliver:{topic.name}")
 
     def _handled(self, item: Any) -> None:
-        self._delivery._count_delivered()
+        with self._count_lock:
+            self._counts.delivered += 1
+            self._topic_totals.delivered += 1
 
     def _failed(self, item: Any, error: Exception) -> None:
-        self._delivery._count_callback_error()
+        logger.exception("callback on topic %r raised; the subscription keeps running", self._topic_name)
+        with self._count_lock:
+            self._counts.callback_errors += 1
+            self._topic_totals.callback_errors += 1
 
     def _dropped(self, count: int) -> None:
-        self._delivery._count_dropped(count)
+        with self._count_lock:
+            self._counts.dropped += count
+            self._topic_totals.dropped += count
 
     def _discarded(self, count: int) -> None:
-        self._delivery._count_discarded(count)
+        with self._count_lock:
+            self._counts.discarded += count
+            self._topic_totals.discarded += count
 
 
 class InlineDelivery(_Counted):
