@@ -53,6 +53,7 @@ from typing import Any, Generic, TypeVar
 import httpx
 import numpy as np
 
+from ..concurrency import CloseOnce
 from ..errors import InferenceError, ModelClientError, ProtocolError
 from .client_base import map_client_exception, scrub_exception
 from .deadline import CallWatch
@@ -98,14 +99,14 @@ class ChunkStream(Generic[T]):
         self._label = label
         self._watch = watch
         self._secrets = tuple(secrets)
-        self._closed = False
+        self._close_once = CloseOnce()
         self.chunk_count = 0
 
     def __iter__(self) -> ChunkStream[T]:
         return self
 
     def __next__(self) -> T:
-        if self._closed:
+        if self._close_once.closed:
             raise StopIteration
         watch = self._watch
         try:
@@ -143,9 +144,8 @@ class ChunkStream(Generic[T]):
 
     def close(self) -> None:
         """Stop reading and release the connection (idempotent)."""
-        if self._closed:
+        if not self._close_once.claim():
             return
-        self._closed = True
         if self._watch is not None:
             # First: a limit passing now must not cut a connection being handed back.
             self._watch.close()
@@ -159,7 +159,7 @@ class ChunkStream(Generic[T]):
 
     @property
     def closed(self) -> bool:
-        return self._closed
+        return self._close_once.closed
 
     def __enter__(self) -> ChunkStream[T]:
         return self

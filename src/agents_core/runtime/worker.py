@@ -11,19 +11,18 @@ pending steps.
 
 from __future__ import annotations
 
-import collections
 import contextvars
 import logging
 import math
-import queue
 import threading
 import time
 from collections.abc import Callable
 from concurrent.futures import Future
-from typing import Any, Literal
+from typing import Any
 
 from attrs import define
 
+from ..concurrency import DrainQueue, DropPolicy
 from ..errors import ComponentError
 
 __all__ = ["MAX_TIMER_RATE_HZ", "PeriodicTimer", "StepWorker", "WorkerStatistics", "control_deadline_passed"]
@@ -49,17 +48,6 @@ def control_deadline_passed() -> bool:
     return deadline is not None and time.monotonic() >= deadline
 
 
-def wait_on_thread(thread: threading.Thread, timeout: float, abort: threading.Event | None) -> bool:
-    """Join ``thread`` for up to ``timeout`` s, sooner when ``abort`` is set; True if it ended."""
-    deadline = time.monotonic() + timeout
-    while thread.is_alive():
-        remaining = deadline - time.monotonic()
-        if remaining <= 0 or (abort is not None and abort.is_set()):
-            return False
-        thread.join(min(remaining, 0.05))
-    return True
-
-
 @define
 class WorkerStatistics:
     """Counters of a component's worker."""
@@ -72,62 +60,55 @@ class WorkerStatistics:
     pending: int = 0
 
 
-class StepWorker:
-    """Runs submitted callables one at a time on a dedicated thread."""
+def _call(item: Callable[[], None]) -> None:
+    item()
 
-    def __init__(self, name: str, depth: int, policy: Literal["drop_oldest", "drop_newest"]) -> None:
+
+class _WorkerQueue(DrainQueue[Callable[[], None]]):
+    """A worker's items: steps in the bounded lane, control items in the urgent one."""
+
+    def __init__(self, name: str, depth: int, policy: DropPolicy) -> None:
+        self._owner = name
+        super().__init__(_call, depth=depth, policy=policy, name=f"worker:{name}", urgent_limit=MAX_PENDING_CONTROL)
+
+    def _failed(self, item: Callable[[], None], error: Exception) -> None:
+        logger.exception("unhandled error on the worker of %r", self._owner)
+
+
+class StepWorker:
+    """Runs submitted callables one at a time on a dedicated thread (``worker:<name>``).
+
+    Built on a :class:`~agents_core.concurrency.DrainQueue`: steps are its bounded lane, control
+    items its urgent lane.
+    """
+
+    def __init__(self, name: str, depth: int, policy: DropPolicy) -> None:
         self.name = name
-        self.depth = depth
-        self.policy = policy
-        self._steps: collections.deque[Callable[[], None]] = collections.deque()
-        self._control: collections.deque[Callable[[], None]] = collections.deque()
-        self._lock = threading.Lock()
-        # Signalled when an item ends (wait_step_done waits on it).
-        self._cond = threading.Condition(self._lock)
-        # One token per queued item (and one to stop): the thread sleeps in SimpleQueue.get, whose
-        # wake-up is C code, cheaper than a Condition's. A token whose item was dropped meanwhile
-        # wakes the thread for nothing, which is harmless.
-        self._wake: queue.SimpleQueue[bool] = queue.SimpleQueue()
-        self._stats = WorkerStatistics()
-        self._stopping = False
-        self._busy = False
-        self._busy_is_step = False
-        self._done_waiters = 0
-        self._thread = threading.Thread(target=self._run, name=f"worker:{name}", daemon=True)
-        self._thread.start()
+        self._queue = _WorkerQueue(name, depth, policy)
+
+    @property
+    def depth(self) -> int:
+        """How many pending steps the worker keeps."""
+        return self._queue.depth
+
+    @property
+    def policy(self) -> DropPolicy:
+        """Which step a full queue drops."""
+        return self._queue.policy
 
     @property
     def on_worker_thread(self) -> bool:
         """True when called from this worker's own thread."""
-        return threading.current_thread() is self._thread
+        return self._queue.on_drain_thread
 
     def submit_step(self, step: Callable[[], None]) -> bool:
         """Queue a step; returns False if the queue policy dropped this one."""
-        with self._cond:
-            if self._stopping:
-                return False
-            self._stats.submitted += 1
-            if len(self._steps) >= self.depth:
-                self._stats.dropped += 1
-                if self.policy == "drop_newest":
-                    return False
-                self._steps.popleft()
-            self._steps.append(step)
-        self._wake.put(True)
-        return True
+        return self._queue.put(step)
 
-    def set_queue(self, depth: int | None = None,
-                  policy: Literal["drop_oldest", "drop_newest"] | None = None) -> None:
+    def set_queue(self, depth: int | None = None, policy: DropPolicy | None = None) -> None:
         """Change the step queue's depth or full policy while running (a smaller depth drops the
         oldest pending steps beyond it, counted)."""
-        with self._cond:
-            if policy is not None:
-                self.policy = policy
-            if depth is not None:
-                self.depth = depth
-                while len(self._steps) > depth:
-                    self._steps.popleft()
-                    self._stats.dropped += 1
+        self._queue.configure(depth, policy)
 
     def submit_control(self, func: Callable[[], Any], deadline: float | None = None) -> Future[Any]:
         """Queue a control item ahead of pending steps; its result arrives in the returned future.
@@ -151,86 +132,34 @@ class StepWorker:
             finally:
                 _control_deadline.reset(token)
 
-        with self._cond:
-            if self._stopping:
+        if not self._queue.put_urgent(run):
+            if self._queue.stopping:
                 raise ComponentError(f"component {self.name!r} is shut down")
-            if len(self._control) >= MAX_PENDING_CONTROL:
-                raise ComponentError(f"component {self.name!r} has {MAX_PENDING_CONTROL} pending actions")
-            self._control.append(run)
-        self._wake.put(True)
+            raise ComponentError(f"component {self.name!r} has {MAX_PENDING_CONTROL} pending actions")
         return future
 
     def count_discarded(self) -> None:
         """Count a step that was discarded before it reached the queue (its component was not active)."""
-        with self._cond:
-            self._stats.submitted += 1
-            self._stats.discarded += 1
+        self._queue.count_discarded()
 
     def discard_steps(self) -> int:
         """Forget the pending steps (on deactivate); returns how many were discarded."""
-        with self._cond:
-            n = len(self._steps)
-            self._steps.clear()
-            self._stats.discarded += n
-            return n
+        return self._queue.discard()
 
     @property
     def running_step(self) -> bool:
         """True while a step (not a control item) runs."""
-        with self._cond:
-            return self._busy and self._busy_is_step
+        return self._queue.running
 
     def wait_step_done(self, timeout: float, abort: threading.Event | None = None) -> bool:
         """Wait until no step is running (pending ones are not waited for); True if so in time."""
-        deadline = time.monotonic() + timeout
-        with self._cond:
-            self._done_waiters += 1
-            try:
-                while self._busy and self._busy_is_step:
-                    remaining = deadline - time.monotonic()
-                    if remaining <= 0 or (abort is not None and abort.is_set()):
-                        return False
-                    self._cond.wait(min(remaining, 0.05))
-            finally:
-                self._done_waiters -= 1
-        return True
+        return self._queue.wait_item_done(timeout, abort)
 
     def statistics(self) -> WorkerStatistics:
         """A snapshot of the counters."""
-        with self._cond:
-            s = self._stats
-            return WorkerStatistics(s.submitted, s.executed, s.dropped, s.discarded,
-                                    len(self._steps) + len(self._control) + int(self._busy))
-
-    def _run(self) -> None:
-        while True:
-            self._wake.get()
-            with self._lock:
-                if self._control:
-                    item = self._control.popleft()
-                    is_step = False
-                elif self._steps:
-                    item = self._steps.popleft()
-                    is_step = True
-                    # Counted as it starts (pending counts it until it ends): what runs after
-                    # the item is kept minimal, since the thread it handed a value to may be
-                    # waiting for the GIL meanwhile.
-                    self._stats.executed += 1
-                elif self._stopping:
-                    return
-                else:
-                    continue  # the token of an item dropped or discarded meanwhile
-                self._busy = True
-                self._busy_is_step = is_step
-            try:
-                item()
-            except Exception:
-                logger.exception("unhandled error on the worker of %r", self.name)
-            with self._lock:
-                self._busy = False
-                self._busy_is_step = False
-                if self._done_waiters:
-                    self._cond.notify_all()
+        s = self._queue.statistics()
+        return WorkerStatistics(s.offered, s.started, s.dropped, s.discarded,
+                                s.queued + s.urgent_queued + int(s.busy))
 
     def stop(self, timeout: float = 10.0, abort: threading.Event | None = None) -> bool:
         """Finish the item in progress and the pending control items, then end the thread.
@@ -238,14 +167,10 @@ class StepWorker:
         Waits up to ``timeout`` s, less when ``abort`` is set meanwhile (a second Ctrl-C); an item
         still running then is left to finish on its (daemon) thread. True if the thread ended.
         """
-        with self._cond:
-            self._stopping = True
-            self._stats.discarded += len(self._steps)
-            self._steps.clear()
-        self._wake.put(False)
+        self._queue.stop(discard=True)
         if self.on_worker_thread:
             return False
-        if wait_on_thread(self._thread, timeout, abort):
+        if self._queue.join(timeout, abort):
             return True
         logger.warning("worker of %r is still busy; not waiting for it any longer", self.name)
         return False

@@ -32,6 +32,7 @@ import time
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
+from ..concurrency import CloseOnce
 from ..errors import TransportClosedError, WiringError
 from ..messages import ComponentStatusMsg
 from ..status import HealthStatus, LifecycleState
@@ -88,14 +89,14 @@ class CorePublisher:
         self.topic = topic
         self._transport = transport
         self._sender = sender
-        self._closed = False
+        self._close_once = CloseOnce()
         self._validate = topic.msg_type.validate
         self._count_lock = transport._counters.lock
         self._totals = transport._counters.live(topic.name)
 
     def publish(self, value: Any) -> None:
         """Validate ``value`` and send it; TypeValidationError / TransportClosedError as the contract says."""
-        if self._closed or self._transport._closed:
+        if self._close_once.closed or self._transport._closed:
             raise TransportClosedError(f"publisher on {self.topic.name!r} is closed")
         value = self._validate(value)
         # Counted before sending, for the same reason as InlineDelivery.offer; undone on failure.
@@ -110,9 +111,8 @@ class CorePublisher:
 
     def close(self) -> None:
         """Stop publishing; idempotent."""
-        if self._closed:
+        if not self._close_once.claim():
             return
-        self._closed = True
         self._transport._forget(self)
         _close_quietly(self._sender, f"publisher on {self.topic.name!r}")
 
@@ -124,13 +124,12 @@ class _DriverHandle:
         self._transport = transport
         self._what = what
         self._handle: Closable | None = None
-        self._closed = False
+        self._close_once = CloseOnce()
 
     def _close_handle(self) -> bool:
         """Close the driver's handle; False if this ran before."""
-        if self._closed:
+        if not self._close_once.claim():
             return False
-        self._closed = True
         self._transport._forget(self)  # type: ignore[arg-type]  # only subclasses are ever forgotten
         if self._handle is not None:
             _close_quietly(self._handle, self._what)

@@ -18,7 +18,6 @@ Both count every value: each one offered ends delivered, dropped, callback_error
 
 from __future__ import annotations
 
-import collections
 import logging
 import threading
 from collections.abc import Callable
@@ -26,6 +25,7 @@ from typing import Any
 
 from attrs import define
 
+from ..concurrency import CloseOnce, DrainQueue
 from ..topics import Topic
 
 __all__ = ["BoundedDelivery", "InlineDelivery", "SubscriptionStatistics", "TopicCounters", "TopicStatistics"]
@@ -131,76 +131,64 @@ class BoundedDelivery(_Counted):
 
     With ``counters``, every event is also added to the topic's totals there. Every value
     offered ends in exactly one of delivered, dropped, callback_errors or discarded (or is
-    still queued).
+    still queued). The queue is a :class:`~agents_core.concurrency.DrainQueue` (drop oldest),
+    its thread named ``deliver:<topic>``.
     """
 
     def __init__(self, topic: Topic, callback: Callable[[Any], None], counters: TopicCounters | None = None) -> None:
         super().__init__(topic, counters)
         self.topic = topic
-        self._callback = callback
-        self._queue: collections.deque[Any] = collections.deque()
-        self._depth = topic.qos_profile.depth
-        self._cond = threading.Condition()
-        self._closed = False
-        self._thread = threading.Thread(target=self._run, name=f"deliver:{topic.name}", daemon=True)
-        self._thread.start()
+        self._close_once = CloseOnce()
+        self._queue = _DeliveryQueue(topic, callback, self._count_lock, self._stats, self._totals)
 
     def offer(self, value: Any) -> None:
         """Queue ``value`` (never blocks; drops the oldest waiting value when full)."""
-        with self._cond:
-            if self._closed:
-                return
-            dropped = len(self._queue) >= self._depth
-            if dropped:
-                self._queue.popleft()
-            self._queue.append(value)
-            self._cond.notify()
-        if dropped:
-            with self._count_lock:
-                self._stats.dropped += 1
-                self._totals.dropped += 1
-
-    def _run(self) -> None:
-        while True:
-            with self._cond:
-                while not self._queue and not self._closed:
-                    self._cond.wait()
-                if self._closed:
-                    return
-                value = self._queue.popleft()
-            try:
-                self._callback(value)
-            except Exception:
-                logger.exception("callback on topic %r raised; the subscription keeps running", self.topic.name)
-                with self._count_lock:
-                    self._stats.callback_errors += 1
-                    self._totals.callback_errors += 1
-            else:
-                with self._count_lock:
-                    self._stats.delivered += 1
-                    self._totals.delivered += 1
+        self._queue.put(value)
 
     def statistics(self) -> SubscriptionStatistics:
         """A snapshot of the counters."""
-        with self._cond:
-            queued = len(self._queue)
-        return self._snapshot(queued)
+        return self._snapshot(self._queue.statistics().queued)
 
     def close(self) -> None:
         """Stop delivering; waiting values are discarded and counted. Idempotent."""
-        with self._cond:
-            if self._closed:
-                return
-            self._closed = True
-            discarded = len(self._queue)
-            self._queue.clear()
-            self._cond.notify_all()
-        if discarded:
-            with self._count_lock:
-                self._stats.discarded += discarded
-                self._totals.discarded += discarded
-        if threading.current_thread() is not self._thread:
-            self._thread.join(timeout=5.0)
+        if not self._close_once.claim():
+            return
+        self._queue.stop(discard=True)
+        self._queue.join(timeout=5.0)
+
+
+class _DeliveryQueue(DrainQueue[Any]):
+    """A :class:`BoundedDelivery`'s queue: it counts its events into the delivery's counters
+    (``stats``, kept as ``_counts``) and the topic's totals (``totals``), under ``count_lock``."""
+
+    def __init__(self, topic: Topic, callback: Callable[[Any], None], count_lock: threading.Lock,
+                 stats: SubscriptionStatistics, totals: TopicStatistics) -> None:
+        self._topic_name = topic.name
+        self._count_lock = count_lock
+        self._counts = stats
+        self._topic_totals = totals
+        super().__init__(callback, depth=topic.qos_profile.depth, policy="drop_oldest", name=f"deliver:{topic.name}")
+
+    def _handled(self, item: Any) -> None:
+        with self._count_lock:
+            self._counts.delivered += 1
+            self._topic_totals.delivered += 1
+
+    def _failed(self, item: Any, error: Exception) -> None:
+        logger.exception("callback on topic %r raised; the subscription keeps running", self._topic_name)
+        with self._count_lock:
+            self._counts.callback_errors += 1
+            self._topic_totals.callback_errors += 1
+
+    def _dropped(self, count: int) -> None:
+        with self._count_lock:
+            self._counts.dropped += count
+            self._topic_totals.dropped += count
+
+    def _discarded(self, count: int) -> None:
+        with self._count_lock:
+            self._counts.discarded += count
+            self._topic_totals.discarded += count
 
 
 class InlineDelivery(_Counted):

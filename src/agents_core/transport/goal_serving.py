@@ -30,6 +30,7 @@ from typing import TYPE_CHECKING, Any
 
 from attrs import define
 
+from ..concurrency import CloseOnce, DrainQueue
 from ..errors import ComponentError, TypeValidationError
 from .goals import ActionType, GoalClient, GoalHandle, GoalStatus
 
@@ -107,7 +108,7 @@ class CoreActionServer:
         # is refused when it is decided. Bounded, as the ids come from the network.
         self._early_cancels: collections.OrderedDict[str, None] = collections.OrderedDict()
         self._stats = ActionServerStatistics()
-        self._closed = False
+        self._close_once = CloseOnce()
 
     # -- GoalServerHooks (called by the driver) ---------------------------------------------------
 
@@ -131,7 +132,7 @@ class CoreActionServer:
         except TypeValidationError as exc:
             return str(exc)
         with self._lock:
-            if self._closed:
+            if self._close_once.closed:
                 return f"action server {self.name!r} is closed"
             if goal_id in self._running or goal_id in self._ended:
                 return f"goal id {goal_id} is already in use"
@@ -281,14 +282,14 @@ class CoreActionServer:
     @property
     def closed(self) -> bool:
         """Whether :meth:`close` ran."""
-        return self._closed
+        return self._close_once.closed
 
     def close(self) -> None:
         """Abort the goals still running (reason in the result), then stop serving; idempotent."""
+        if not self._close_once.claim():
+            return
+        # Taken after the claim: a goal decided meanwhile either sees the server closed or is here.
         with self._lock:
-            if self._closed:
-                return
-            self._closed = True
             running = list(self._running.values())
             threads = list(self._threads.values())
         reason = f"action server {self.name!r} closed while the goal ran"
@@ -313,47 +314,31 @@ class CoreActionServer:
         return f"<CoreActionServer {self.name!r} {self.action_type.name} running={len(self._running)}>"
 
 
-class _FeedbackDelivery:
-    """Calls a goal's feedback callback on a thread of its own, behind a bounded queue (drop oldest)."""
+class _FeedbackDelivery(DrainQueue[dict[str, Any]]):
+    """Calls a goal's feedback callback on a thread of its own, behind a bounded queue (drop oldest).
+
+    Drops are counted in the client's ``feedback_dropped``.
+    """
 
     def __init__(self, client: GoalClient, callback: Callable[[dict[str, Any]], None]) -> None:
         self._client = client
-        self._callback = callback
-        self._queue: collections.deque[dict[str, Any]] = collections.deque()
-        self._cond = threading.Condition()
-        self._stopped = False
-        self._thread = threading.Thread(target=self._drain, daemon=True, name=f"goal-feedback:{client.goal_id[:8]}")
-        self._thread.start()
+        super().__init__(callback, depth=FEEDBACK_QUEUE_DEPTH, policy="drop_oldest",
+                         name=f"goal-feedback:{client.goal_id[:8]}")
 
     def offer(self, feedback: dict[str, Any]) -> None:
-        with self._cond:
-            if self._stopped:
-                return
-            if len(self._queue) >= FEEDBACK_QUEUE_DEPTH:
-                self._queue.popleft()
-                self._client.feedback_dropped += 1
-            self._queue.append(feedback)
-            self._cond.notify()
+        """Queue ``feedback`` (never blocks)."""
+        self.put(feedback)
 
-    def stop(self) -> None:
-        """No more feedback comes: drain what waits, then end the thread."""
-        with self._cond:
-            self._stopped = True
-            self._cond.notify()
+    def stop(self, *, discard: bool = False) -> int:
+        """No more feedback comes: drain what waits (by default), then end the thread."""
+        return super().stop(discard=discard)
 
-    def _drain(self) -> None:
-        while True:
-            with self._cond:
-                while not self._queue and not self._stopped:
-                    self._cond.wait()
-                if not self._queue:
-                    return
-                item = self._queue.popleft()
-            try:
-                self._callback(item)
-            except Exception as exc:
-                logger.warning("feedback callback of goal %s raised %s: %s", self._client.goal_id,
-                               type(exc).__name__, exc)
+    def _dropped(self, count: int) -> None:
+        self._client.feedback_dropped += count
+
+    def _failed(self, item: dict[str, Any], error: Exception) -> None:
+        logger.warning("feedback callback of goal %s raised %s: %s", self._client.goal_id,
+                       type(error).__name__, error)
 
 
 class _ClientEvents:
