@@ -94,6 +94,11 @@ class CorePublisher:
         self._count_lock = transport._counters.lock
         self._totals = transport._counters.live(topic.name)
 
+    @property
+    def sender(self) -> DriverPublisher:
+        """The driver's publisher this one sends through."""
+        return self._sender
+
     def publish(self, value: Any) -> None:
         """Validate ``value`` and send it; TypeValidationError / TransportClosedError as the contract says."""
         if self._close_once.closed or self._transport._closed:
@@ -125,6 +130,10 @@ class _DriverHandle:
         self._what = what
         self._handle: Closable | None = None
         self._close_once = CloseOnce()
+
+    def attach(self, handle: Closable) -> None:
+        """The driver's handle, closed with this one."""
+        self._handle = handle
 
     def _close_handle(self) -> bool:
         """Close the driver's handle; False if this ran before."""
@@ -177,6 +186,19 @@ class CorePresence:
         self._status: CorePublisher | None = None
         self._lock = threading.Lock()
         self._closed = False
+
+    @property
+    def status_publisher(self) -> CorePublisher | None:
+        """The publisher of ``<name>/status`` (None until attached)."""
+        return self._status
+
+    def attach(self, driver_presence: DriverPresence) -> None:
+        """The driver's presence of this component."""
+        self._driver_presence = driver_presence
+
+    def attach_status(self, status: CorePublisher) -> None:
+        """The publisher of the component's status topic."""
+        self._status = status
 
     def update(self, state: LifecycleState, health: HealthStatus, message: str = "") -> None:
         """Show the component's state to observers and publish it on ``<name>/status``."""
@@ -303,10 +325,11 @@ class DriverTransport:
             self._check_open(f"create a publisher on {topic.name!r}")
             self._check_type(topic)
             presence = self._components.get(owner) if owner is not None else None
-            if presence is not None and presence._status is not None and topic.name == presence._status.topic.name:
+            status = presence.status_publisher if presence is not None else None
+            if status is not None and topic.name == status.topic.name:
                 # A component publishing its own status shares the presence's writer: observers
                 # see one writer and one stream on <name>/status, on every middleware.
-                sender: DriverPublisher = _SharedSender(presence._status._sender)
+                sender: DriverPublisher = _SharedSender(status.sender)
             else:
                 sender = self.driver.open_publisher(topic, owner)
             publisher = CorePublisher(self, topic, sender)
@@ -330,7 +353,7 @@ class DriverTransport:
             delivery = (InlineDelivery if inline else BoundedDelivery)(topic, callback, self._counters)
             subscription = CoreSubscription(self, topic, delivery)
             try:
-                subscription._handle = self.driver.open_subscriber(topic, delivery, owner)
+                subscription.attach(self.driver.open_subscriber(topic, delivery, owner))
             except BaseException:
                 delivery.close()
                 raise
@@ -381,7 +404,7 @@ class DriverTransport:
             if name in self._services:
                 raise WiringError(f"service {name!r} is already served on this transport")
             service = CoreService(self, name)
-            service._handle = self.driver.serve(name, serve, owner, self._lane(owner))
+            service.attach(self.driver.serve(name, serve, owner, self._lane(owner)))
             self._services[name] = service
             self._open[id(service)] = service
         return service
@@ -413,13 +436,13 @@ class DriverTransport:
             if name in self._components:
                 raise WiringError(f"a component named {name!r} is already declared on this transport")
             presence = CorePresence(self, name, pending)
-            presence._driver_presence = self.driver.declare_presence(name, on_transition, self._lane(name))
+            presence.attach(self.driver.declare_presence(name, on_transition, self._lane(name)))
             self._components[name] = presence
             self._open[id(presence)] = presence
         try:
             # The status topic is opened once the driver knows the component (owner=name puts it
             # on the component's node where the middleware has one).
-            presence._status = self.create_publisher(status_topic(name), owner=name)
+            presence.attach_status(self.create_publisher(status_topic(name), owner=name))
         except BaseException:
             presence.close()
             raise
@@ -492,7 +515,7 @@ class DriverTransport:
             if name in self._action_servers:
                 raise WiringError(f"action {name!r} is already served on this transport")
             server = CoreActionServer(name, definition, execute, accept, owner, self._forget_action_server)
-            server._driver_server = driver.serve_goals(name, definition, server, owner, self._lane(owner))
+            server.attach(driver.serve_goals(name, definition, server, owner, self._lane(owner)))
             self._action_servers[name] = server
         return server
 

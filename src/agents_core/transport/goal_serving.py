@@ -210,6 +210,10 @@ class CoreActionServer:
     def _driver(self) -> DriverActionServer | None:
         return self._driver_server
 
+    def attach(self, driver_server: DriverActionServer) -> None:
+        """Carry goal events through ``driver_server`` (what the driver's ``serve_goals`` returned)."""
+        self._driver_server = driver_server
+
     def _send_feedback(self, handle: GoalHandle, feedback: dict[str, Any]) -> None:
         driver = self._driver()
         if driver is not None and handle.goal_id in self._running:
@@ -418,9 +422,7 @@ def send_goal(driver: TransportDriver, name: str, definition: ActionType, goal: 
     client._when_done(handle.close)
     client._when_done(lambda: on_done(client))
     if handle.accepted:
-        client.accepted = True
-        client._set_status(GoalStatus.ACCEPTED)
-        client._cancel = handle.cancel
+        client._accepted(handle.cancel)
     else:
         result = definition.defaults("result")
         if "message" in result:

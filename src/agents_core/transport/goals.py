@@ -332,6 +332,12 @@ class GoalClient:
         """The last status known here."""
         return self._status
 
+    def _accepted(self, cancel: Callable[[float], bool]) -> None:
+        """The server accepted the goal; ``cancel(timeout)`` asks it to cancel (called by the sender)."""
+        self.accepted = True
+        self._cancel = cancel
+        self._set_status(GoalStatus.ACCEPTED)
+
     @property
     def done(self) -> bool:
         """Whether the result (or a terminal status) has arrived."""

@@ -14,17 +14,23 @@ run type, lifecycle state, health, inputs, outputs and the actions callable thro
 from __future__ import annotations
 
 from collections.abc import Iterable
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 from attrs import define, field
 
 from ..errors import RemoteError
 from ..topics import validate_topic_name
 
-if TYPE_CHECKING:
-    from .contract import Transport
+__all__ = ["Graph", "Requester", "TopicInfo", "describe_component", "merge_topic_counts"]
 
-__all__ = ["Graph", "TopicInfo", "describe_component", "merge_topic_counts"]
+
+class Requester(Protocol):
+    """Anything that sends a request to a service and returns its reply (a transport does)."""
+
+    def request(self, name: str, payload: dict[str, Any], *, timeout: float = 5.0) -> dict[str, Any]:
+        """See :meth:`agents_core.transport.core.DriverTransport.request`."""
+        ...
+
 
 #: The keys every ``<name>/describe`` reply has.
 DESCRIBE_KEYS = ("name", "component_type", "run_type", "state", "health", "inputs", "outputs", "actions")
@@ -90,7 +96,7 @@ def merge_topic_counts(entries: list[tuple[str, str, str]]) -> list[TopicInfo]:
     return [TopicInfo(name=n, msg_type=t, publishers=p, subscribers=s) for (n, t), (p, s) in counts.items()]
 
 
-def describe_component(transport: Transport, name: str, timeout: float = 2.0) -> dict[str, Any]:
+def describe_component(transport: Requester, name: str, timeout: float = 2.0) -> dict[str, Any]:
     """Ask component ``name`` to describe itself through its ``<name>/describe`` service.
 
     Returns ``{"name", "component_type", "run_type", "state", "health", "inputs", "outputs",
