@@ -59,11 +59,11 @@ class _LeRobotInstalled(pickle.Unpickler):
 
 def run_child(reps: int, warmup: int) -> None:
     import grpc  # noqa: PLC0415
-    from tests.servers.policy_server import PolicyTestServer  # noqa: PLC0415
 
     from agents_core.clients.lerobot import LeRobotClient  # noqa: PLC0415
     from agents_core.clients.lerobot import protocol as wire  # noqa: PLC0415
     from agents_core.models import LeRobotPolicy  # noqa: PLC0415
+    from tests.servers.policy_server import PolicyTestServer  # noqa: PLC0415
 
     model = LeRobotPolicy(name="bench", policy_type="act", actions_per_chunk=50, policy_device="cpu",
                           features={"observation.state": {"dtype": "float32", "shape": [6], "names": JOINTS},

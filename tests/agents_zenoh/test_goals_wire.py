@@ -36,7 +36,7 @@ def test_plain_zenoh_client_sends_cancels_and_reads_results() -> None:
     try:
         server = server_side.create_action_server("arm_goal", "VisionLanguageAction", execute)
         proc = subprocess.Popen(
-            [sys.executable, str(REPO / "tests" / "zenoh_adapter" / "raw_goal_client.py"),
+            [sys.executable, str(REPO / "tests" / "agents_zenoh" / "raw_goal_client.py"),
              "--connect", f"tcp/127.0.0.1:{port}", "--action", "arm_goal"],
             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=REPO)
         out, err = proc.communicate(timeout=60)
@@ -66,7 +66,7 @@ def test_a_killed_server_process_ends_the_goal_aborted() -> None:
     from agents_core.transport.goals import GoalStatus  # noqa: PLC0415
 
     port = free_tcp_port()
-    proc = subprocess.Popen([sys.executable, "-m", "tests.zenoh_adapter.goal_server", str(port), "doomed"],
+    proc = subprocess.Popen([sys.executable, "-m", "tests.agents_zenoh.goal_server", str(port), "doomed"],
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=REPO)
     client_side = None
     try:

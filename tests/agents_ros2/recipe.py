@@ -1,6 +1,6 @@
 """A recipe run in its own process by the ROS 2 interop test.
 
-``python -m tests.ros2.recipe`` brings up two components on ``Launcher(transport="ros2")`` and
+``python -m tests.agents_ros2.recipe`` brings up two components on ``Launcher(transport="ros2")`` and
 runs until SIGTERM / SIGINT:
 
 - ``relay`` (lifecycle node ``/relay``): ``/chat_in`` (std_msgs/String) -> ``/chat_out``

@@ -1,7 +1,7 @@
 """The standard types added in issue 15 and the array-likes every array-valued type accepts (no middleware).
 
-Round trips through the Zenoh codec and ROS 2 CDR are in tests/zenoh_adapter (every registered type)
-and tests/ros2/test_standard_types_cdr.py; the conformance suite runs every type on every transport.
+Round trips through the Zenoh codec and ROS 2 CDR are in tests/agents_zenoh (every registered type)
+and tests/agents_ros2/test_standard_types_cdr.py; the conformance suite runs every type on every transport.
 """
 
 from __future__ import annotations

@@ -15,7 +15,7 @@ from agents_core.config import VideoMessageMakerConfig
 from agents_core.errors import ConfigError, WiringError
 from agents_core.messages import Header, ImageMsg, VideoMsg
 
-from .conftest import wait_for
+from ..conftest import wait_for
 
 CAMERA, CLIPS = Topic("camera", "Image"), Topic("clips", "Video")
 

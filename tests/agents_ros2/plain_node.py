@@ -1,7 +1,7 @@
-"""A plain rclpy node that talks to the recipe of tests/ros2/recipe.py, as any ROS 2 user would.
+"""A plain rclpy node that talks to the recipe of tests/agents_ros2/recipe.py, as any ROS 2 user would.
 
 It imports rclpy, the standard message packages and agents_interfaces, and nothing of
-agents_core. Run as ``python tests/ros2/plain_node.py``; it prints one JSON object with what it
+agents_core. Run as ``python tests/agents_ros2/plain_node.py``; it prints one JSON object with what it
 observed on stdout and exits 0 (or 1 with ``{"error": ...}``). Every wait is bounded.
 """
 

@@ -2,7 +2,7 @@
 
 It imports nothing from this project (no ``agents_core``, no ``agents_zenoh``): it follows
 ``docs/zenoh-wire-format.md`` alone, which is the point. The integration tests drive a recipe
-process with it, and run it as a script (``python tests/zenoh_adapter/raw_client.py --connect
+process with it, and run it as a script (``python tests/agents_zenoh/raw_client.py --connect
 tcp/127.0.0.1:PORT --namespace NS``), which runs the documented minimal example and checks
 that no project module was imported.
 

@@ -203,7 +203,7 @@ def test_readme_goals_example_runs_as_written() -> None:
     import re  # noqa: PLC0415
     from pathlib import Path  # noqa: PLC0415
 
-    readme = (Path(__file__).resolve().parent.parent / "README.md").read_text()
+    readme = (Path(__file__).resolve().parents[2] / "README.md").read_text()
     block = next(b for b in re.findall(r"```python\n(.*?)```", readme, flags=re.S)
                  if "create_action_server(\"arm\"" in b)
     namespace: dict[str, Any] = {}

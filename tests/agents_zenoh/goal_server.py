@@ -1,4 +1,4 @@
-"""An action server process for the goal tests: ``python -m tests.zenoh_adapter.goal_server PORT NAME``.
+"""An action server process for the goal tests: ``python -m tests.agents_zenoh.goal_server PORT NAME``.
 
 Serves VisionLanguageAction goals that run until cancelled (feedback every 20 ms) on a Zenoh peer
 listening on ``tcp/127.0.0.1:PORT``; prints READY, then serves until killed.

@@ -1,6 +1,6 @@
 """A recipe whose one step runs for a minute, for the repeated-signal tests (run as a script).
 
-``python -m tests.signal_recipe <transport> [--stuck-deactivate]`` prints ``STEP STARTED`` once
+``python -m tests.launch.signal_recipe <transport> [--stuck-deactivate]`` prints ``STEP STARTED`` once
 the long step runs, then waits in ``Launcher.bringup()`` for signals. ``--stuck-deactivate``
 also makes the component's deactivate hang, which only a third signal can cut short.
 """

@@ -107,7 +107,7 @@ def test_derived_codecs_read_the_golden_bytes() -> None:
 
 
 def test_a_third_party_reads_a_point_cloud_as_the_document_shows() -> None:
-    from tests.zenoh_adapter.raw_client import unpack_payload  # noqa: PLC0415  # the doc's own helper
+    from tests.agents_zenoh.raw_client import unpack_payload  # noqa: PLC0415  # the doc's own helper
 
     doc = (Path(__file__).resolve().parents[2] / "docs" / "zenoh-wire-format.md").read_text()
     block = next(b for b in re.findall(r"```python\n(.*?)```", doc, flags=re.S) if "def point_cloud_points" in b)

@@ -1,6 +1,6 @@
 """A recipe run in its own process by the Zenoh integration tests.
 
-``python -m tests.zenoh_adapter.recipe --listen tcp/127.0.0.1:PORT --namespace NS`` brings up two
+``python -m tests.agents_zenoh.recipe --listen tcp/127.0.0.1:PORT --namespace NS`` brings up two
 components on ``Launcher(transport="zenoh")`` and runs until SIGTERM / SIGINT (or is killed):
 
 - ``relay``: ``relay_in`` (String) -> ``relay_out`` (String), the text upper-cased;

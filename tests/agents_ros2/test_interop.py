@@ -1,7 +1,7 @@
 """Interop: a recipe on Launcher(transport="ros2") and a plain rclpy node, in two other processes.
 
-The recipe (tests/ros2/recipe.py) runs as real ROS 2 lifecycle nodes; the plain node
-(tests/ros2/plain_node.py, which imports no agents_core) publishes std_msgs/String and
+The recipe (tests/agents_ros2/recipe.py) runs as real ROS 2 lifecycle nodes; the plain node
+(tests/agents_ros2/plain_node.py, which imports no agents_core) publishes std_msgs/String and
 sensor_msgs/Image into it, receives its String and agents_interfaces/Detections2D outputs, sends
 images it cannot convert, reads its counters over a JsonCall service, and drives a component's
 lifecycle through lifecycle_msgs services. Discovery stays on this host, in a private domain.
@@ -54,7 +54,7 @@ def _stop(proc: subprocess.Popen[Any], grace: float) -> None:
 def recipe(tmp_path: Path) -> Iterator[tuple[subprocess.Popen[Any], Path]]:
     log = tmp_path / "recipe.log"
     with log.open("w") as sink:
-        proc = subprocess.Popen([sys.executable, "-m", "tests.ros2.recipe"], cwd=REPO, env=_private_env(),
+        proc = subprocess.Popen([sys.executable, "-m", "tests.agents_ros2.recipe"], cwd=REPO, env=_private_env(),
                                 stdout=sink, stderr=subprocess.STDOUT)
     try:
         yield proc, log

@@ -2,7 +2,7 @@
 
 Run as a script against a running action server; prints one JSON line with what it saw::
 
-    python tests/zenoh_adapter/raw_goal_client.py --connect tcp/127.0.0.1:PORT --action NAME
+    python tests/agents_zenoh/raw_goal_client.py --connect tcp/127.0.0.1:PORT --action NAME
 
 It sends a goal and collects its feedback and result, then a second goal that it cancels after
 the first feedback, then a payload that is not msgpack. It imports no project module.

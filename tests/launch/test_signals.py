@@ -1,6 +1,6 @@
 """Repeated Ctrl-C during a long step, in a subprocess, on Zenoh and ROS 2 (issue 12).
 
-The recipe (``tests/signal_recipe.py``) runs one component whose step takes a minute and whose
+The recipe (``tests/launch/signal_recipe.py``) runs one component whose step takes a minute and whose
 ``step_finish_timeout`` is a minute too, so the first SIGINT alone would wait that long:
 
 - two SIGINTs: the second makes the shutdown hurry; the process closes its transport and exits
@@ -25,7 +25,7 @@ import pytest
 
 from tests.conftest import free_tcp_port
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 
 
 def _has(module: str) -> bool:
@@ -61,7 +61,7 @@ def _mapped_elsewhere(path: str) -> bool:
 
 class _Recipe:
     def __init__(self, transport: str, *extra: str) -> None:
-        args = [sys.executable, "-m", "tests.signal_recipe", transport]
+        args = [sys.executable, "-m", "tests.launch.signal_recipe", transport]
         if transport == "zenoh":
             args.append(f"tcp/127.0.0.1:{free_tcp_port()}")
         self.proc = subprocess.Popen([*args, *extra], cwd=REPO, env=_env(), stdout=subprocess.PIPE,

@@ -1,8 +1,8 @@
 """A recipe in one process, driven over Zenoh by a client that uses only ``zenoh`` + ``msgpack``.
 
-The recipe (``tests/zenoh_adapter/recipe.py``) runs on ``Launcher(transport="zenoh")`` in a subprocess
+The recipe (``tests/agents_zenoh/recipe.py``) runs on ``Launcher(transport="zenoh")`` in a subprocess
 listening on an explicit loopback port; this process talks to it through
-``tests/zenoh_adapter/raw_client.py`` (no project import), with multicast scouting off. Every
+``tests/agents_zenoh/raw_client.py`` (no project import), with multicast scouting off. Every
 subprocess is stopped by PID in a ``finally``; every wait is bounded.
 """
 
@@ -27,8 +27,8 @@ pytest.importorskip("msgpack")
 
 import zenoh  # after the importorskip guards
 
+from tests.agents_zenoh import raw_client as rc
 from tests.conftest import free_tcp_port
-from tests.zenoh_adapter import raw_client as rc
 
 pytestmark = pytest.mark.zenoh
 
@@ -46,7 +46,7 @@ class Recipe:
         self.log_path = log_dir / f"recipe_{port}.log"
         self._log = self.log_path.open("w")
         self.proc = subprocess.Popen(
-            [sys.executable, "-m", "tests.zenoh_adapter.recipe", "--listen", self.endpoint,
+            [sys.executable, "-m", "tests.agents_zenoh.recipe", "--listen", self.endpoint,
              "--namespace", self.namespace],
             cwd=REPO, stdout=self._log, stderr=subprocess.STDOUT,
         )
@@ -236,7 +236,7 @@ def test_lifecycle_and_services_from_a_plain_client(graph: tuple[Recipe, zenoh.S
 def test_documented_example_runs_with_zenoh_and_msgpack_only(graph: tuple[Recipe, zenoh.Session]) -> None:
     recipe, _ = graph
     done = subprocess.run(
-        [sys.executable, str(REPO / "tests" / "zenoh_adapter" / "raw_client.py"), "--connect", recipe.endpoint,
+        [sys.executable, str(REPO / "tests" / "agents_zenoh" / "raw_client.py"), "--connect", recipe.endpoint,
          "--namespace", recipe.namespace],
         cwd=REPO, capture_output=True, text=True, timeout=60, check=False,
     )
@@ -247,7 +247,7 @@ def test_documented_example_runs_with_zenoh_and_msgpack_only(graph: tuple[Recipe
 
 def test_documented_code_is_the_tested_code() -> None:
     doc = (REPO / "docs" / "zenoh-wire-format.md").read_text()
-    source = (REPO / "tests" / "zenoh_adapter" / "raw_client.py").read_text()
+    source = (REPO / "tests" / "agents_zenoh" / "raw_client.py").read_text()
     blocks = re.findall(r"# --- doc:(\w+) ---\n(.*?)# --- doc:end ---", source, flags=re.S)
     assert {name for name, _ in blocks} == {"example", "unpack_payload"}
     for name, code in blocks:
@@ -276,6 +276,6 @@ def test_killed_recipe_disappears_from_liveliness(tmp_path: Path) -> None:
 
 
 def test_raw_client_imports_no_project_module() -> None:
-    source = (REPO / "tests" / "zenoh_adapter" / "raw_client.py").read_text()
+    source = (REPO / "tests" / "agents_zenoh" / "raw_client.py").read_text()
     imports = re.findall(r"^\s*(?:import|from)\s+([\w.]+)", source, flags=re.M)
     assert not [m for m in imports if m.split(".")[0] in ("agents_core", "agents_zenoh", "tests")]
