@@ -3,7 +3,8 @@
 Its one ``SlowStart`` component runs in a process of its own (``multiprocessing=True``). Its
 ``custom_on_configure`` writes ``configure.<pid>`` in the marker folder, then sleeps ``S``
 seconds (a negative ``S``: an hour, a configure that never returns); its ``custom_on_activate``
-writes ``active.<pid>``; with ``fail=True`` the configure raises after its sleep. The tests kill
+writes ``active.<pid>``; with ``fail=True`` the configure raises after its sleep, with ``stuck_deactivate=True`` the
+deactivate (which writes ``deactivate.<pid>``) never returns. The tests kill
 the launcher or the child during the configure and look at the markers and the pids.
 """
 
@@ -26,7 +27,7 @@ class SlowStart(Component):
     """Configures for ``configure_s`` seconds (forever when negative); marks configure and activate."""
 
     def __init__(self, component_name: str, configure_s: float, markers: str, fail: bool = False,
-                 **kwargs: Any) -> None:
+                 stuck_deactivate: bool = False, **kwargs: Any) -> None:
         self.allowed_inputs = {"Required": [String]}
         self.allowed_outputs = {"Required": [String]}
         source = Topic("slow/in", "String")
@@ -35,6 +36,7 @@ class SlowStart(Component):
         self.configure_s = configure_s
         self.markers = markers
         self.fail = fail
+        self.stuck_deactivate = stuck_deactivate
 
     def custom_on_configure(self) -> None:
         Path(self.markers, f"configure.{os.getpid()}").write_text(str(time.time()))
@@ -44,6 +46,11 @@ class SlowStart(Component):
 
     def custom_on_activate(self) -> None:
         Path(self.markers, f"active.{os.getpid()}").write_text(str(time.time()))
+
+    def custom_on_deactivate(self) -> None:
+        Path(self.markers, f"deactivate.{os.getpid()}").write_text(str(time.time()))
+        if self.stuck_deactivate:
+            time.sleep(3600.0)
 
     def _execution_step(self, **kwargs: Any) -> None:
         text = self.trig_callbacks["slow/in"].get_output()

@@ -115,10 +115,10 @@ def _seconds_until_gone(pid: int, limit: float = GONE_WITHIN_S,
 class LoneChild:
     """``python -m agents_core.launch.child`` started from the test, configuring a SlowStart on ``memory``."""
 
-    def __init__(self, tmp: Path, configure_s: float, fail: bool = False) -> None:
+    def __init__(self, tmp: Path, configure_s: float, **options: bool) -> None:
         self.markers = tmp / "markers"
         self.markers.mkdir()
-        spec = ComponentSpec.from_component(SlowStart("slow", configure_s, str(self.markers), fail=fail),
+        spec = ComponentSpec.from_component(SlowStart("slow", configure_s, str(self.markers), **options),
                                             "memory", {}, os.getpid())
         read_fd, write_fd = os.pipe()
         self.proc = subprocess.Popen([sys.executable, "-m", "agents_core.launch.child", "--report-fd", str(write_fd)],
@@ -149,8 +149,8 @@ class LoneChild:
 
 
 @contextlib.contextmanager
-def lone_child(tmp: Path, configure_s: float, fail: bool = False) -> Iterator[LoneChild]:
-    child = LoneChild(tmp, configure_s, fail)
+def lone_child(tmp: Path, configure_s: float, **options: bool) -> Iterator[LoneChild]:
+    child = LoneChild(tmp, configure_s, **options)
     try:
         yield child
     finally:
@@ -194,6 +194,18 @@ def test_a_quick_configure_still_activates_and_stops_cleanly(tmp_path: Path) -> 
         child.proc.stdin.flush()
         assert child.proc.wait(timeout=30.0) == 0
         assert child.reports() == [{"state": "active"}, {"state": "inactive"}, {"state": "finalized"}]
+
+
+def test_the_end_of_stdin_during_a_deactivate_that_never_returns_ends_the_child(tmp_path: Path) -> None:
+    with lone_child(tmp_path, 0.0, stuck_deactivate=True) as child:
+        wait_for(lambda: list(child.markers.glob("active.*")), timeout=30.0, what="the component to activate")
+        assert child.proc.stdin is not None
+        child.proc.stdin.write(b"deactivate\n")
+        child.proc.stdin.flush()
+        wait_for(lambda: list(child.markers.glob("deactivate.*")), timeout=10.0, what="the deactivate to begin")
+        child.proc.stdin.close()  # the launcher is gone while the main thread is stuck in user code
+        gone_s = _seconds_until_gone(child.proc.pid, reap=child.proc)
+        assert gone_s is not None, f"the component process outlived its launcher by {GONE_WITHIN_S} s"
 
 
 # --- a launcher and its component process -------------------------------------------------------

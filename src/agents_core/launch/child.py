@@ -33,6 +33,8 @@ import queue
 import signal
 import sys
 import threading
+import time
+from collections.abc import Callable
 from typing import IO, TYPE_CHECKING, Any, NoReturn
 
 if TYPE_CHECKING:
@@ -48,7 +50,7 @@ logger = logging.getLogger("agents_core.launch.child")
 EXIT_DEADLINE_S = 1.5
 #: Longest first line (the spec) read from stdin.
 MAX_SPEC_BYTES = 16 * 1024 * 1024
-#: How often the main thread checks that the launcher is still its parent.
+#: How often the launcher-watch thread checks that the launcher is still this process's parent.
 PARENT_POLL_S = 0.1
 _PR_SET_PDEATHSIG = 1
 #: Commands that end the process: the launcher is gone (end of stdin, another parent), a signal, a stop.
@@ -98,24 +100,28 @@ class _PipeLines:
         return line + b"\n"
 
 
-def _read_commands(lines: _PipeLines, commands: queue.SimpleQueue[str]) -> None:
+def _read_commands(lines: _PipeLines, commands: queue.SimpleQueue[str], launcher_gone: Callable[[], None]) -> None:
     while (raw := lines.readline(4096)) is not None:
         commands.put(raw.decode("utf-8", "replace").strip())
+    # The launcher's end closes only when it is gone (it closes it itself only after this process exited).
+    launcher_gone()
     commands.put("eof")
 
 
-def _next_command(commands: queue.SimpleQueue[str], parent_pid: int) -> str:
-    """The next command; ``parent-gone`` as soon as the launcher is no longer this process's parent.
+def _watch_parent(parent_pid: int, commands: queue.SimpleQueue[str], launcher_gone: Callable[[], None]) -> None:
+    """The fallback when neither the pipe nor PR_SET_PDEATHSIG tells: another process became the parent
+    (the launcher's end of the pipe may live on in a process it forked)."""
+    while os.getppid() == parent_pid:
+        time.sleep(PARENT_POLL_S)
+    launcher_gone()
+    commands.put("parent-gone")
 
-    The timeout keeps the main thread in a short wait it returns from: the signal handlers run
-    on it, and the parent pid is checked even when neither the pipe nor the death signal tells.
-    """
+
+def _next_command(commands: queue.SimpleQueue[str]) -> str:
+    # Short waits: the signal handlers run on the main thread between two of them.
     while True:
-        try:
+        with contextlib.suppress(queue.Empty):
             return commands.get(timeout=PARENT_POLL_S)
-        except queue.Empty:
-            if os.getppid() != parent_pid:
-                return "parent-gone"
 
 
 def _exit_soon(code: int) -> None:
@@ -214,6 +220,43 @@ def _abandon_startup(startup: _Startup, reporter: _Reporter, why: str) -> NoRetu
     os._exit(0)
 
 
+def _watch_launcher(parent_pid: int, stdin: _PipeLines, commands: queue.SimpleQueue[str],
+                    startup: _Startup) -> None:
+    """Start the threads that read the launcher's commands and notice when it is gone."""
+    once = threading.Lock()
+
+    def launcher_gone() -> None:
+        # On the watching threads, whatever the main thread is doing (stuck in a configure, a
+        # deactivate or a shutdown): no activation from now on, and the process ends in time.
+        if once.acquire(blocking=False):
+            startup.abandon()
+            _exit_soon(0)
+
+    threading.Thread(target=_read_commands, args=(stdin, commands, launcher_gone), name="launcher-pipe",
+                     daemon=True).start()
+    threading.Thread(target=_watch_parent, args=(parent_pid, commands, launcher_gone), name="launcher-watch",
+                     daemon=True).start()
+
+
+def _await_startup(startup: _Startup, commands: queue.SimpleQueue[str], reporter: _Reporter) -> list[str]:
+    """Wait for the component to be active; the commands for it that came meanwhile.
+
+    A stop meanwhile ends the process (:func:`_abandon_startup`); a failed startup raises its error.
+    """
+    deferred: list[str] = []
+    while (command := _next_command(commands)) != "started":
+        if command == "failed":
+            error = startup.error
+            try:
+                startup.close()
+            finally:
+                raise error if error is not None else RuntimeError("the component's startup failed")
+        if command in _STOPS:
+            _abandon_startup(startup, reporter, command)
+        deferred.append(command)
+    return deferred
+
+
 def run(spec_line: bytes, reporter: _Reporter, stdin: _PipeLines) -> int:
     """Build, run and stop the component of ``spec_line``; the process's exit status."""
     from .spec import ComponentSpec  # noqa: PLC0415
@@ -227,27 +270,17 @@ def run(spec_line: bytes, reporter: _Reporter, stdin: _PipeLines) -> int:
     commands: queue.SimpleQueue[str] = queue.SimpleQueue()
     for sig in (signal.SIGTERM, signal.SIGINT):
         signal.signal(sig, lambda *_: commands.put("signal"))
-    threading.Thread(target=_read_commands, args=(stdin, commands), name="launcher-pipe", daemon=True).start()
     startup = _Startup(spec, commands)
+    _watch_launcher(parent_pid, stdin, commands, startup)
     startup.start()
-    deferred: list[str] = []  # commands for the active component that came during the startup
-    while (command := _next_command(commands, parent_pid)) != "started":
-        if command == "failed":
-            error = startup.error
-            try:
-                startup.close()
-            finally:
-                raise error if error is not None else RuntimeError("the component's startup failed")
-        if command in _STOPS:
-            _abandon_startup(startup, reporter, command)
-        deferred.append(command)
+    deferred = _await_startup(startup, commands, reporter)
     component, transport = startup.component, startup.transport
     if component is None or transport is None:
         raise RuntimeError("the component's startup reported success without a component")
     try:
         reporter.send(state=component.lifecycle_state.value)
         while True:
-            command = deferred.pop(0) if deferred else _next_command(commands, parent_pid)
+            command = deferred.pop(0) if deferred else _next_command(commands)
             if command == "deactivate":
                 component.deactivate()
                 reporter.send(state=component.lifecycle_state.value)
