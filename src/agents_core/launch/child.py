@@ -6,19 +6,22 @@ transport, rebuilds the component, configures and activates it, and reports each
 launcher as a JSON line on the inherited pipe ``--report-fd``. Further stdin lines are commands
 (``deactivate``, ``shutdown``).
 
-It never outlives the launcher, in any state. Everything up to the activation (importing the
-recipe, building the component, opening the transport, configure, activate) runs on a thread of
-its own, so user code stuck in a configure cannot keep the main thread from watching the
-launcher, three ways: the end of stdin (the launcher's end of the pipe closes with the launcher,
-whatever killed it), ``PR_SET_PDEATHSIG`` (Linux sends SIGTERM when the launcher dies) and, as a
-fallback, the parent pid changing. When the launcher dies, or a SIGTERM/SIGINT or ``shutdown``
-comes, before the component is active, the component is never activated: the process closes
-its transport and exits at once, whatever the configure is doing. Once active, the same events
-start a shutdown. Either way a stop that takes longer than :data:`EXIT_DEADLINE_S` ends the
-process with ``os._exit``.
+It never outlives the launcher, in any state. It notices the launcher's death three ways: the
+end of stdin (the launcher's end of the pipe closes with the launcher, whatever killed it),
+``PR_SET_PDEATHSIG`` (Linux sends SIGTERM when the launcher dies) and, as a fallback, its parent
+pid changing. The first and the last are watched by threads of their own, which arm the exit
+deadline themselves, so user code stuck on the main thread (a deactivate that never returns)
+cannot keep the process alive. Everything up to the activation (importing the recipe, building
+the component, opening the transport, configure, activate) runs on a startup thread, so the main
+thread stays free for the signal handlers and the commands. When the launcher dies, or a
+SIGTERM/SIGINT or ``shutdown`` comes, before the component is active, it is never activated: the
+process closes its transport and exits at once (``os._exit``), whatever the configure is doing.
+Once active, the same events start a shutdown. Either way a stop that takes longer than
+:data:`EXIT_DEADLINE_S` ends the process with ``os._exit``.
 
 A thread that holds the GIL forever (a C extension that never releases it) cannot be
-interrupted from Python: only the launcher's SIGKILL of its children ends such a process.
+interrupted from Python: only a SIGKILL ends such a process (PR_SET_PDEATHSIG's SIGTERM is
+handled in Python).
 """
 
 from __future__ import annotations
