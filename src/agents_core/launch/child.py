@@ -6,10 +6,22 @@ transport, rebuilds the component, configures and activates it, and reports each
 launcher as a JSON line on the inherited pipe ``--report-fd``. Further stdin lines are commands
 (``deactivate``, ``shutdown``).
 
-It never outlives the launcher: ``PR_SET_PDEATHSIG`` sends it SIGTERM when the launcher dies,
-and the end of its stdin (the launcher's end of the pipe closes with the launcher, whatever
-killed it) starts the same shutdown. A shutdown that takes longer than
-:data:`EXIT_DEADLINE_S` ends the process at once.
+It never outlives the launcher, in any state. It notices the launcher's death three ways: the
+end of stdin (the launcher's end of the pipe closes with the launcher, whatever killed it),
+``PR_SET_PDEATHSIG`` (Linux sends SIGTERM when the launcher dies) and, as a fallback, its parent
+pid changing. The first and the last are watched by threads of their own, which arm the exit
+deadline themselves, so user code stuck on the main thread (a deactivate that never returns)
+cannot keep the process alive. Everything up to the activation (importing the recipe, building
+the component, opening the transport, configure, activate) runs on a startup thread, so the main
+thread stays free for the signal handlers and the commands. When the launcher dies, or a
+SIGTERM/SIGINT or ``shutdown`` comes, before the component is active, it is never activated: the
+process closes its transport and exits at once (``os._exit``), whatever the configure is doing.
+Once active, the same events start a shutdown. Either way a stop that takes longer than
+:data:`EXIT_DEADLINE_S` ends the process with ``os._exit``.
+
+A thread that holds the GIL forever (a C extension that never releases it) cannot be
+interrupted from Python: only a SIGKILL ends such a process (PR_SET_PDEATHSIG's SIGTERM is
+handled in Python).
 """
 
 from __future__ import annotations
@@ -24,7 +36,14 @@ import queue
 import signal
 import sys
 import threading
-from typing import IO, Any
+import time
+from collections.abc import Callable
+from typing import IO, TYPE_CHECKING, Any, NoReturn
+
+if TYPE_CHECKING:
+    from ..components.component_base import Component
+    from ..transport.contract import Transport
+    from .spec import ComponentSpec
 
 __all__ = ["EXIT_DEADLINE_S", "main", "set_parent_death_signal"]
 
@@ -34,7 +53,12 @@ logger = logging.getLogger("agents_core.launch.child")
 EXIT_DEADLINE_S = 1.5
 #: Longest first line (the spec) read from stdin.
 MAX_SPEC_BYTES = 16 * 1024 * 1024
+#: How often the launcher-watch thread checks that the launcher is still this process's parent.
+PARENT_POLL_S = 0.1
 _PR_SET_PDEATHSIG = 1
+#: Commands that end the process: the launcher is gone (end of stdin, another parent), a signal, a stop.
+_STOPS = frozenset({"eof", "parent-gone", "signal", "shutdown"})
+
 
 def set_parent_death_signal(signum: int = signal.SIGTERM) -> bool:
     """Ask Linux to send ``signum`` when the parent dies (``prctl(PR_SET_PDEATHSIG)``); False elsewhere."""
@@ -79,10 +103,28 @@ class _PipeLines:
         return line + b"\n"
 
 
-def _read_commands(lines: _PipeLines, commands: queue.SimpleQueue[str]) -> None:
+def _read_commands(lines: _PipeLines, commands: queue.SimpleQueue[str], launcher_gone: Callable[[], None]) -> None:
     while (raw := lines.readline(4096)) is not None:
         commands.put(raw.decode("utf-8", "replace").strip())
+    # The launcher's end closes only when it is gone (it closes it itself only after this process exited).
+    launcher_gone()
     commands.put("eof")
+
+
+def _watch_parent(parent_pid: int, commands: queue.SimpleQueue[str], launcher_gone: Callable[[], None]) -> None:
+    """The fallback when neither the pipe nor PR_SET_PDEATHSIG tells: another process became the parent
+    (the launcher's end of the pipe may live on in a process it forked)."""
+    while os.getppid() == parent_pid:
+        time.sleep(PARENT_POLL_S)
+    launcher_gone()
+    commands.put("parent-gone")
+
+
+def _next_command(commands: queue.SimpleQueue[str]) -> str:
+    # Short waits: the signal handlers run on the main thread between two of them.
+    while True:
+        with contextlib.suppress(queue.Empty):
+            return commands.get(timeout=PARENT_POLL_S)
 
 
 def _exit_soon(code: int) -> None:
@@ -91,38 +133,163 @@ def _exit_soon(code: int) -> None:
     timer.start()
 
 
+class _Startup:
+    """Builds, configures and activates the component on a thread of its own (see the module docstring).
+
+    It puts ``started`` or ``failed`` on the command queue when done. :meth:`abandon` makes sure
+    the component is not activated afterwards (unless its activation has already begun).
+    """
+
+    def __init__(self, spec: ComponentSpec, commands: queue.SimpleQueue[str]) -> None:
+        self.spec = spec
+        self.component: Component | None = None
+        self.transport: Transport | None = None
+        self.error: BaseException | None = None
+        self._commands = commands
+        self._lock = threading.Lock()
+        self._abandoned = False
+        self._activating = False
+        self._thread = threading.Thread(target=self._run, name="component-startup", daemon=True)
+
+    def start(self) -> None:
+        self._thread.start()
+
+    def abandon(self) -> bool:
+        """Never activate the component from now on; False when its activation has already begun.
+
+        Never waits for user code: the lock guards only the two flags.
+        """
+        with self._lock:
+            self._abandoned = True
+            return not self._activating
+
+    def _run(self) -> None:
+        from ..transport.registry import resolve_transport  # noqa: PLC0415
+        from .recipe_import import import_recipe  # noqa: PLC0415
+        from .spec import RECIPE_MODULE, decode_value  # noqa: PLC0415
+
+        spec = self.spec
+        try:
+            if spec.recipe_path is not None:
+                import_recipe(spec.recipe_path, RECIPE_MODULE)
+            component = spec.build()
+            transport = resolve_transport(spec.transport, **decode_value(spec.transport_options))
+            with self._lock:
+                self.component, self.transport = component, transport
+            component.runtime.bind(transport)
+            component.configure()
+            with self._lock:
+                if self._abandoned:
+                    return
+                self._activating = True
+            component.activate()
+        except BaseException as exc:  # carried to the main thread, which raises it (SystemExit included)
+            self.error = exc
+            self._commands.put("failed")
+            return
+        self._commands.put("started")
+
+    def close(self) -> None:
+        """Shut down what was built after a failed startup (the startup thread has ended)."""
+        if self.component is not None:
+            try:
+                self.component.shutdown()
+            finally:
+                if self.transport is not None:
+                    self.transport.close()
+        elif self.transport is not None:
+            self.transport.close()
+
+
+def _abandon_startup(startup: _Startup, reporter: _Reporter, why: str) -> NoReturn:
+    """Leave a component that is not active yet: no activation, the transport closed, exit within the deadline.
+
+    The startup thread may be stuck in user code: the process ends with ``os._exit``, after a
+    best-effort close of the transport (its peers see the component go at once) bounded by
+    :data:`EXIT_DEADLINE_S`.
+    """
+    _exit_soon(0)
+    if startup.abandon():
+        logger.warning("stopping before the component is active (%s): it will not be activated", why)
+    else:
+        logger.warning("stopping while the component activates (%s)", why)
+    if startup.transport is not None:
+        with contextlib.suppress(Exception):
+            startup.transport.close()
+    if why in ("signal", "shutdown"):
+        reporter.send(state="finalized")  # stopped on request: the supervisor does not respawn it
+    with contextlib.suppress(Exception):
+        sys.stderr.flush()
+    os._exit(0)
+
+
+def _watch_launcher(parent_pid: int, stdin: _PipeLines, commands: queue.SimpleQueue[str],
+                    startup: _Startup) -> None:
+    """Start the threads that read the launcher's commands and notice when it is gone."""
+    once = threading.Lock()
+
+    def launcher_gone() -> None:
+        # On the watching threads, whatever the main thread is doing (stuck in a configure, a
+        # deactivate or a shutdown): no activation from now on, and the process ends in time.
+        if once.acquire(blocking=False):
+            startup.abandon()
+            _exit_soon(0)
+
+    threading.Thread(target=_read_commands, args=(stdin, commands, launcher_gone), name="launcher-pipe",
+                     daemon=True).start()
+    threading.Thread(target=_watch_parent, args=(parent_pid, commands, launcher_gone), name="launcher-watch",
+                     daemon=True).start()
+
+
+def _await_startup(startup: _Startup, commands: queue.SimpleQueue[str], reporter: _Reporter) -> list[str]:
+    """Wait for the component to be active; the commands for it that came meanwhile.
+
+    A stop meanwhile ends the process (:func:`_abandon_startup`); a failed startup raises its error.
+    """
+    deferred: list[str] = []
+    while (command := _next_command(commands)) != "started":
+        if command == "failed":
+            error = startup.error
+            try:
+                startup.close()
+            finally:
+                raise error if error is not None else RuntimeError("the component's startup failed")
+        if command in _STOPS:
+            _abandon_startup(startup, reporter, command)
+        deferred.append(command)
+    return deferred
+
+
 def run(spec_line: bytes, reporter: _Reporter, stdin: _PipeLines) -> int:
     """Build, run and stop the component of ``spec_line``; the process's exit status."""
-    from ..transport.registry import resolve_transport  # noqa: PLC0415
-    from .recipe_import import import_recipe  # noqa: PLC0415
-    from .spec import RECIPE_MODULE, ComponentSpec, decode_value  # noqa: PLC0415
+    from .spec import ComponentSpec  # noqa: PLC0415
 
     spec = ComponentSpec.from_dict(json.loads(spec_line))
-    if spec.parent_pid and os.getppid() != spec.parent_pid:
+    parent_pid = spec.parent_pid or os.getppid()
+    if os.getppid() != parent_pid:
         return 1  # the launcher died before PR_SET_PDEATHSIG was set
     logging.basicConfig(level=logging.INFO, stream=sys.stderr,
                         format=f"[{spec.component_name} %(process)d] %(levelname)s %(name)s: %(message)s")
-    if spec.recipe_path is not None:
-        import_recipe(spec.recipe_path, RECIPE_MODULE)
-    component = spec.build()
-    transport = resolve_transport(spec.transport, **decode_value(spec.transport_options))
     commands: queue.SimpleQueue[str] = queue.SimpleQueue()
     for sig in (signal.SIGTERM, signal.SIGINT):
         signal.signal(sig, lambda *_: commands.put("signal"))
-    threading.Thread(target=_read_commands, args=(stdin, commands), name="launcher-pipe", daemon=True).start()
+    startup = _Startup(spec, commands)
+    _watch_launcher(parent_pid, stdin, commands, startup)
+    startup.start()
+    deferred = _await_startup(startup, commands, reporter)
+    component, transport = startup.component, startup.transport
+    if component is None or transport is None:
+        raise RuntimeError("the component's startup reported success without a component")
     try:
-        component.runtime.bind(transport)
-        component.configure()
-        component.activate()
         reporter.send(state=component.lifecycle_state.value)
         while True:
-            command = commands.get()
+            command = deferred.pop(0) if deferred else _next_command(commands)
             if command == "deactivate":
                 component.deactivate()
                 reporter.send(state=component.lifecycle_state.value)
             elif command == "shutdown":
                 break
-            elif command in ("eof", "signal"):
+            elif command in _STOPS:
                 # The launcher is gone (or a signal came): stop now, and never hang doing it.
                 _exit_soon(0)
                 component.hurry_shutdown()
