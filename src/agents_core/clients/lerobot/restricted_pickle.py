@@ -232,11 +232,27 @@ def _rebuild_tensor(reader: _Reader, storage: Any, offset: Any, size: Any, strid
     return view.astype(flat.dtype.newbyteorder("="), order="C")
 
 
+def _latin1_bytes(value: Any, encoding: Any = "latin1") -> bytes:
+    # Pickle protocols 2 and below write bytes as _codecs.encode(str, "latin1"); no other codec.
+    if not isinstance(value, str) or encoding != "latin1":
+        raise UnsafePayloadError("_codecs.encode is allowed only as pickle writes bytes (a str, 'latin1')")
+    return value.encode("latin1")
+
+
+def _empty_bytes(*args: Any) -> bytes:
+    # ... and empty bytes as bytes() (``__builtin__.bytes`` under protocol 2).
+    if args:
+        raise UnsafePayloadError("bytes(...) is allowed only empty, as pickle writes b''")
+    return b""
+
+
 def _numpy_globals() -> dict[tuple[str, str], Any]:
     # numpy pickles arrays as multiarray._reconstruct(ndarray, shape, typecode) + BUILD, protocol 5 as
     # numeric._frombuffer(buffer, dtype, shape, order), scalars as multiarray.scalar(dtype, bytes);
     # numpy 2 moved the modules to numpy._core, and a sender may run either version.
-    allowed: dict[tuple[str, str], Any] = {("numpy", "ndarray"): _NDARRAY, ("numpy", "dtype"): _DTypeSpec}
+    allowed: dict[tuple[str, str], Any] = {("numpy", "ndarray"): _NDARRAY, ("numpy", "dtype"): _DTypeSpec,
+                                           ("_codecs", "encode"): _latin1_bytes,
+                                           ("__builtin__", "bytes"): _empty_bytes, ("builtins", "bytes"): _empty_bytes}
     for package in ("numpy.core", "numpy._core"):
         allowed[(f"{package}.multiarray", "_reconstruct")] = _reconstruct
         allowed[(f"{package}.multiarray", "scalar")] = _ReaderFunction(_scalar)
@@ -460,9 +476,11 @@ def _children(value: Any, reader: _Reader) -> Iterator[Any]:
         if missing:
             raise reader.refuse(f"a {type(value).__name__} without {sorted(missing)}")
         yield from vars(value).values()
-    elif isinstance(value, _ArrayBuilder | _DTypeSpec | _TorchStorage | _StorageType | _Marker):
-        raise reader.refuse(f"a {type(value).__name__.strip('_')} used where only finished values may be "
-                            "(an array referenced before it was built, or a bare dtype or storage)")
+    elif isinstance(value, _ArrayBuilder):
+        raise reader.refuse("an array that was never built (numpy's _reconstruct without its data), or used "
+                            "before it was")
+    elif isinstance(value, _DTypeSpec | _TorchStorage | _StorageType | _Marker):
+        raise reader.refuse(f"a bare {type(value).__name__.strip('_')} where only values may be")
 
 
 def _check_result(root: Any, reader: _Reader) -> None:
@@ -508,6 +526,10 @@ def restricted_loads(data: bytes, allowed: Mapping[tuple[str, str], Any], *, max
     try:
         result = reader.load(data)
         _check_result(result, reader)
+    except UnsafePayloadError as exc:
+        if str(exc).startswith(what):
+            raise
+        raise UnsafePayloadError(f"{what}: {exc}") from None  # raised where the payload's name is not known
     except ProtocolError:
         raise
     except Exception as exc:  # anything a malformed pickle provokes (EOF, bad opcode, wrong argument types)
