@@ -187,6 +187,82 @@ def read_through_the_client(data: bytes) -> object:
     return client._read_actions(data)
 
 
+def fuzz_seeds() -> list[bytes]:
+    """Valid payloads of every form the reader accepts, and the small gadgets: what mutations start from."""
+    import numpy as np  # noqa: PLC0415
+
+    from agents_core.clients.lerobot import protocol as wire  # noqa: PLC0415
+
+    rows = [wire.TimedAction(0.5, i, np.array([0.1 * i, -0.2], np.float32)) for i in range(4)]
+    chunk = np.arange(8, dtype=np.float32).reshape(4, 2)
+    storage = call(glob("torch.storage", "_load_from_bytes"), raw(torch_storage_bytes(chunk.tobytes(), 8)))
+    torch_rows = [call(glob("torch._utils", "_rebuild_tensor_v2"), storage, integer(2 * i), tup(integer(2)),
+                       tup(integer(1)), pickle.NEWFALSE, call(glob("collections", "OrderedDict"))) for i in range(4)]
+    seeds = [wire.dumps_payload(rows), pickle.dumps(rows, protocol=2).replace(b"agents_core.clients.lerobot.protocol",
+                                                                              HELPERS.encode()),
+             pickle.dumps([np.float64(1.0), np.zeros((2, 2), ">i4")], protocol=5),
+             payload(pickle.EMPTY_LIST + pickle.MARK + b"".join(timed_action(t, i) for i, t in enumerate(torch_rows))
+                     + pickle.APPENDS)]
+    return seeds + [g() for g in GADGETS.values() if len(g()) < 50_000]
+
+
+def fuzz(examples: int) -> int:
+    """Hypothesis-generated payloads (random bytes, mutated valid payloads, opcode soup) through the client's
+    reader: each ends in a ProtocolError or a well-formed chunk, and the payload classes stay intact."""
+    import numpy as np  # noqa: PLC0415
+    from hypothesis import HealthCheck, given, settings  # noqa: PLC0415
+    from hypothesis import strategies as st  # noqa: PLC0415
+
+    from agents_core.clients.lerobot import protocol as wire  # noqa: PLC0415
+    from agents_core.errors import ProtocolError  # noqa: PLC0415
+
+    seeds = fuzz_seeds()
+    edits = st.lists(st.tuples(st.sampled_from(["set", "insert", "delete"]), st.integers(0, 1 << 20),
+                               st.integers(0, 255)), min_size=1, max_size=8)
+
+    def mutate(seed_and_edits: tuple[bytes, list[tuple[str, int, int]]]) -> bytes:
+        data = bytearray(seed_and_edits[0])
+        for kind, where, value in seed_and_edits[1]:
+            at = where % (len(data) + 1)
+            if kind == "insert":
+                data[at:at] = bytes([value])
+            elif data and at < len(data):
+                if kind == "set":
+                    data[at] = value
+                else:
+                    del data[at]
+        return bytes(data)
+
+    fragments = [pickle.MARK, pickle.TUPLE, pickle.REDUCE, pickle.BUILD, pickle.NEWOBJ, pickle.EMPTY_LIST,
+                 pickle.EMPTY_DICT, pickle.APPEND, pickle.APPENDS, pickle.SETITEM, pickle.SETITEMS, pickle.MEMOIZE,
+                 pickle.BINGET + b"\x00", pickle.BINGET + b"\x01", pickle.POP, pickle.DUP, pickle.NONE,
+                 pickle.NEWFALSE, integer(0), integer(1), integer(2**40), integer(-1), number(0.5), raw(b"\0" * 8),
+                 raw(b"b"), text("f0"), text("<"), text("|"), glob("numpy", "dtype"), glob("numpy", "ndarray"),
+                 glob(NUMPY, "_reconstruct"), glob(NUMPY, "scalar"), glob("numpy._core.numeric", "_frombuffer"),
+                 glob(HELPERS, "TimedAction"), glob(HELPERS, "TimedObservation"), glob("collections", "OrderedDict"),
+                 glob("torch._utils", "_rebuild_tensor_v2"), glob("torch.storage", "_load_from_bytes"),
+                 text("f8"), text("O8"), text("V8"), plain_dtype_state(), tup(integer(1), integer(2))]
+    soup = st.lists(st.sampled_from(fragments), max_size=40).map(lambda parts: payload(b"".join(parts)))
+    data_strategy = st.one_of(st.binary(max_size=400), st.tuples(st.sampled_from(seeds), edits).map(mutate), soup)
+
+    @settings(max_examples=examples, database=None, deadline=None, suppress_health_check=list(HealthCheck))
+    @given(data_strategy)
+    def check(data: bytes) -> None:
+        try:
+            first, chunk = read_through_the_client(data)  # type: ignore[misc]
+        except ProtocolError:
+            pass
+        else:
+            assert isinstance(first, int) and chunk.dtype == np.float64 and chunk.ndim == 2, (first, chunk)
+            assert chunk.shape[1] == 2 and 1 <= chunk.shape[0] <= 4, chunk.shape
+        wire.TimedObservation(1.0, 1, {})  # the classes are untouched
+        wire.TimedAction(1.0, 1, [0.0, 0.0])
+
+    check()
+    print(f"fuzzed {examples} payloads", flush=True)
+    return 0
+
+
 def main(name: str) -> int:
     from agents_core.errors import ProtocolError  # noqa: PLC0415
 
@@ -217,4 +293,4 @@ def main(name: str) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main(sys.argv[1]))
+    sys.exit(fuzz(int(sys.argv[2])) if sys.argv[1] == "--fuzz" else main(sys.argv[1]))
