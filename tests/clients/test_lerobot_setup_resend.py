@@ -9,11 +9,11 @@ import pytest
 
 pytest.importorskip("grpc", reason="the vla extra (grpcio) is not installed")
 
-from agents_core.clients.lerobot import LeRobotClient  # noqa: E402
-from agents_core.transport.goals import GoalStatus  # noqa: E402
-from tests.clients.test_lerobot_client import observation, policy_model, started  # noqa: E402
-from tests.components.test_vla import TARGET, rig  # noqa: E402
-from tests.servers.policy_server import PolicyTestServer, ReachPolicy  # noqa: E402
+from agents_core.clients.lerobot import LeRobotClient
+from agents_core.transport.goals import GoalStatus
+from tests.clients.test_lerobot_client import observation, policy_model, started
+from tests.components.test_vla import TARGET, rig
+from tests.servers.policy_server import PolicyTestServer, ReachPolicy
 
 
 def test_a_server_restarted_between_inferences_gets_the_setup_again() -> None:

@@ -34,7 +34,7 @@ import struct
 from collections import OrderedDict
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, fields, is_dataclass
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
@@ -73,7 +73,9 @@ class PayloadLimits:
 
 #: numpy dtype codes the reader builds arrays of (numpy pickles a dtype by its code: ``dtype('f4', ...)``).
 _NUMERIC_CODES = frozenset({"b1", "i1", "i2", "i4", "i8", "u1", "u2", "u4", "u8", "f2", "f4", "f8"})
-_BYTE_ORDERS = frozenset({"<", ">", "|", "="})
+#: a dtype's byte order as pickled -> as numpy takes it ("|": not applicable, one-byte types).
+_WIRE_ORDERS: dict[str, Literal["<", ">", "="]] = {"<": "<", ">": ">", "|": "=", "=": "="}
+_BYTE_ORDERS = frozenset(_WIRE_ORDERS)
 _MAX_NDIM = 32
 
 
@@ -109,7 +111,7 @@ class _DTypeSpec:
 
     def wire(self) -> np.dtype[Any]:
         """The dtype of the bytes as sent (made here, from the code)."""
-        return np.dtype(self.code).newbyteorder("=" if self.order == "|" else self.order)
+        return np.dtype(self.code).newbyteorder(_WIRE_ORDERS[self.order])
 
     def native(self) -> np.dtype[Any]:
         return np.dtype(self.code)
