@@ -23,11 +23,11 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import ConfigError, ProtocolError
+from ..errors import AlgorithmFailure, ConfigError, ProtocolError
 from ..models import Model
 from .model_base import ModelClient
 
-__all__ = ["PolicyClient", "action_chunk_array", "check_policy_input"]
+__all__ = ["ActionChunkError", "PolicyClient", "action_chunk_array", "check_policy_input"]
 
 _INPUT_KEYS = {"state", "images", "task", "timestep"}
 
@@ -49,23 +49,63 @@ def check_policy_input(inference_input: dict[str, Any], owner: str) -> None:
         raise ConfigError(f"{owner}: 'timestep' must be an int >= 0, got {step!r}")
 
 
-def action_chunk_array(rows: list[Any], owner: str) -> np.ndarray:
-    """Action vectors (numpy arrays, lists, or torch tensors) as one float64 array (n, dim)."""
+class ActionChunkError(ProtocolError, AlgorithmFailure):
+    """The policy's action chunk does not fit the declared actions (width, length or size budget).
+
+    Both a :class:`ProtocolError` of the client (the server answered something unusable) and an
+    :class:`AlgorithmFailure` of the component that asked (the policy ran; its answer is unusable).
+    """
+
+
+def _row_size(row: Any, index: int, owner: str) -> int:
+    """The element count of one action vector, read from its shape (nothing is converted yet)."""
+    if isinstance(row, np.ndarray):
+        if row.dtype.kind not in "biuf":
+            raise ProtocolError(f"{owner}: action {index} of the chunk is not numeric (dtype {row.dtype})")
+        return int(row.size)
+    if hasattr(row, "detach") and hasattr(row, "numel"):  # a torch tensor (clients other than LeRobot's)
+        return int(row.numel())
+    if isinstance(row, list | tuple):
+        if not all(isinstance(v, int | float | np.integer | np.floating) for v in row):
+            raise ProtocolError(f"{owner}: action {index} of the chunk is not a flat list of numbers")
+        return len(row)
+    if isinstance(row, int | float | np.integer | np.floating):
+        return 1
+    raise ProtocolError(f"{owner}: action {index} of the chunk is a {type(row).__name__}, not numbers")
+
+
+def action_chunk_array(rows: list[Any], owner: str, *, width: int | None = None, max_rows: int | None = None,
+                       max_elements: int = 1_000_000) -> np.ndarray:
+    """Action vectors (numpy arrays, flat lists, or torch tensors) as one float64 array (n, dim).
+
+    The rows' count and sizes are checked *before* anything is converted or stacked: at most
+    ``max_rows`` rows, every row ``width`` long (when given), ``max_elements`` in all.
+
+    :raises ActionChunkError: a row of the wrong width, too many rows or elements.
+    :raises ProtocolError: an empty chunk, a row that is not numbers, rows of different sizes.
+    """
     if not rows:
         raise ProtocolError(f"{owner}: the policy sent an empty action chunk")
-    vectors = []
+    if max_rows is not None and len(rows) > max_rows:
+        raise ActionChunkError(f"{owner}: the policy sent {len(rows)} actions in one chunk; at most {max_rows} "
+                               "were asked for")
+    sizes = [_row_size(row, i, owner) for i, row in enumerate(rows)]
+    if len(set(sizes)) != 1:
+        raise ProtocolError(f"{owner}: the actions of one chunk have different sizes {sorted(set(sizes))}")
+    if width is not None and sizes[0] != width:
+        raise ActionChunkError(f"{owner}: the policy sent actions of dimension {sizes[0]}; expected {width}")
+    if len(rows) * sizes[0] > max_elements:
+        raise ActionChunkError(f"{owner}: an action chunk of {len(rows)} x {sizes[0]} values is over the budget "
+                               f"of {max_elements}")
+    chunk = np.empty((len(rows), sizes[0]), dtype=np.float64)
     for i, row in enumerate(rows):
         # a torch tensor goes to the CPU, then numpy
         values = row.detach().cpu().numpy() if hasattr(row, "detach") else row
         try:
-            vector = np.asarray(values, dtype=np.float64).reshape(-1)
+            chunk[i] = np.asarray(values, dtype=np.float64).reshape(-1)
         except (TypeError, ValueError) as exc:
             raise ProtocolError(f"{owner}: action {i} of the chunk is not numeric: {exc}") from exc
-        vectors.append(vector)
-    sizes = {v.shape[0] for v in vectors}
-    if len(sizes) != 1:
-        raise ProtocolError(f"{owner}: the actions of one chunk have different sizes {sorted(sizes)}")
-    return np.stack(vectors)
+    return chunk
 
 
 def _declared_action_names(actions: Any) -> list[str] | None:

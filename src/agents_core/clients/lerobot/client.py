@@ -19,6 +19,7 @@ torch.
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
@@ -27,7 +28,8 @@ import numpy as np
 
 from ...errors import ClientConnectionError, ConfigError, InferenceError, InferenceTimeoutError, ProtocolError
 from ...models import LeRobotPolicy, Model
-from ..policy_base import PolicyClient, action_chunk_array
+from ..policy_base import ActionChunkError, PolicyClient, action_chunk_array
+from .restricted_pickle import PayloadLimits
 
 if TYPE_CHECKING:
     from types import ModuleType
@@ -48,6 +50,24 @@ def _grpc_and_wire() -> tuple[ModuleType, ModuleType]:
 
 #: Default largest message (either way) and largest actions payload, bytes.
 DEFAULT_MAX_MESSAGE_BYTES = 8 * 1024 * 1024
+#: Most action values one chunk may hold when the model declares no action names.
+DEFAULT_MAX_ACTION_ELEMENTS = 1_000_000
+
+
+def _same_width(width: int | None, what: str) -> Callable[[tuple[int, ...], np.dtype[Any]], None]:
+    """A reader check, run before each array of an actions payload is allocated: every action has the
+    first one's size, and that is the declared width (so a wrong chunk costs nothing to refuse)."""
+    first: list[int] = []
+
+    def check(shape: tuple[int, ...], dtype: np.dtype[Any]) -> None:
+        size = math.prod(shape)
+        if not first:
+            first.append(size)
+            if width is not None and size != width:
+                raise ActionChunkError(f"{what}: the policy sent actions of dimension {size}; expected {width}")
+        elif size != first[0]:
+            raise ProtocolError(f"{what}: the actions of one chunk have different sizes {sorted({first[0], size})}")
+    return check
 
 
 class LeRobotClient(PolicyClient):
@@ -100,6 +120,8 @@ class LeRobotClient(PolicyClient):
         # Set when the server could not be reached: a restarted server has no policy loaded, so the
         # next inference says Ready and sends the policy again first.
         self._needs_setup = False
+        #: How many times the policy setup was sent (at initialize, and again when the server lost it).
+        self.setups_sent = 0
 
     # -- connection -------------------------------------------------------------------------------
 
@@ -146,6 +168,10 @@ class LeRobotClient(PolicyClient):
         self._rpc("Ready", wire.Empty(), float(self.inference_timeout))
 
     def _initialize(self) -> None:
+        self._send_setup(float(self.init_timeout or self.inference_timeout))
+
+    def _send_setup(self, timeout: float) -> None:
+        """Say Ready (LeRobot's server resets its queues) and send the policy to load."""
         _, wire = _grpc_and_wire()
         params = self.model_init_params
         features = {name: {**spec, "shape": tuple(spec.get("shape", ()))} if isinstance(spec, dict) else spec
@@ -153,12 +179,17 @@ class LeRobotClient(PolicyClient):
         setup = wire.RemotePolicyConfig(policy_type=str(params.get("policy_type")),
                                         pretrained_name_or_path=str(params.get("checkpoint")),
                                         lerobot_features=features,
-                                        actions_per_chunk=int(params.get("actions_per_chunk", 50)),
+                                        actions_per_chunk=self._actions_per_chunk(),
                                         device=str(params.get("device", "cpu")), rename_map=dict(self.rename_map))
-        timeout = float(self.init_timeout or self.inference_timeout)
+        deadline = time.monotonic() + timeout
         self._rpc("Ready", wire.Empty(), timeout)
-        self._rpc("SendPolicyInstructions", wire.PolicySetup(data=wire.dumps_payload(setup)), timeout)
+        self._rpc("SendPolicyInstructions", wire.PolicySetup(data=wire.dumps_payload(setup)),
+                  deadline - time.monotonic())
         self._needs_setup = False
+        self.setups_sent += 1
+
+    def _actions_per_chunk(self) -> int:
+        return int(self.model_init_params.get("actions_per_chunk", 50))
 
     def _deinitialize(self) -> None:
         self._close()
@@ -167,9 +198,9 @@ class LeRobotClient(PolicyClient):
 
     def _predict(self, observation: dict[str, Any]) -> tuple[int, np.ndarray]:
         _, wire = _grpc_and_wire()
-        if self._needs_setup:
-            self._initialize()
         deadline = time.monotonic() + float(self.inference_timeout)
+        if self._needs_setup:
+            self._send_setup(deadline - time.monotonic())
         raw: dict[str, Any] = {name: float(value) for name, value in observation["state"].items()}
         for camera, image in observation["images"].items():
             raw[camera] = np.ascontiguousarray(image)
@@ -179,6 +210,7 @@ class LeRobotClient(PolicyClient):
                                                            must_go=True))
         chunk_size = min(wire.CHUNK_SIZE, self.max_message_bytes - 64)
         self._rpc("SendObservations", wire.chunk_payload(payload, chunk_size), deadline - time.monotonic())
+        setup_resent = False
         while True:
             # The server answers no actions when no observation reached its queue in time (it may
             # have dropped ours as a near-duplicate): ask again until the inference deadline.
@@ -188,11 +220,26 @@ class LeRobotClient(PolicyClient):
             answer = self._rpc("GetActions", wire.Empty(), left)
             if answer.data:
                 return self._read_actions(answer.data)
+            if not setup_resent:
+                # Our observation is must_go, so a server that holds a policy answers it. An empty
+                # answer is what a server that lost the policy gives (restarted while we were idle:
+                # gRPC reconnects silently, and LeRobot logs the missing policy and answers empty).
+                # Send the setup and the observation again, once per inference: a healthy server
+                # never pays for it, a restarted one costs one extra round trip.
+                setup_resent = True
+                self.logger.info("%s: no actions for a must_go observation; sending the policy setup again",
+                                  self._label())
+                self._send_setup(deadline - time.monotonic())
+                self._rpc("SendObservations", wire.chunk_payload(payload, chunk_size), deadline - time.monotonic())
 
     def _read_actions(self, data: bytes) -> tuple[int, np.ndarray]:
         _, wire = _grpc_and_wire()
         what = f"{self._label()}: actions"
-        actions = wire.loads_payload(data, max_bytes=self.max_message_bytes, what=what)
+        width = len(self.action_names) if self.action_names is not None else None
+        rows = max(self._actions_per_chunk(), 1)
+        max_elements = rows * width if width is not None else DEFAULT_MAX_ACTION_ELEMENTS
+        limits = PayloadLimits(max_elements=max_elements, check_array=_same_width(width, what))
+        actions = wire.loads_payload(data, max_bytes=self.max_message_bytes, what=what, limits=limits)
         if not isinstance(actions, list) or not all(isinstance(a, wire.TimedAction) for a in actions):
             raise ProtocolError(f"{what}: expected a list of TimedAction, got {type(actions).__name__}")
         if not actions:
@@ -202,7 +249,8 @@ class LeRobotClient(PolicyClient):
             raise ProtocolError(f"{what}: timesteps must be ints")
         if steps != list(range(steps[0], steps[0] + len(steps))):
             raise ProtocolError(f"{what}: the chunk's timesteps are not consecutive: {steps[:5]}...")
-        return steps[0], action_chunk_array([a.action for a in actions], what)
+        return steps[0], action_chunk_array([a.action for a in actions], what, width=width, max_rows=rows,
+                                            max_elements=max_elements)
 
     def serialize(self) -> dict[str, Any]:
         spec = super().serialize()

@@ -24,9 +24,8 @@ LeRobot's ``lerobot.async_inference.helpers``; :class:`TimedObservation`, :class
 (:func:`dumps_payload`), so a LeRobot server reads them as its own. Reading a pickle from the
 network runs whatever it names; :func:`loads_payload` admits only the classes in an allow-list.
 
-LeRobot's servers send actions as ``torch.Tensor``; reading those needs torch, whose tensors
-are rebuilt through ``torch.load(..., weights_only=True)`` (torch's own restricted loader) in place
-of the pickle's ``torch.storage._load_from_bytes``.
+LeRobot's servers send actions as ``torch.Tensor``; the reader rebuilds them from their storage
+bytes as numpy arrays (torch's own unpickling is never used, and torch need not be installed).
 """
 
 from __future__ import annotations
@@ -40,7 +39,7 @@ from typing import Any
 from google.protobuf import descriptor_pb2, descriptor_pool, message_factory
 
 from ...errors import ProtocolError
-from .restricted_pickle import NUMPY_GLOBALS, restricted_loads
+from .restricted_pickle import NUMPY_GLOBALS, TORCH_GLOBALS, PayloadLimits, restricted_loads
 
 __all__ = [
     "CHUNK_SIZE",
@@ -182,24 +181,8 @@ def dumps_payload(obj: Any) -> bytes:
     return buffer.getvalue()
 
 
-def _torch_globals() -> dict[tuple[str, str], Any]:
-    try:
-        import torch  # noqa: PLC0415  # optional: only real LeRobot servers send tensors
-    except ImportError:
-        return {}
-    import collections  # noqa: PLC0415
-
-    def load_storage(data: bytes) -> Any:
-        # What torch.storage._load_from_bytes does, with torch's weights-only (restricted) loader.
-        return torch.load(io.BytesIO(data), weights_only=True)
-
-    return {("torch._utils", "_rebuild_tensor_v2"): torch._utils._rebuild_tensor_v2,
-            ("torch.storage", "_load_from_bytes"): load_storage,
-            ("collections", "OrderedDict"): collections.OrderedDict}
-
-
 def _allowed_globals() -> dict[tuple[str, str], Any]:
-    allowed = dict(NUMPY_GLOBALS)
+    allowed = {**NUMPY_GLOBALS, **TORCH_GLOBALS}
     for cls, name in _PAYLOAD_CLASSES.items():
         allowed[(LEROBOT_HELPERS, name)] = cls
         allowed[(__name__, cls.__name__)] = cls
@@ -207,21 +190,13 @@ def _allowed_globals() -> dict[tuple[str, str], Any]:
 
 
 _ALLOWED = _allowed_globals()
-_TORCH_ALLOWED: dict[tuple[str, str], Any] | None = None
 
 
-def loads_payload(data: bytes, *, max_bytes: int, what: str) -> Any:
-    """Unpickle a payload admitting only the payload classes, numpy arrays (and torch tensors when torch
-    is installed); see :func:`~agents_core.clients.lerobot.restricted_pickle.restricted_loads`."""
-    global _TORCH_ALLOWED  # noqa: PLW0603  # torch is looked for once, on the first payload
-    if _TORCH_ALLOWED is None:
-        _TORCH_ALLOWED = {**_ALLOWED, **_torch_globals()}
-    try:
-        return restricted_loads(data, _TORCH_ALLOWED, max_bytes=max_bytes, what=what)
-    except ProtocolError as exc:
-        if "torch" in str(exc) and not any(module == "torch._utils" for module, _ in _TORCH_ALLOWED):
-            raise type(exc)(f"{exc} (the server sends torch tensors: install torch to read them)") from None
-        raise
+def loads_payload(data: bytes, *, max_bytes: int, what: str, limits: PayloadLimits | None = None) -> Any:
+    """Unpickle a payload admitting only the payload classes, numpy arrays and CPU torch tensors (read as
+    numpy arrays, without torch), within ``limits``; see
+    :func:`~agents_core.clients.lerobot.restricted_pickle.restricted_loads`."""
+    return restricted_loads(data, _ALLOWED, max_bytes=max_bytes, what=what, limits=limits)
 
 
 def chunk_payload(data: bytes, chunk_size: int = CHUNK_SIZE) -> Iterator[Any]:
