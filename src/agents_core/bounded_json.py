@@ -22,6 +22,7 @@ so also a ``ValueError``); one over a limit is a :class:`JsonLimitError` whose `
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 import re
@@ -43,9 +44,13 @@ _ARRAY_BASE, _ARRAY_ITEM = 56, 8
 # Every document may use this much beyond max_expansion x its size, so small documents are never
 # refused for the fixed cost of their few containers.
 _BUDGET_SLACK = 256 * _KIB
+# Possessive quantifiers (Python 3.11+) keep the regex engine from saving backtracking state per
+# repetition: without them a string of 8 M escapes took ~1 GB to match (so it still does on 3.10).
+_PLUS = "+" if sys.version_info >= (3, 11) else ""
 # A JSON string: the quotes and everything between them, escapes (a backslash and the next
-# character) included. The unrolled form is linear and never backtracks.
-_STRING = re.compile(r'"[^"\\]*(?:\\.[^"\\]*)*"', re.DOTALL)
+# character) included; the unrolled form is linear.
+_STRING_BODY = rf'[^"\\]*{_PLUS}(?:\\.[^"\\]*{_PLUS})*{_PLUS}'
+_STRING = re.compile(rf'"{_STRING_BODY}"', re.DOTALL)
 _BRACKET = re.compile(r"[\[\]{}]")
 # A number that may not fit: 20+ digits in a row (2**64 has 20) or an exponent. Only documents that
 # have one are decoded with the (slower) number hooks.
@@ -165,29 +170,33 @@ def _scan(text: str, size: int, limits: JsonLimits) -> str:
 
 
 def _collapse_strings(text: str, max_len: int) -> str:
-    """``text`` with each string replaced by ``0``; refuses a string over ``max_len`` or one left open."""
-    bounded = max_len < len(text)
-    if not bounded:
-        skeleton = _STRING.sub("0", text)
-    elif sys.version_info >= (3, 11):
-        # Possessive ({0,N}+, Python 3.11+): the regex engine keeps no backtracking state per
-        # character (a plain {0,N} took ~60 bytes per character of a long string).
-        skeleton = re.sub(rf'"(?:[^"\\]|\\.){{0,{max_len}}}+"', "0", text, flags=re.DOTALL)
-    else:
-        def short(match: re.Match[str]) -> str:
-            if match.end() - match.start() - 2 > max_len:
-                return match.group()  # left as it is: its quote is found below
-            return "0"
+    """``text`` with each string replaced by ``0``; refuses a string over ``max_len`` or one left open.
 
-        skeleton = _STRING.sub(short, text)
-    if '"' in skeleton:
-        # In valid JSON every string matched (the quote before a string follows one of [{,: or a
-        # space, never another string); a quote left over opens a longer or an unterminated string.
-        if bounded:
-            raise JsonLimitError(f"the JSON document holds a string longer than {max_len} characters, "
-                                 "or an unterminated one (JsonLimits.max_str_len)", limit="max_str_len")
-        raise InvalidJsonError("invalid JSON: an unterminated string")
-    return skeleton
+    ``re.sub`` over the whole text would keep a list entry (and often a new small ``str``) per
+    string until it joins them, ~10x the document; here it runs on runs of up to 1,024 strings,
+    matched one run at a time from outside any string, so the memory beyond the skeleton is small.
+    """
+    run = _string_run(max_len if max_len < len(text) else None)
+    pieces: list[str] = []
+    pos, end = 0, len(text)
+    while pos < end:
+        stop = run.match(text, pos).end()  # type: ignore[union-attr]  # the run may be empty, never absent
+        if stop == pos:
+            # Only a quote stops a run: one that opens a string too long or never closed.
+            if max_len < len(text):
+                raise JsonLimitError(f"the JSON document holds a string longer than {max_len} characters, "
+                                     "or an unterminated one (JsonLimits.max_str_len)", limit="max_str_len")
+            raise InvalidJsonError(f"invalid JSON: the string at offset {pos} is never closed")
+        pieces.append(_STRING.sub("0", text[pos:stop]))
+        pos = stop
+    return "".join(pieces)
+
+
+@functools.lru_cache(maxsize=8)
+def _string_run(max_len: int | None) -> re.Pattern[str]:
+    """Up to 1,024 whole strings and the text between them, from a position outside any string."""
+    body = _STRING_BODY if max_len is None else rf'(?:[^"\\]|\\.){{0,{max_len}}}{_PLUS}'
+    return re.compile(rf'(?:[^"]*{_PLUS}"{body}"){{0,1024}}{_PLUS}[^"]*{_PLUS}', re.DOTALL)
 
 
 def _walk_brackets(skeleton: str, size: int, limits: JsonLimits) -> None:
