@@ -138,10 +138,10 @@ def test_non_finite_numbers_and_big_ints_are_a_policy() -> None:
 
 @pytest.mark.parametrize("field", ["max_bytes", "max_depth", "max_objects", "max_array_len", "max_expansion"])
 def test_limits_are_validated(field: str) -> None:
-    with pytest.raises(ConfigError, match=field):
-        JsonLimits(**{field: -1})
-    with pytest.raises(ConfigError, match=field):
-        JsonLimits(**{field: True})
+    for bad in (-1, True, 1.5):
+        kwargs: dict[str, Any] = {field: bad}
+        with pytest.raises(ConfigError, match=field):
+            JsonLimits(**kwargs)
 
 
 def test_the_request_limits_are_the_default_ones_with_a_larger_document() -> None:

@@ -125,11 +125,12 @@ def _ask(session: zenoh.Session, key: str, payload: bytes, encoding: str) -> tup
     replies = list(session.get(key, payload=payload, encoding=encoding, timeout=30.0))
     elapsed = time.monotonic() - start
     assert len(replies) == 1, f"{len(replies)} replies from {key}"
-    sample = replies[0].ok if replies[0].ok is not None else replies[0].err
+    ok, err = replies[0].ok, replies[0].err
+    sample: Any = ok if ok is not None else err
     raw = sample.payload.to_bytes()
     reply_encoding = str(sample.encoding)
     body = json.loads(raw) if reply_encoding.startswith(JSON) else msgpack.unpackb(raw)
-    return elapsed, replies[0].ok is not None, reply_encoding, body
+    return elapsed, ok is not None, reply_encoding, body
 
 
 @pytest.fixture(scope="module")
