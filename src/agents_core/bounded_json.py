@@ -5,8 +5,9 @@
 to an int that later overflows any float conversion, and ``NaN`` / ``Infinity`` pass. :func:`loads`
 decodes under :class:`JsonLimits` instead, in two steps:
 
-1. a **scan** that builds nothing: the size is checked first; strings are collapsed by one regular
-   expression (so brackets inside strings do not count); the brackets that remain are counted in
+1. a **scan** that builds nothing: the size is checked first; strings are collapsed to ``0`` by
+   regular expressions, 1,024 strings at a time (so brackets inside strings do not count, and a
+   string too long or never closed is found); the brackets that remain are counted in
    C (``str.count``) and then walked one by one, without recursion, for the depth, the length of
    each array and object and the memory the decoded containers will take. The walk visits each
    bracket once and the counts are checked before it, so hostile input is refused after O(n) work
@@ -16,7 +17,7 @@ decodes under :class:`JsonLimits` instead, in two steps:
 
 Every refusal is an :class:`InvalidJsonError` (a :class:`~agents_core.errors.TypeValidationError`,
 so also a ``ValueError``); one over a limit is a :class:`JsonLimitError` whose ``limit`` names the
-:class:`JsonLimits` field. This module imports only the standard library and
+:class:`JsonLimits` field. This module imports only the standard library, attrs and
 :mod:`agents_core.errors`, so the transports, the web UI and the CLI can all use it.
 """
 
