@@ -62,6 +62,8 @@ from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
+from agents_core import bounded_json
+from agents_core.bounded_json import REQUEST_JSON_LIMITS
 from agents_core.errors import (
     ConfigError,
     RemoteError,
@@ -207,7 +209,7 @@ class _Ros2Service:
 
     def _serve(self, request: Any, response: Any) -> Any:
         try:
-            payload = json.loads(request.request_json or "{}")
+            payload = bounded_json.loads(request.request_json or "{}", REQUEST_JSON_LIMITS)
             if not isinstance(payload, dict):
                 raise ConfigError(f"a request must be a JSON object, got {type(payload).__name__}")
             response.response_json = json.dumps(self._handler(payload))
@@ -357,7 +359,10 @@ class Ros2Driver(DriverBase):
             raise RequestTimeoutError(f"request to {name!r} got no reply within {timeout:g} s") from None
         if not response.success:
             raise RemoteError(f"{name!r} failed: {response.error}")
-        reply = json.loads(response.response_json or "{}")
+        try:
+            reply = bounded_json.loads(response.response_json or "{}", REQUEST_JSON_LIMITS)
+        except bounded_json.InvalidJsonError as exc:
+            raise RemoteError(f"{name!r} sent a reply that does not decode: {exc}") from None
         if not isinstance(reply, dict):
             raise RemoteError(f"{name!r} replied with a {type(reply).__name__}, not a JSON object")
         return reply

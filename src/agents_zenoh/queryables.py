@@ -15,6 +15,7 @@ from typing import Any
 
 import zenoh
 
+from agents_core import bounded_json
 from agents_core.errors import RemoteError, RequestTimeoutError
 from agents_core.messages import ComponentStatusMsg
 from agents_core.status import HealthStatus, LifecycleState
@@ -23,7 +24,8 @@ from agents_core.transport.contract import ServiceHandler, TransitionHandler
 from agents_core.transport.driver import Lane
 from agents_core.transport.requests import serve_with_caller_deadline
 
-from .codecs import MSGPACK, CodecError, codec_for, encode_value, pack, unpack
+from .codecs import DEFAULT_DECODE_LIMITS, MSGPACK, CodecError, codec_for, encode_value, pack, unpack
+from .codecs.limits import json_limits
 from .context import ZenohContext, undeclare
 from .keys import liveliness_key, state_key, transition_key
 
@@ -34,20 +36,35 @@ logger = logging.getLogger(__name__)
 #: Encoding of an error reply: a msgpack map ``{"error": "<Type>: <message>", "type": "<Type>"}``.
 ERROR_ENCODING = f"{MSGPACK};error"
 _JSON_ENCODINGS = ("application/json", "text/json")
+# A request sent as JSON is bounded like its msgpack form (DEFAULT_DECODE_LIMITS, what unpack() uses).
+_REQUEST_JSON_LIMITS = json_limits(DEFAULT_DECODE_LIMITS)
 
 
-def _read_request(query: zenoh.Query) -> tuple[dict[str, Any], bool]:
-    """The request map of ``query`` and whether it came (and is answered) as JSON."""
+def _wants_json(query: zenoh.Query) -> bool:
+    """Whether ``query`` came as JSON, and so is answered (errors included) as JSON."""
     encoding = str(query.encoding) if query.encoding is not None else ""
-    as_json = encoding.startswith(_JSON_ENCODINGS)
+    return encoding.startswith(_JSON_ENCODINGS)
+
+
+def _read_request(query: zenoh.Query, as_json: bool) -> dict[str, Any]:
+    """The request map of ``query``, decoded under the request limits; raises :class:`CodecError`."""
     payload = query.payload
     if payload is None or len(payload) == 0:
-        return {}, as_json
-    raw = payload.to_bytes()
-    doc = json.loads(raw) if as_json else unpack(raw)
+        return {}
+    if as_json:
+        if len(payload) > _REQUEST_JSON_LIMITS.max_bytes:  # before copying it out of Zenoh's buffer
+            raise CodecError(f"the JSON request has {len(payload)} bytes, more than "
+                             f"{_REQUEST_JSON_LIMITS.max_bytes} (DecodeLimits.max_document_bytes)")
+        try:
+            doc = bounded_json.loads(payload.to_bytes(), _REQUEST_JSON_LIMITS)
+        except bounded_json.InvalidJsonError as exc:
+            # The same error type as a msgpack request that does not decode, whatever the encoding.
+            raise CodecError(str(exc)) from exc
+    else:
+        doc = unpack(payload.to_bytes())
     if not isinstance(doc, dict):
         raise CodecError(f"a request must be a map, got {type(doc).__name__}")
-    return doc, as_json
+    return doc
 
 
 def _reply(query: zenoh.Query, key: str, result: dict[str, Any], as_json: bool) -> None:
@@ -84,9 +101,9 @@ class ZenohService:
 
     def _serve(self, query: zenoh.Query) -> None:
         with query:  # dropping the query finalises it, so the caller stops waiting
-            as_json = False
+            as_json = _wants_json(query)
             try:
-                request, as_json = _read_request(query)
+                request = _read_request(query, as_json)
                 result = self._handler(request)
                 if not isinstance(result, dict):
                     raise TypeError(f"the handler returned {type(result).__name__}, not a dict")
@@ -153,9 +170,9 @@ class ZenohPresence:
 
     def _serve_transition(self, query: zenoh.Query) -> None:
         with query:
-            as_json = False
+            as_json = _wants_json(query)
             try:
-                request, as_json = _read_request(query)
+                request = _read_request(query, as_json)
                 transition = request.get("transition")
                 if not isinstance(transition, str):
                     raise CodecError("a transition request is {'transition': '<name>'}")

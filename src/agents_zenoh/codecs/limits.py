@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING, Any
 import attrs
 from attrs import define, field
 
+from agents_core.bounded_json import JsonLimits
 from agents_core.types import is_builtin_type
 
 from .errors import CodecError
@@ -30,6 +31,7 @@ __all__ = [
     "STRUCT_LIMITS",
     "DecodeLimits",
     "counting_hooks",
+    "json_limits",
     "limits_for",
 ]
 
@@ -169,6 +171,19 @@ def limits_for(msg_type: type[SupportedType]) -> DecodeLimits:
         return _TYPE_LIMITS[name]
     # Every other built-in type (Header, StreamingString, Pose, Twist, Odometry, ...) is a fixed-shape message.
     return STRUCT_LIMITS if is_builtin_type(msg_type) else DEFAULT_DECODE_LIMITS
+
+
+def json_limits(limits: DecodeLimits) -> JsonLimits:
+    """The same bounds for a document that comes as JSON rather than msgpack (a raw client's request).
+
+    Sizes and counts carry over one to one (a msgpack map is a JSON object); JSON adds a depth
+    limit (msgpack's unpacker stops at 1024 levels by itself), a 64-bit integer range (all msgpack
+    can carry) and the refusal of NaN / Infinity (see :class:`~agents_core.bounded_json.JsonLimits`).
+    """
+    return JsonLimits(max_bytes=limits.max_document_bytes, max_str_len=limits.max_str_len,
+                      max_objects=limits.max_maps, max_arrays=limits.max_arrays,
+                      max_object_len=limits.max_map_len, max_array_len=limits.max_array_len,
+                      max_expansion=limits.max_expansion)
 
 
 def counting_hooks(limits: DecodeLimits, size: int, resolve: Callable[[dict[Any, Any]], Any]) -> dict[str, Any]:
