@@ -22,7 +22,7 @@ from pathlib import Path
 from types import FrameType
 from typing import Any
 
-from . import cli_hz, goals, hop, imports, model, processes, report, startup, ui, vision, vla, voice
+from . import cli_hz, cortex, goals, hop, imports, model, processes, report, startup, ui, vision, vla, voice
 from . import map as map_suite  # the module name is the suite name; "map" alone would hide the builtin
 from .common import IMAGE_SHAPE, REPO, STRING_BYTES, Children, available
 from .throughput import WINDOW
@@ -47,7 +47,7 @@ SETTINGS: dict[str, dict[str, Any]] = {
 }
 
 SUITES = ("hop", "startup", "model", "imports", "vision", "voice", "map", "processes", "ui", "goals", "vla",
-          "cli")
+          "cortex", "cli")
 
 
 def transport_unavailable(name: str) -> str | None:
@@ -111,6 +111,7 @@ def run_suites(transports: list[str], suites: list[str], settings: dict[str, Any
         ("ui", "memory", lambda: ui.run_suite(settings, p)),
         ("goals", None, lambda: goals.run_suite(t, settings, c, d, p)),
         ("vla", None, lambda: vla.run_suite(settings, c, p)),
+        ("cortex", None, lambda: cortex.run_suite(settings, c, p)),
         ("cli", "zenoh", lambda: cli_hz.run_suite(settings, p)),
     ]
     records: list[dict[str, Any]] = []

@@ -29,6 +29,7 @@ from .errors import ConfigError
 __all__ = [
     "BaseAttrs",
     "BaseComponentConfig",
+    "CortexConfig",  # noqa: F822  (resolved on first use by the module __getattr__ at the end)
     "LLMConfig",
     "MLLMConfig",
     "MapConfig",
@@ -551,3 +552,12 @@ class VLAConfig(ModelComponentConfig):
     on_new_goal: str = field(default="reject", validator=base_validators.in_(["reject", "preempt"]))
     aggregation_function: str = field(default="weighted_average", validator=base_validators.in_(
         ["latest_only", "average", "weighted_average", "conservative"]))
+
+
+def __getattr__(name: str) -> Any:
+    # Configs that live with their component package, imported on first use (no import circle).
+    if name == "CortexConfig":
+        from .components.cortex.config import CortexConfig  # noqa: PLC0415
+
+        return CortexConfig
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

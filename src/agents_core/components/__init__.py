@@ -13,6 +13,7 @@ from .._lazy import lazy_exports
 #: module -> the names re-exported from it, imported on first access.
 _EXPORTS: dict[str, tuple[str, ...]] = {
     ".component_base": ("Component",),
+    ".cortex.component": ("Cortex",),
     ".publisher": ("ComponentPublisher",),
     ".llm": ("LLM",),
     ".map_encoding": ("MapEncoding", "MapLayer"),
@@ -30,6 +31,7 @@ _EXPORTS: dict[str, tuple[str, ...]] = {
 if TYPE_CHECKING:
     from ..runtime.run_type import ComponentRunType
     from .component_base import Component
+    from .cortex.component import Cortex
     from .llm import LLM
     from .map_encoding import MapEncoding, MapLayer
     from .mllm import MLLM, VLM
@@ -52,6 +54,7 @@ __all__ = [
     "Component",
     "ComponentPublisher",
     "ComponentRunType",
+    "Cortex",
     "MapEncoding",
     "MapLayer",
     "ModelComponent",

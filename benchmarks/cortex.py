@@ -1,0 +1,139 @@
+"""Cortex framework overhead: from the planner's answer to the first dispatched action, LLM time excluded.
+
+One child process launches, on the memory transport, a Cortex and an arm component with one
+``@component_action``. The planner model is an in-process client answering at once from a script
+(a plan of one ``arm.grasp`` step, then the confirmation ``EXECUTE``, then the closing text), and it
+clocks the time spent in its own calls. Per task:
+
+    overhead = (arm.grasp starts - the planner's plan is returned) - time inside the confirmation call
+
+so what remains is Cortex's own work for a step: checking the plan against the tool schemas,
+building the confirmation, parsing the decision, dispatching through ``execute_method`` and the
+arm's worker. Reported as milliseconds (p50, p99). ``python -m benchmarks.cortex --reps N`` is the
+child; :func:`run_suite` runs it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import sys
+import time
+from collections.abc import Callable, MutableMapping
+from typing import Any
+
+from .common import ChildFailed, Children, child_env, emit, log
+
+
+def run_child(reps: int, warmup: int) -> None:
+    import numpy as np  # noqa: PLC0415
+
+    from agents_core.actions import component_action  # noqa: PLC0415
+    from agents_core.clients import ModelClient  # noqa: PLC0415
+    from agents_core.components import Component, Cortex  # noqa: PLC0415
+    from agents_core.config import CortexConfig  # noqa: PLC0415
+    from agents_core.launch.launcher import Launcher  # noqa: PLC0415
+    from agents_core.models import GenericLLM  # noqa: PLC0415
+
+    marks: dict[str, float] = {}
+
+    class InstantPlanner(ModelClient):
+        """Answers at once: plan, EXECUTE, done (per task); clocks its own calls."""
+
+        supports_tool_calls = True
+
+        def __init__(self) -> None:
+            super().__init__(model=GenericLLM(name="bench", checkpoint="bench"))
+            self.in_confirmation = 0.0
+
+        def _check_connection(self) -> None:
+            pass
+
+        def _initialize(self) -> None:
+            pass
+
+        def _deinitialize(self) -> None:
+            pass
+
+        def _inference(self, inference_input: dict[str, Any]) -> MutableMapping[str, Any] | None:
+            system = inference_input["query"][0]["content"]
+            if system.startswith("You supervise"):
+                return {"output": "EXECUTE", "tool_calls": []}
+            if any(m.get("role") == "tool" for m in inference_input["query"]):
+                return {"output": "done", "tool_calls": []}
+            marks["planned"] = time.perf_counter()
+            return {"output": "", "tool_calls": [{"id": "c1", "type": "function", "function": {
+                "name": "arm.grasp", "arguments": {"object": "cup"}}}]}
+
+        def inference(self, inference_input: dict[str, Any]) -> MutableMapping[str, Any]:
+            started = time.perf_counter()
+            result = super().inference(inference_input)
+            if inference_input["query"][0]["content"].startswith("You supervise"):
+                self.in_confirmation = time.perf_counter() - started
+            return result
+
+    class Arm(Component):
+        def __init__(self) -> None:
+            super().__init__(trigger=0.1, component_name="arm")
+
+        @component_action(description={"description": "Grasp an object.", "parameters": {
+            "type": "object", "properties": {"object": {"type": "string"}}, "required": ["object"]}})
+        def grasp(self, object: str) -> str:
+            marks["dispatched"] = time.perf_counter()
+            return f"holding {object}"
+
+        def _execution_step(self, **kwargs: Any) -> None:
+            pass
+
+    client = InstantPlanner()
+    cortex = Cortex(model_client=client, config=CortexConfig(max_planning_steps=3, max_execution_steps=3),
+                    component_name="cortex")
+    launcher = Launcher("memory")
+    launcher.add_pkg(components=[Arm(), cortex])
+    overheads: list[float] = []
+    with launcher:
+        for rep in range(warmup + reps):
+            marks.clear()
+            goal = launcher.transport.send_goal("cortex", "VisionLanguageAction", {"task": "grasp the cup"},
+                                                timeout=5.0)
+            status, result = goal.result(30.0)
+            if not result.get("success"):
+                raise RuntimeError(f"task failed: {status.name} {result}")
+            if rep >= warmup:
+                overheads.append((marks["dispatched"] - marks["planned"] - client.in_confirmation) * 1000.0)
+    emit({"suite": "cortex", "transport": "memory", "payload": "one_step_plan", "mode": "framework",
+          "latency_ms": {"p50": statistics.median(overheads), "p99": float(np.percentile(overheads, 99))},
+          "reps": reps})
+
+
+def run_suite(settings: dict[str, Any], children: Children,
+              progress: Callable[[str], None]) -> tuple[list[dict[str, Any]], list[dict[str, str]]]:
+    """The cortex child; (records, skipped)."""
+    records: list[dict[str, Any]] = []
+    skipped: list[dict[str, str]] = []
+    try:
+        child = children.start("cortex", ["-m", "benchmarks.cortex", "--reps", str(settings.get("cortex_reps", 50)),
+                                          "--warmup", str(settings.get("cortex_warmup", 5))], child_env())
+        records += list(child.records(timeout=600))
+        children.stop(child)
+        for r in records:
+            progress(f"{'cortex':<10} {'memory':<6} {r['mode']:<9} {r['latency_ms']['p50']:8.2f} ms plan -> first "
+                     "dispatch")
+    except ChildFailed as exc:
+        progress(f"cortex: FAILED: {str(exc).splitlines()[0]}")
+        skipped.append({"suite": "cortex", "transport": "memory", "mode": "framework", "reason": str(exc)[-1500:]})
+    return records, skipped
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--reps", type=int, default=50)
+    parser.add_argument("--warmup", type=int, default=5)
+    args = parser.parse_args(argv)
+    run_child(args.reps, args.warmup)
+    log("cortex done")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
