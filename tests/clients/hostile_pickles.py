@@ -264,6 +264,19 @@ def fuzz(examples: int) -> int:
     return 0
 
 
+def peak_rss_mb() -> float:
+    """This process's peak resident size since its exec (VmHWM).
+
+    Not ``getrusage().ru_maxrss``: Linux carries that over fork and exec, so a child of a large
+    pytest process would report the parent's peak.
+    """
+    with open("/proc/self/status", encoding="ascii") as status:
+        for line in status:
+            if line.startswith("VmHWM:"):
+                return round(int(line.split()[1]) / 1024, 1)
+    return round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1)
+
+
 def main(name: str) -> int:
     from agents_core.errors import ProtocolError  # noqa: PLC0415
 
@@ -281,7 +294,7 @@ def main(name: str) -> int:
         outcome["result"] = f"{type(exc).__name__}: {str(exc)[:160]}"
         code = 5
     outcome["seconds"] = round(time.perf_counter() - started, 3)
-    outcome["max_rss_mb"] = round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1)
+    outcome["max_rss_mb"] = peak_rss_mb()
     from agents_core.clients.lerobot import protocol as wire  # noqa: PLC0415
     try:
         wire.TimedObservation(1.0, 1, {})

@@ -45,7 +45,8 @@ def test_a_hostile_payload_is_refused_without_crash_or_memory(gadget: str) -> No
     outcome = json.loads(done.stdout.strip().splitlines()[-1])
     assert "Error" in str(outcome["result"]) and "classes" not in outcome
     assert float(outcome["max_rss_mb"]) < 250, outcome  # the process itself takes ~60 MB
-    assert float(outcome["seconds"]) < 5, outcome
+    # A hang guard, not a speed target (the refusal takes ~0.3 s; benchmarks measure speed).
+    assert float(outcome["seconds"]) < 60, outcome
 
 
 @pytest.mark.slow
