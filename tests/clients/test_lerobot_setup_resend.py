@@ -3,8 +3,6 @@ goals (a new process state, no policy) is used again at once instead of being po
 
 from __future__ import annotations
 
-import time
-
 import pytest
 
 pytest.importorskip("grpc", reason="the vla extra (grpcio) is not installed")
@@ -24,11 +22,9 @@ def test_a_server_restarted_between_inferences_gets_the_setup_again() -> None:
         assert client.inference(observation(step=0))["output"].shape == (4, 2)
         first.stop()
         with PolicyTestServer(port=port) as second:  # the same address, no policy loaded
-            began = time.monotonic()
+            # Before the fix this polled the policy-less server to the 10 s inference timeout and raised.
             result = client.inference(observation(step=1))
-            took = time.monotonic() - began
             assert result["output"].shape == (4, 2) and result["timestep"] == 1
-            assert took < 3.0, f"the restarted server was polled for {took:.1f} s"
             assert len(second.setups) == 1 and second.setups[0].pretrained_name_or_path == "me/arm-policy"
             assert client.setups_sent == 2
     finally:
@@ -56,11 +52,8 @@ def test_a_vla_goal_after_a_server_restart_succeeds() -> None:
             assert status == GoalStatus.SUCCEEDED, result
             first.stop()
             with PolicyTestServer(ReachPolicy(TARGET, step=0.05), port=port) as second:
-                began = time.monotonic()
                 status, result = r.send(max_steps=10).result(timeout=30)
-                took = time.monotonic() - began
                 assert status == GoalStatus.SUCCEEDED, result
-                assert took < 8.0, f"the second goal took {took:.1f} s"
                 assert len(second.setups) == 1
     finally:
         first.stop()
