@@ -5,7 +5,8 @@
 It holds one real component and one impersonated by hand, the way an attacker on the network
 (or an LLM that answers with markup) would speak to the CLI:
 
-- ``parrot``, a real component: publishes :data:`HOSTILE` on ``llm_answer`` at 10 Hz; its
+- ``parrot``, a real component: publishes :data:`HOSTILE` on ``llm_answer`` and :data:`ESCAPES`
+  (no markup, which used to reach the terminal raw) on ``escapes_only`` at 10 Hz; its
   actions ``say()`` returns it, ``fail()`` raises with it, and both carry it in their descriptions;
 - ``imposter``, served with the transport's public services plus raw Zenoh queryables: its
   ``describe`` reply, ``execute_method`` result, state, health and transition reply are hostile;
@@ -31,9 +32,10 @@ from agents_core.supported_types import ComponentStatus
 from agents_core.transport.core import DriverTransport
 from agents_core.transport.registry import resolve_transport
 
-#: What the network sends: markup, escapes (title, clear screen, a link) and a bidi override.
-HOSTILE = ("LLM says [/INST] [bold red]RED[/bold red] \x1b]0;pwned\x07 \x1b[2J "
-           "\x1b]8;;http://evil\x1b\\link\x1b]8;;\x1b\\ \u202eevil")
+#: Terminal escapes (window title, clear screen, a link to any site) and a bidi override.
+ESCAPES = "\x1b]0;pwned\x07 \x1b[2J \x1b]8;;http://evil\x1b\\link\x1b]8;;\x1b\\ \u202eevil"
+#: What the network sends: markup and the escapes.
+HOSTILE = f"LLM says [/INST] [bold red]RED[/bold red] {ESCAPES}"
 #: The same inside one Zenoh key chunk (no '/', '*', '$', '?', '#').
 HOSTILE_KEY = "x[/INST][bold red]\x1b]0;pwned\x07\x1b[2J\x1b]8;;http:evil\x1b\\link\x1b]8;;\x1b\\\u202eevil"
 
@@ -48,6 +50,7 @@ class Parrot(Component):
 
     def _execution_step(self, **kwargs: Any) -> None:
         self.publishers_dict["llm_answer"].publish(HOSTILE)
+        self.publishers_dict["escapes_only"].publish(ESCAPES)
 
     @component_action
     @_hostile_doc
@@ -106,8 +109,8 @@ if __name__ == "__main__":
     transport = resolve_transport("zenoh")
     assert isinstance(transport, DriverTransport)
     launcher = Launcher(transport)
-    launcher.add_pkg(components=[Parrot(inputs=[], outputs=[Topic("llm_answer", "String")], trigger=10.0,
-                                        component_name="parrot")])
+    outputs = [Topic("llm_answer", "String"), Topic("escapes_only", "String")]
+    launcher.add_pkg(components=[Parrot(inputs=[], outputs=outputs, trigger=10.0, component_name="parrot")])
     held = impersonate(transport)
     print("RECIPE STARTING", flush=True)
     try:
