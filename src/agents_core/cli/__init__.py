@@ -13,5 +13,7 @@ __all__ = ["main"]
 def main() -> None:
     """The console script's entry point."""
     from .app import app  # noqa: PLC0415 - Typer is imported only when the CLI runs
+    from .output import install_safe_logging  # noqa: PLC0415 - Rich is imported only when the CLI runs
 
+    install_safe_logging()
     app()

@@ -14,7 +14,7 @@ from ..errors import AgentsError, ConfigError
 from ..transport.registry import TRANSPORT_ENV_VAR
 from . import components, topics
 from .connection import fail, one_line_errors
-from .output import console, print_json
+from .output import print_json, say
 
 __all__ = ["app"]
 
@@ -98,7 +98,7 @@ def router(listen: Annotated[list[str], typer.Option("--listen", "-l", help="end
         if json_out:
             print_json({"router": zid, "listen": listen, "connect": connect or []})
         else:
-            console.print(f"Zenoh router {zid} listening on {', '.join(listen)}")
+            say(f"Zenoh router {zid} listening on {', '.join(listen)}")
         sys.stdout.flush()
 
     serve_router(list(listen), list(connect or []), on_ready=ready)

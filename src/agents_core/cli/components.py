@@ -7,13 +7,13 @@ from typing import Annotated, Any
 
 import typer
 
-from ..errors import ConfigError, ServiceUnavailableError
+from ..errors import AgentsError, ConfigError, ServiceUnavailableError
 from ..topics import validate_topic_name
 from ..transport.graph import describe_component
 from .connection import discovery_timeout, one_line_errors, open_transport
-from .output import console, print_json, print_table
+from .output import print_json, print_table, print_value, say
 from .topics import ConnectOpt, DiscoveryOpt, JsonOpt, TransportOpt
-from .values import parse_call_argument, summarize
+from .values import ArgumentError, parse_call_argument, parse_json_argument, summarize
 
 __all__ = ["app", "call"]
 
@@ -36,7 +36,7 @@ def list_components(transport: TransportOpt = None, connect: ConnectOpt = None, 
     rows: list[dict[str, Any]] = []
     with open_transport(transport, connect) as t:
         for name in t.discover(timeout=discovery_timeout(t, timeout)).components:
-            status = t.get_component_state(name, timeout=2.0)
+            status = _state_of(t, name)
             rows.append({"name": name, "state": status.lifecycle_state if status else "unknown",
                          "health": status.health if status else "unknown"})
     if json_out:
@@ -44,6 +44,17 @@ def list_components(transport: TransportOpt = None, connect: ConnectOpt = None, 
     else:
         print_table("components", ["component", "state", "health"],
                     [(r["name"], r["state"], r["health"]) for r in rows])
+
+
+def _state_of(transport: Any, name: str) -> Any:
+    """The state of one listed component, None when unknown: one odd or broken peer never fails the list."""
+    try:
+        # A name that is no component name (a hostile token, a wildcard) is not queried: its state
+        # key could match other components' keys.
+        validate_topic_name(name, "component")
+        return transport.get_component_state(name, timeout=2.0)
+    except AgentsError:  # an invalid name (TopicNameError) included
+        return None
 
 
 @app.command("status")
@@ -63,10 +74,18 @@ def status(name: Annotated[str, typer.Argument(help="component name")], transpor
         return
     print_table(f"component {name}", ["field", "value"],
                 [(k, described[k]) for k in ("component_type", "run_type", "state", "health")])
-    print_table("inputs", ["topic", "type"], [(i["name"], i["msg_type"]) for i in described["inputs"]])
-    print_table("outputs", ["topic", "type"], [(o["name"], o["msg_type"]) for o in described["outputs"]])
+    print_table("inputs", ["topic", "type"], _topic_rows(described["inputs"]))
+    print_table("outputs", ["topic", "type"], _topic_rows(described["outputs"]))
+    actions = described["actions"] if isinstance(described["actions"], dict) else {}
     print_table("actions", ["method", "description"],
-                [(m, _action_text(d)) for m, d in sorted(described["actions"].items())])
+                [(m, _action_text(d)) for m, d in sorted(actions.items(), key=lambda item: str(item[0]))])
+
+
+def _topic_rows(entries: Any) -> list[tuple[Any, Any]]:
+    # A describe reply comes from the network: a malformed list shows as empty, not as a KeyError.
+    if not isinstance(entries, list):
+        return []
+    return [(e.get("name", "?"), e.get("msg_type", "?")) for e in entries if isinstance(e, dict)]
 
 
 def _action_text(description: Any) -> str:
@@ -97,7 +116,7 @@ def transition(name: Annotated[str, typer.Argument(help="component name")],
     if json_out:
         print_json(doc)
     else:
-        console.print(f"{name}: {which} {'done' if ok else 'refused'} (state: {doc['state']})")
+        say(f"{name}: {which} {'done' if ok else 'refused'} (state: ", doc["state"], ")")
     if not ok:
         raise typer.Exit(1)
 
@@ -115,13 +134,13 @@ def call(name: Annotated[str, typer.Argument(help="component name")],
     keyword: Any = {}
     if kwargs is not None:
         try:
-            keyword = json.loads(kwargs)
+            keyword = parse_json_argument(kwargs, "--kwargs")
         except json.JSONDecodeError as exc:
-            raise ConfigError(f"--kwargs is not valid JSON: {exc}") from None
+            raise ArgumentError("--kwargs", f"is not valid JSON: {exc}") from None
         if not isinstance(keyword, dict):
-            raise ConfigError("--kwargs must be a JSON object")
-    request = {"method": method, "args": [parse_call_argument(a) for a in args or []], "kwargs": keyword,
-               "timeout": timeout}
+            raise ArgumentError("--kwargs", "must be a JSON object")
+    request = {"method": method, "kwargs": keyword, "timeout": timeout,
+               "args": [parse_call_argument(a, f"argument {i} ({_shorten(a)!r})") for i, a in enumerate(args or [], 1)]}
     with open_transport(transport, connect) as t:
         try:
             reply = t.request(f"{name}/execute_method", request, timeout=timeout)
@@ -132,4 +151,8 @@ def call(name: Annotated[str, typer.Argument(help="component name")],
     if json_out:
         print_json({"component": name, "method": method, "result": result})
     else:
-        console.print(result)
+        print_value(result)
+
+
+def _shorten(text: str, limit: int = 20) -> str:
+    return text if len(text) <= limit else f"{text[:limit]}..."

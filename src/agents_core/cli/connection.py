@@ -14,10 +14,16 @@ import typer
 from ..errors import AgentsError, ConfigError
 from ..transport.contract import Transport
 from ..transport.registry import TRANSPORT_ENV_VAR, resolve_transport
+from .output import safe_text
+from .values import ArgumentError
 
-__all__ = ["DEFAULT_TRANSPORT", "discovery_timeout", "fail", "one_line_errors", "open_transport", "transport_default"]
+__all__ = ["DEFAULT_TRANSPORT", "USAGE_ERROR", "discovery_timeout", "fail", "one_line_errors", "open_transport",
+           "transport_default"]
 
 F = TypeVar("F", bound=Callable[..., Any])
+
+#: The exit status of a usage error (Typer's, and ours for argument values that cannot be used).
+USAGE_ERROR = 2
 
 #: What the inspection commands use when neither --transport nor AGENTS_TRANSPORT says.
 DEFAULT_TRANSPORT = "zenoh"
@@ -29,20 +35,32 @@ def transport_default() -> str:
 
 
 def fail(message: str, code: int = 1) -> typer.Exit:
-    """Print ``error: <message>`` (one line) on stderr; the caller raises what this returns."""
-    print(f"error: {' '.join(str(message).split())}", file=sys.stderr)
+    """Print ``error: <message>`` (one line, control characters escaped) on stderr; the caller raises what this returns.
+
+    Messages often quote what a remote sent (its error, a type name), so they go through
+    :func:`~agents_core.cli.output.safe_text`.
+    """
+    print(f"error: {safe_text(' '.join(str(message).split()), one_line=True)}", file=sys.stderr, flush=True)
     return typer.Exit(code)
 
 
 def one_line_errors(func: F) -> F:
-    """Turn the framework's errors (and bad input) into one line on stderr and exit status 1."""
+    """Turn the framework's errors (and bad input) into one line on stderr: exit status 2 for an argument, else 1.
+
+    OverflowError and RecursionError are caught too: a value built from the user's or a remote's
+    input (a huge number, a deeply nested document) must end in a message, never a traceback.
+    """
 
     @functools.wraps(func)
     def wrapper(*args: Any, **kwargs: Any) -> Any:
         try:
             return func(*args, **kwargs)
-        except (AgentsError, ValueError, TypeError, LookupError) as exc:
+        except ArgumentError as exc:
+            raise fail(str(exc), USAGE_ERROR) from None
+        except (AgentsError, ValueError, TypeError, LookupError, OverflowError) as exc:
             raise fail(str(exc) or type(exc).__name__) from None
+        except RecursionError:
+            raise fail("a value is nested too deeply to handle") from None
 
     return wrapper  # type: ignore[return-value]
 

@@ -14,9 +14,10 @@ import typer
 from ..errors import ConfigError, UnknownTypeError
 from ..topics import Topic, validate_topic_name
 from ..transport.core import DriverTransport
+from ..transport.requests import MAX_TIMEOUT_S
 from ..types.base import SupportedType, get_type
 from .connection import discovery_timeout, one_line_errors, open_transport
-from .output import console, print_json, print_table
+from .output import print_json, print_table, print_value, say
 from .values import parse_value, summarize
 
 __all__ = ["app"]
@@ -91,8 +92,8 @@ def echo(name: Annotated[str, typer.Argument(help="topic name")], transport: Tra
                 if json_out:
                     print_json({"topic": name, "msg_type": msg_type.type_name(), "value": doc})
                 else:
-                    console.print(f"[bold]{name}[/bold] ({msg_type.type_name()})")
-                    console.print(doc)
+                    say((name, "bold"), f" ({msg_type.type_name()})")
+                    print_value(doc)
                 shown += 1
         finally:
             subscription.close()
@@ -108,7 +109,8 @@ def pub(name: Annotated[str, typer.Argument(help="topic name")],
         transport: TransportOpt = None, connect: ConnectOpt = None, json_out: JsonOpt = False,
         count: Annotated[int, typer.Option("--count", "-n", help="how many times to publish", min=1)] = 1,
         rate: Annotated[float, typer.Option("--rate", "-r", help="messages per second", min=0.001)] = 10.0,
-        wait: Annotated[float, typer.Option("--wait", help="seconds to wait for a subscriber first", min=0.0)] = 5.0,
+        wait: Annotated[float, typer.Option("--wait", help="seconds to wait for a subscriber first", min=0.0,
+                                            max=MAX_TIMEOUT_S)] = 5.0,
         ) -> None:
     """Publish a value on a topic."""
     name = _topic_name(name)
@@ -129,7 +131,7 @@ def pub(name: Annotated[str, typer.Argument(help="topic name")],
     if json_out:
         print_json({"topic": name, "msg_type": msg_type.type_name(), "published": count})
     else:
-        console.print(f"published {count} x {msg_type.type_name()} on {name}")
+        say(f"published {count} x {msg_type.type_name()} on {name}")
 
 
 def _offer(received: queue.Queue[Any], value: Any) -> None:
@@ -179,7 +181,8 @@ class _RateMeter:
 @one_line_errors
 def hz(name: Annotated[str, typer.Argument(help="topic name")], transport: TransportOpt = None,
        connect: ConnectOpt = None, json_out: JsonOpt = False,
-       window: Annotated[float, typer.Option("--window", "-w", help="seconds to measure over", min=0.1)] = 5.0,
+       window: Annotated[float, typer.Option("--window", "-w", help="seconds to measure over",
+                                             min=0.1, max=MAX_TIMEOUT_S)] = 5.0,
        type_name: Annotated[str | None, typer.Option("--type", help="message type (default: discovered)")] = None,
        discovery_wait: DiscoveryOpt = None) -> None:
     """Measure a topic's message rate over a window."""
