@@ -136,6 +136,22 @@ def check_image_size(width: int, height: int, max_pixels: int) -> None:
                                  f"at most {max_pixels} pixels")
 
 
+def _pixels(picture: Any) -> np.ndarray[Any, Any]:
+    """The decoded pixels of an "L" or "RGB" picture, copied strip by strip into one array.
+
+    ``np.asarray(picture)`` goes through ``tobytes()``, which joins the whole image from pieces:
+    three copies at its peak. Strips of about 4 MB keep the peak at the picture plus the array.
+    """
+    width, height = picture.size
+    channels = 1 if picture.mode == "L" else 3
+    out = np.empty((height, width, channels) if channels == 3 else (height, width), dtype=np.uint8)
+    rows = max(1, (4 << 20) // (width * channels))
+    for top in range(0, height, rows):
+        bottom = min(height, top + rows)
+        out[top:bottom] = np.asarray(picture.crop((0, top, width, bottom)))
+    return out
+
+
 def decode_image(data: bytes, max_pixels: int = MAX_UPLOAD_PIXELS) -> ImageMsg:
     """An uploaded PNG / JPEG as an rgb8 (or mono8) ImageMsg.
 
@@ -154,7 +170,7 @@ def decode_image(data: bytes, max_pixels: int = MAX_UPLOAD_PIXELS) -> ImageMsg:
             check_image_size(*picture.size, max_pixels)
             mode = "L" if picture.mode in ("L", "I;16", "I") else "RGB"
             # Already in the mode: no converted copy (it would double the peak of a large image).
-            pixels = np.asarray(picture if picture.mode == mode else picture.convert(mode))
+            pixels = _pixels(picture if picture.mode == mode else picture.convert(mode))
     except InputRejected:
         raise
     except PILImage.DecompressionBombError as exc:  # our bound is stricter; kept in case Pillow reads more
