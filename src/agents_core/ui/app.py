@@ -79,8 +79,9 @@ class UIState:
         self.gate = Gatekeeper(settings.token, settings.session_seconds)
         #: Uploads decoded at once: each may take a few hundred MB and a core for a second.
         self.decoders = anyio.CapacityLimiter(settings.decode_workers)
-        #: Set by the server: drops the TCP connection of a client address at once (a WebSocket
-        #: client dropped as too slow may have a send buffer that a polite close would wait on forever).
+        #: Set by the server: cuts the TCP connection of a client address unless it closes within a
+        #: second (a WebSocket client dropped as too slow may have a send buffer that a polite close
+        #: would wait on forever). Called on the event loop.
         self.abort_connection: Callable[[tuple[str, int]], bool] | None = None
         #: Request bodies refused by :class:`~.body_guard.BodyGuard`, by rule (size, time, busy).
         self.refused_bodies: dict[str, int] = {}
@@ -404,16 +405,14 @@ def _outputs_socket(state: UIState) -> Callable[[WebSocket], Awaitable[None]]:
         finally:
             state.hub.disconnect(client)
         if client.dropped:
-            closed = False
             with anyio.move_on_after(1.0):  # the socket may be stuck; the handler ends either way
                 try:
                     await websocket.close(code=1013, reason="too slow: frames were not read")
-                    closed = True
                 except Exception as exc:
                     logger.debug("closing a dropped UI client: %s", exc)
-            # A close frame stuck behind a full send buffer is never written, and uvicorn would keep the
-            # connection (and its buffer) until the peer reads: cut it.
-            if not closed and state.abort_connection is not None and websocket.client is not None:
+            # The close frame waits behind a full send buffer, and uvicorn keeps the connection (and the
+            # buffer) until the peer reads, which a stalled client never does: cut it after a grace.
+            if state.abort_connection is not None and websocket.client is not None:
                 state.abort_connection((websocket.client.host, websocket.client.port))
 
     return outputs

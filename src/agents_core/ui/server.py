@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+import asyncio
+import contextlib
 import logging
 import socket
+import struct
 import threading
 import time
 from collections.abc import Sequence
@@ -45,6 +48,17 @@ def resolve_topics(view: RecipeView, inputs: Sequence[Topic] | None, outputs: Se
 
     return (list(inputs) if inputs is not None else topics(default_in),
             list(outputs) if outputs is not None else topics(default_out))
+
+
+def _reset(transport: asyncio.BaseTransport) -> None:
+    """Close ``transport`` with a TCP reset: a plain close would leave the kernel's send queue (and the
+    connection) waiting on a peer that does not read. Nothing happens to a connection already gone
+    (its socket object is closed: setsockopt fails, abort does nothing)."""
+    sock = transport.get_extra_info("socket")
+    if sock is not None:
+        with contextlib.suppress(OSError):  # linger 0: close() resets instead of queueing a FIN
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, struct.pack("ii", 1, 0))
+    transport.abort()
 
 
 class UIServer:
@@ -114,15 +128,16 @@ class UIServer:
         logger.info("UI at %s", self.url)
         return self
 
-    def _abort_connection(self, client: tuple[str, int]) -> bool:
-        """Drop the TCP connection of ``client`` (host, port) at once, unsent data and all; on the event loop."""
+    def _abort_connection(self, client: tuple[str, int], grace: float = 1.0) -> bool:
+        """Cut the TCP connection of ``client`` (host, port), unsent data and all, unless it is gone within
+        ``grace`` seconds (a client that reads gets its close frame first). On the event loop."""
         server = self._server
         if server is None:
             return False
         for protocol in list(server.server_state.connections):
             transport = getattr(protocol, "transport", None)
             if getattr(protocol, "client", None) == client and transport is not None:
-                transport.abort()
+                asyncio.get_running_loop().call_later(grace, _reset, transport)
                 return True
         return False
 
