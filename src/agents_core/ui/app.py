@@ -161,6 +161,9 @@ def _guarded(state: UIState, endpoint: Endpoint, needs_token: bool = True) -> En
             return await endpoint(request)
         except InputRejected as exc:
             return _error(exc.status, exc.message)
+        except Exception:  # a bug, not the client's fault: logged with its traceback, answered in JSON
+            logger.exception("the UI failed on %s %s", request.method, request.url.path)
+            return _error(500, "the UI failed on this request (the server log has the details)")
 
     return guarded
 
