@@ -50,7 +50,7 @@ def resolve_topics(view: RecipeView, inputs: Sequence[Topic] | None, outputs: Se
             list(outputs) if outputs is not None else topics(default_out))
 
 
-def _reset(transport: asyncio.BaseTransport) -> None:
+def _reset(transport: asyncio.Transport) -> None:
     """Close ``transport`` with a TCP reset: a plain close would leave the kernel's send queue (and the
     connection) waiting on a peer that does not read. Nothing happens to a connection already gone
     (its socket object is closed: setsockopt fails, abort does nothing)."""
