@@ -142,3 +142,19 @@ def test_tls_settings_are_checked(tmp_path: Path) -> None:
         UISettings(tls_certfile=str(tmp_path / "cert.pem"))
     with pytest.raises(ConfigError, match="does not exist"):
         UISettings(tls_certfile=str(tmp_path / "cert.pem"), tls_keyfile=str(tmp_path / "key.pem"))
+
+
+def test_the_throttle_forgets_after_its_window_and_stays_bounded() -> None:
+    from agents_core.ui.sessions import FAILURE_WINDOW, MAX_SESSIONS, Gatekeeper  # noqa: PLC0415
+
+    now = [0.0]
+    gate = Gatekeeper(TOKEN, session_seconds=60.0, clock=lambda: now[0])
+    for _ in range(MAX_FAILURES):
+        assert not gate.check_token("10.0.0.1", "wrong")
+    assert gate.throttled("10.0.0.1") > 0 and gate.throttled("10.0.0.2") == 0
+    now[0] += FAILURE_WINDOW
+    assert gate.throttled("10.0.0.1") == 0
+    sessions = [gate.open_session() for _ in range(MAX_SESSIONS + 1)]
+    assert not gate.session_valid(sessions[0]) and gate.session_valid(sessions[-1])  # the oldest went first
+    now[0] += 61.0
+    assert not gate.session_valid(sessions[-1])

@@ -56,6 +56,8 @@ class Gatekeeper:
         """Seconds ``address`` must wait before presenting a token again (0: it may now)."""
         now = self._now()
         with self._lock:
+            if address not in self._failures:  # asking creates no entry: only failures take room
+                return 0.0
             recent = self._recent(address, now)
             if len(recent) < MAX_FAILURES:
                 return 0.0
