@@ -10,20 +10,21 @@
 ``POST /api/components/<name>/transition``                    ``{"transition": "deactivate"}``
 ``POST /api/components/<name>/actions/<action>``              ``{"args": [...], "kwargs": {...}}``,
                                                               ``@component_action`` methods only
-``POST /api/login``                                           ``{"token": ...}`` sets the cookie
+``POST /api/login``                                           ``{"token": ...}`` opens a session (cookie)
+``POST /api/logout``                                          closes it
 ``GET  /``                                                    the page (``static/``)
 ==========================================================  =========================================
 
 Errors are JSON ``{"error": "..."}`` with a 4xx/5xx status. Requests from another origin (a web
 page elsewhere that a browser would happily send to 127.0.0.1) are refused, and so are Host
-names other than loopback ones while bound to loopback (DNS rebinding).
+names other than loopback ones while bound to loopback (DNS rebinding). Request bodies are read
+by :class:`~.body_guard.BodyGuard` (bounded in size, time and number), uploads are decoded on
+worker threads a bounded number at a time, and wrong tokens are throttled (:mod:`.sessions`).
 """
 
 from __future__ import annotations
 
 import asyncio
-import hmac
-import json
 import logging
 from collections.abc import AsyncIterator, Awaitable, Callable
 from contextlib import asynccontextmanager
@@ -34,6 +35,7 @@ from urllib.parse import urlsplit
 import anyio
 from starlette.applications import Starlette
 from starlette.concurrency import run_in_threadpool
+from starlette.middleware import Middleware
 from starlette.requests import HTTPConnection, Request
 from starlette.responses import FileResponse, JSONResponse, Response
 from starlette.routing import Mount, Route, WebSocketRoute
@@ -43,9 +45,12 @@ from starlette.websockets import WebSocket, WebSocketDisconnect
 from ..errors import AgentsError, RemoteError, RequestTimeoutError, ServiceUnavailableError
 from ..status import TRANSITIONS
 from ..topics import Topic
+from .body_guard import BodyGuard
 from .hub import OutputHub
 from .inputs import InputRejected, input_widget, read_bounded_body, value_for_topic
-from .recipe_view import RecipeView
+from .json_body import BadJSON, parse_json_body
+from .recipe_view import RecipeView, unavailable_entry
+from .sessions import Gatekeeper
 from .settings import UISettings, is_loopback
 
 __all__ = ["COOKIE_NAME", "UIState", "create_app"]
@@ -53,7 +58,8 @@ __all__ = ["COOKIE_NAME", "UIState", "create_app"]
 logger = logging.getLogger(__name__)
 
 STATIC = Path(__file__).resolve().parent / "static"
-COOKIE_NAME = "agents_ui_token"
+#: The session cookie: an opaque random id, never the token (see :mod:`.sessions`).
+COOKIE_NAME = "agents_ui_session"
 #: The largest JSON body of a transition / action / login request.
 _SMALL_BODY = 64 * 1024
 
@@ -70,6 +76,15 @@ class UIState:
         self.outputs = {t.name: t for t in outputs}
         self.hub = OutputHub(transport, outputs, view.component_names(), image_format=settings.image_format,
                              client_queue=settings.client_queue)
+        self.gate = Gatekeeper(settings.token, settings.session_seconds)
+        #: Uploads decoded at once: each may take a few hundred MB and a core for a second.
+        self.decoders = anyio.CapacityLimiter(settings.decode_workers)
+        #: Set by the server: cuts the TCP connection of a client address unless it closes within a
+        #: second (a WebSocket client dropped as too slow may have a send buffer that a polite close
+        #: would wait on forever). Called on the event loop.
+        self.abort_connection: Callable[[tuple[str, int]], bool] | None = None
+        #: Request bodies refused by :class:`~.body_guard.BodyGuard`, by rule (size, time, busy).
+        self.refused_bodies: dict[str, int] = {}
         self._publishers: dict[str, Any] = {}
 
     def publisher(self, topic: Topic) -> Any:
@@ -96,15 +111,32 @@ def _error(status: int, message: str) -> JSONResponse:
 # -- the guard: token, origin, host ------------------------------------------------------------
 
 
-def _presented_token(conn: HTTPConnection) -> str | None:
+def _address(conn: HTTPConnection) -> str:
+    return conn.client.host if conn.client is not None else "?"
+
+
+def _token_refusal(conn: HTTPConnection, gate: Gatekeeper) -> tuple[int, str] | None:
+    """Why ``conn``'s credentials are refused (a bearer token, or a session cookie), or None."""
     auth = conn.headers.get("authorization", "")
     if auth.lower().startswith("bearer "):
-        return auth[7:].strip()
-    return conn.cookies.get(COOKIE_NAME)
+        address = _address(conn)
+        wait = gate.throttled(address)
+        if wait > 0:
+            return 429, f"too many wrong tokens from this address; try again in {wait:.0f} s"
+        if gate.check_token(address, auth[7:].strip()):
+            return None
+        return 401, "wrong token"
+    session = conn.cookies.get(COOKIE_NAME)
+    if session is not None and gate.session_valid(session):
+        return None
+    if session is not None:
+        return 401, "the session has expired; log in again (POST /api/login)"
+    return 401, "a token is needed (Authorization: Bearer <token>, or POST /api/login)"
 
 
-def _refusal(conn: HTTPConnection, settings: UISettings, needs_token: bool = True) -> tuple[int, str] | None:
+def _refusal(conn: HTTPConnection, state: UIState, needs_token: bool = True) -> tuple[int, str] | None:
     """Why ``conn`` may not use the API (status, message), or None."""
+    settings = state.settings
     host = conn.headers.get("host", "")
     hostname = urlsplit(f"//{host}").hostname or ""
     if is_loopback(settings.host) and not is_loopback(hostname):
@@ -112,10 +144,8 @@ def _refusal(conn: HTTPConnection, settings: UISettings, needs_token: bool = Tru
     origin = conn.headers.get("origin")
     if origin is not None and urlsplit(origin).netloc != host:
         return 403, "requests from another origin are refused"
-    if needs_token and settings.token is not None:
-        presented = _presented_token(conn)
-        if presented is None or not hmac.compare_digest(presented.encode(), settings.token.encode()):
-            return 401, "a token is needed (Authorization: Bearer <token>, or POST /api/login)"
+    if needs_token and state.gate.token_needed:
+        return _token_refusal(conn, state.gate)
     return None
 
 
@@ -124,13 +154,16 @@ Endpoint = Callable[[Request], Awaitable[Response]]
 
 def _guarded(state: UIState, endpoint: Endpoint, needs_token: bool = True) -> Endpoint:
     async def guarded(request: Request) -> Response:
-        refused = _refusal(request, state.settings, needs_token)
+        refused = _refusal(request, state, needs_token)
         if refused is not None:
             return _error(*refused)
         try:
             return await endpoint(request)
         except InputRejected as exc:
             return _error(exc.status, exc.message)
+        except Exception:  # a bug, not the client's fault: logged with its traceback, answered in JSON
+            logger.exception("the UI failed on %s %s", request.method, request.url.path)
+            return _error(500, "the UI failed on this request (the server log has the details)")
 
     return guarded
 
@@ -140,9 +173,9 @@ async def _json_body(request: Request) -> dict[str, Any]:
     if not body.strip():
         return {}
     try:
-        document = json.loads(body)
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise InputRejected(400, f"the body is not JSON ({exc})") from None
+        document = parse_json_body(body, max_bytes=_SMALL_BODY)
+    except BadJSON as exc:
+        raise InputRejected(400, str(exc)) from None
     if not isinstance(document, dict):
         raise InputRejected(422, "the body must be a JSON object")
     return document
@@ -162,7 +195,8 @@ def _routes(state: UIState) -> list[Any]:  # noqa: PLR0915  (one closure per end
         hub = state.hub
         return JSONResponse({"ok": True, "transport": state.transport.name, "components": len(hub.components),
                              "clients": hub.client_count, "frames_sent": hub.frames_sent,
-                             "dropped_clients": hub.dropped_clients, "encode_errors": hub.encode_errors})
+                             "dropped_clients": hub.dropped_clients, "encode_errors": hub.encode_errors,
+                             "refused_clients": hub.refused_clients, "refused_bodies": dict(state.refused_bodies)})
 
     def _describe_all() -> list[dict[str, Any]]:
         described = []
@@ -170,7 +204,8 @@ def _routes(state: UIState) -> list[Any]:  # noqa: PLR0915  (one closure per end
             try:
                 entry = dict(state.view.describe(name))
             except (AgentsError, KeyError) as exc:
-                entry = {"name": name, "error": str(exc), "inputs": [], "outputs": [], "actions": {}}
+                described.append(unavailable_entry(name, str(exc)))
+                continue
             latest = state.hub.latest_status(name)
             if latest is not None:  # newer than a describe reply that crossed the network
                 entry.update(state=latest["state"], health=latest["health"], message=latest["message"])
@@ -194,9 +229,17 @@ def _routes(state: UIState) -> list[Any]:  # noqa: PLR0915  (one closure per end
         upload: bytes | None = None
         if content_type.startswith("multipart/form-data"):
             upload = await _uploaded_file(request, body, topic.name)
-        value = value_for_topic(topic, content_type, body, upload)
+            body = b""  # the upload is a copy: let the raw multipart body go before decoding
+
+        def decode_and_publish() -> None:
+            value = value_for_topic(topic, content_type, body, upload, max_pixels=settings.max_upload_pixels,
+                                    max_json_bytes=settings.max_json_bytes)
+            state.publisher(topic).publish(value)
+
         try:
-            await run_in_threadpool(state.publisher(topic).publish, value)
+            # Off the event loop (health, WebSocket frames and the other requests keep going), and a
+            # bounded number at a time (each decode may take a few hundred MB).
+            await anyio.to_thread.run_sync(decode_and_publish, limiter=state.decoders)
         except AgentsError as exc:
             return _error(422 if isinstance(exc, TypeError | ValueError) else 503, f"topic {name!r}: {exc}")
         return JSONResponse({"ok": True, "topic": name, "msg_type": topic.msg_type.type_name()})
@@ -204,7 +247,10 @@ def _routes(state: UIState) -> list[Any]:  # noqa: PLR0915  (one closure per end
     def _known_component(name: str) -> dict[str, Any] | None:
         if name not in state.view.component_names():
             return None
-        return state.view.describe(name)
+        try:
+            return state.view.describe(name)
+        except (AgentsError, KeyError, TypeError, ValueError) as exc:
+            raise InputRejected(503, f"component {name!r} is unavailable: {exc}") from None
 
     async def transition(request: Request) -> Response:
         name = request.path_params["name"]
@@ -246,15 +292,27 @@ def _routes(state: UIState) -> list[Any]:  # noqa: PLR0915  (one closure per end
         return JSONResponse({"ok": True, "component": name, "action": method, "result": reply.get("result")})
 
     async def login(request: Request) -> Response:
-        document = await _json_body(request)
-        token = document.get("token")
-        if settings.token is None:
+        gate = state.gate
+        if not gate.token_needed:
             return JSONResponse({"ok": True, "token_needed": False})
-        if not isinstance(token, str) or not hmac.compare_digest(token.encode(), settings.token.encode()):
+        address = _address(request)
+        wait = gate.throttled(address)
+        if wait > 0:  # before reading the body: a throttled address costs nothing
+            return _error(429, f"too many wrong tokens from this address; try again in {wait:.0f} s")
+        token = (await _json_body(request)).get("token")
+        if not isinstance(token, str) or not gate.check_token(address, token):
             return _error(401, "wrong token")
         response = JSONResponse({"ok": True, "token_needed": True})
-        response.set_cookie(COOKIE_NAME, token, httponly=True, samesite="strict",
-                            secure=request.url.scheme == "https")
+        response.set_cookie(COOKIE_NAME, gate.open_session(), max_age=int(gate.session_seconds), httponly=True,
+                            samesite="strict", secure=request.url.scheme == "https", path="/")
+        return response
+
+    async def logout(request: Request) -> Response:
+        session = request.cookies.get(COOKIE_NAME)
+        if session is not None:
+            state.gate.close_session(session)
+        response = JSONResponse({"ok": True})
+        response.delete_cookie(COOKIE_NAME, httponly=True, samesite="strict", path="/")
         return response
 
     async def page(request: Request) -> Response:
@@ -268,6 +326,7 @@ def _routes(state: UIState) -> list[Any]:  # noqa: PLR0915  (one closure per end
         Route("/api/components/{name:path}/transition", _guarded(state, transition), methods=["POST"]),
         Route("/api/components/{name:path}/actions/{action}", _guarded(state, action), methods=["POST"]),
         Route("/api/login", _guarded(state, login, needs_token=False), methods=["POST"]),
+        Route("/api/logout", _guarded(state, logout, needs_token=False), methods=["POST"]),
         WebSocketRoute("/api/outputs", _outputs_socket(state)),
         Mount("/static", StaticFiles(directory=STATIC), name="static"),
     ]
@@ -308,7 +367,7 @@ def _transport_error(exc: AgentsError, what: str) -> tuple[int, str]:
 
 def _outputs_socket(state: UIState) -> Callable[[WebSocket], Awaitable[None]]:
     async def outputs(websocket: WebSocket) -> None:
-        refused = _refusal(websocket, state.settings)
+        refused = _refusal(websocket, state)
         if refused is not None:
             await websocket.close(code=1008, reason=refused[1][:120])
             return
@@ -318,6 +377,10 @@ def _outputs_socket(state: UIState) -> Callable[[WebSocket], Awaitable[None]]:
         await websocket.accept()
         if unknown:
             await websocket.close(code=1008, reason=f"not outputs of this UI: {unknown}"[:120])
+            return
+        if state.hub.client_count >= state.settings.max_clients:
+            state.hub.refused_clients += 1
+            await websocket.close(code=1013, reason=f"too many clients ({state.settings.max_clients}); try later")
             return
         client = state.hub.connect(topics)
         try:
@@ -350,6 +413,10 @@ def _outputs_socket(state: UIState) -> Callable[[WebSocket], Awaitable[None]]:
                     await websocket.close(code=1013, reason="too slow: frames were not read")
                 except Exception as exc:
                     logger.debug("closing a dropped UI client: %s", exc)
+            # The close frame waits behind a full send buffer, and uvicorn keeps the connection (and the
+            # buffer) until the peer reads, which a stalled client never does: cut it after a grace.
+            if state.abort_connection is not None and websocket.client is not None:
+                state.abort_connection((websocket.client.host, websocket.client.port))
 
     return outputs
 
@@ -365,4 +432,7 @@ def create_app(state: UIState) -> Starlette:
         finally:
             state.close()
 
-    return Starlette(routes=_routes(state), lifespan=lifespan)
+    settings = state.settings
+    guard = Middleware(BodyGuard, max_bytes=settings.max_upload_bytes, timeout=settings.body_timeout,
+                       max_bodies=settings.max_bodies, refused=state.refused_bodies)
+    return Starlette(routes=_routes(state), lifespan=lifespan, middleware=[guard])

@@ -52,6 +52,8 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--component", action="append", default=None, help="show only these components (repeat)")
     parser.add_argument("--host", default="127.0.0.1", help="bind address (off loopback needs AGENTS_UI_TOKEN)")
     parser.add_argument("--port", type=int, default=5001)
+    parser.add_argument("--tls-certfile", default=None, help="PEM certificate: serve HTTPS (with --tls-keyfile)")
+    parser.add_argument("--tls-keyfile", default=None, help="the certificate's PEM private key")
     parser.add_argument("--seconds", type=float, default=0.0, help="stop after this long (0: until Ctrl+C)")
     return parser
 
@@ -66,7 +68,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         options = {"mode": args.mode, "connect": list(args.connect), "listen": []}
     transport = resolve_transport(args.transport, **options)
     try:
-        server = attach(transport, components=args.component, settings=UISettings(host=args.host, port=args.port))
+        settings = UISettings(host=args.host, port=args.port, tls_certfile=args.tls_certfile,
+                              tls_keyfile=args.tls_keyfile)
+        server = attach(transport, components=args.component, settings=settings)
         stop = threading.Event()
         if threading.current_thread() is threading.main_thread():
             for sig in (signal.SIGINT, signal.SIGTERM):

@@ -13,11 +13,17 @@ kind                fields
 ``detections``      ``boxes`` ([[x1, y1, x2, y2], ...] in image pixels), ``labels``, ``scores``,
                     ``ids`` (Trackings only), ``image`` (an ``image`` frame's fields, or null)
 ``audio``           ``mime`` (``audio/wav``), ``data`` (base64 WAV), ``sample_rate``,
-                    ``channels``, ``seconds``
+                    ``channels``, ``seconds``; ``sanitized`` (NaN / infinite samples sent as 0)
+                    and ``note`` when there were any
 ``status``          ``component``, ``state``, ``health``, ``message``
 ``value``           ``value``: JSON of anything else (numbers, arrays, attrs messages), arrays
                     longer than :data:`MAX_LIST_ITEMS` cut and flagged with ``truncated``
+``error``           ``message``: why a value could not be shown (instead of its frame, never
+                    silently dropped)
 ==================  ==========================================================================
+
+An image with a side past JPEG's limit (:data:`MAX_JPEG_SIDE`) is sent downscaled, its frame
+carrying the original ``width`` / ``height`` and a ``note``.
 
 Encoding runs once per value, on the subscription's delivery thread, whatever the number of
 connected clients.
@@ -44,12 +50,23 @@ from ..messages import (
     TrackingsMsg,
 )
 
-__all__ = ["MAX_LIST_ITEMS", "encode_audio_wav", "encode_image", "frame_for", "jsonable"]
+__all__ = ["MAX_AUDIO_CHANNELS", "MAX_JPEG_SIDE", "MAX_LIST_ITEMS", "FrameRefused", "encode_audio_wav",
+           "encode_image", "error_frame", "frame_for", "jsonable"]
 
 #: The longest array / list a ``value`` frame carries (a LaserScan or a map would be megabytes).
 MAX_LIST_ITEMS = 4096
 _MAX_DEPTH = 8
 _MIME = {"jpeg": "image/jpeg", "jpg": "image/jpeg", "png": "image/png"}
+#: Pillow's (and libjpeg's) largest JPEG side; wider images are downscaled to fit.
+MAX_JPEG_SIDE = 65_500
+#: Audio with more channels is not sent (a WAV header holds at most 65,535 bytes per frame, and no
+#: browser plays it); its frame is an ``error`` frame that says so.
+MAX_AUDIO_CHANNELS = 64
+_MAX_AUDIO_RATE = 768_000
+
+
+class FrameRefused(ValueError):
+    """A value that cannot be shown; the message says why (it becomes an ``error`` frame)."""
 
 
 def _b64(data: bytes) -> str:
@@ -68,6 +85,12 @@ def encode_image(image: ImageMsg | CompressedImageMsg, image_format: str = "jpeg
     from PIL import Image as PILImage  # noqa: PLC0415  (Pillow is the ui extra's; imported when an image comes)
 
     pixels = image.to_rgb()
+    note = None
+    if image_format != "png" and max(pixels.shape[:2]) > MAX_JPEG_SIDE:
+        step = -(-max(pixels.shape[:2]) // MAX_JPEG_SIDE)  # ceil: every side within the limit
+        pixels = pixels[::step, ::step]
+        note = (f"downscaled 1:{step} to {pixels.shape[1]}x{pixels.shape[0]} for display "
+                f"(JPEG allows {MAX_JPEG_SIDE} pixels a side)")
     if pixels.dtype != np.uint8:
         finite = pixels[np.isfinite(pixels)] if pixels.dtype.kind == "f" else pixels
         top = float(finite.max()) if finite.size else 1.0
@@ -80,15 +103,41 @@ def encode_image(image: ImageMsg | CompressedImageMsg, image_format: str = "jpeg
         picture.save(out, format="PNG", compress_level=1)
     else:
         picture.save(out, format="JPEG", quality=85)
-    return {"mime": "image/png" if image_format == "png" else "image/jpeg", "data": _b64(out.getvalue()),
-            "width": image.width, "height": image.height}
+    fields: dict[str, Any] = {"mime": "image/png" if image_format == "png" else "image/jpeg",
+                              "data": _b64(out.getvalue()), "width": image.width, "height": image.height}
+    if note is not None:
+        fields["note"] = note
+    return fields
+
+
+def _audio_samples(audio: AudioMsg) -> tuple[np.ndarray[Any, Any], int]:
+    """The samples as int16 (float ones in [-1, 1] scaled) and how many were NaN / infinite (sent as 0)."""
+    if not 1 <= audio.channels <= MAX_AUDIO_CHANNELS:
+        raise FrameRefused(f"audio with {audio.channels} channels is not sent (at most {MAX_AUDIO_CHANNELS})")
+    if not 1 <= audio.sample_rate <= _MAX_AUDIO_RATE:
+        raise FrameRefused(f"audio at {audio.sample_rate} Hz is not sent (at most {_MAX_AUDIO_RATE} Hz)")
+    samples = audio.data
+    bad = 0
+    if samples.dtype.kind == "f":
+        finite = np.isfinite(samples)
+        bad = int(samples.size - np.count_nonzero(finite))
+        if bad:
+            samples = np.where(finite, samples, 0.0)
+    if samples.dtype != np.int16:
+        samples = (np.clip(samples, -1.0, 1.0) * 32767.0).astype(np.int16)
+    return samples, bad
 
 
 def encode_audio_wav(audio: AudioMsg) -> bytes:
-    """``audio`` as a 16-bit PCM WAV file (float samples in [-1, 1] are scaled)."""
-    samples = audio.data
-    if samples.dtype != np.int16:
-        samples = (np.clip(samples, -1.0, 1.0) * 32767.0).astype(np.int16)
+    """``audio`` as a 16-bit PCM WAV file (float samples in [-1, 1] are scaled, NaN / infinite ones are 0).
+
+    Raises :class:`FrameRefused` for a channel count or a sample rate no WAV player takes.
+    """
+    samples, _ = _audio_samples(audio)
+    return _wav(audio, samples)
+
+
+def _wav(audio: AudioMsg, samples: np.ndarray[Any, Any]) -> bytes:
     out = io.BytesIO()
     with wave.open(out, "wb") as w:
         w.setnchannels(audio.channels)
@@ -155,8 +204,11 @@ def frame_for(topic: str, msg_type: str, value: Any, image_format: str = "jpeg")
         # the others are counted so the front end can say so.
         frame = {**_detections(value[0], image_format), "sources": len(value)}
     elif isinstance(value, AudioMsg):
-        frame = {"kind": "audio", "mime": "audio/wav", "data": _b64(encode_audio_wav(value)),
+        samples, bad = _audio_samples(value)
+        frame = {"kind": "audio", "mime": "audio/wav", "data": _b64(_wav(value, samples)),
                  "sample_rate": value.sample_rate, "channels": value.channels, "seconds": round(value.duration, 3)}
+        if bad:
+            frame.update(sanitized=bad, note=f"{bad} NaN or infinite samples were sent as silence")
     elif isinstance(value, ComponentStatusMsg):
         frame = {"kind": "status", "component": value.component, "state": value.lifecycle_state,
                  "health": value.health, "message": value.message}
@@ -165,3 +217,10 @@ def frame_for(topic: str, msg_type: str, value: Any, image_format: str = "jpeg")
     header = getattr(value, "header", None)
     frame.update(topic=topic, msg_type=msg_type, stamp_ns=getattr(header, "stamp_ns", None))
     return frame
+
+
+def error_frame(topic: str, msg_type: str, value: Any, message: str) -> dict[str, Any]:
+    """The ``error`` frame sent in place of a value of ``topic`` that could not be shown."""
+    header = getattr(value, "header", None)
+    return {"kind": "error", "message": message[:500], "topic": topic, "msg_type": msg_type,
+            "stamp_ns": getattr(header, "stamp_ns", None)}

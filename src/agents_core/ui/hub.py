@@ -18,7 +18,7 @@ from collections.abc import Callable, Iterable
 from typing import TYPE_CHECKING, Any
 
 from ..transport.core import status_topic
-from .frames import frame_for
+from .frames import FrameRefused, error_frame, frame_for
 
 if TYPE_CHECKING:
     from ..topics import Topic
@@ -67,6 +67,8 @@ class OutputHub:
         self.frames_sent = 0
         self.encode_errors = 0
         self.dropped_clients = 0
+        #: WebSocket clients turned away because ``max_clients`` were connected.
+        self.refused_clients = 0
 
     # -- life ---------------------------------------------------------------------------------
 
@@ -98,10 +100,15 @@ class OutputHub:
             try:
                 frame = frame_for(name, type_name, value, self.image_format)
                 text = json.dumps(frame, separators=(",", ":"), allow_nan=False)
-            except Exception:
+            except Exception as exc:
+                # Clients get an error frame in its place: a value is never lost without a word.
                 self.encode_errors += 1
-                logger.exception("the UI could not encode a value of topic %r", name)
-                return
+                if isinstance(exc, FrameRefused):
+                    logger.warning("a value of topic %r is not shown: %s", name, exc)
+                else:  # a value the encoder should have handled: worth the traceback in the log
+                    logger.exception("the UI could not encode a value of topic %r", name)
+                frame = error_frame(name, type_name, value, f"this value could not be shown: {exc}")
+                text = json.dumps(frame, separators=(",", ":"))
             if frame["kind"] == "status":
                 with self._lock:
                     self._status[frame["component"]] = frame

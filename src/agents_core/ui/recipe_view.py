@@ -18,14 +18,15 @@ import logging
 from collections.abc import Iterable, Sequence
 from typing import TYPE_CHECKING, Any, Protocol
 
-from ..errors import AgentsError, ConfigError
+from ..errors import AgentsError, ConfigError, RemoteError
 from ..topics import Topic
 
 if TYPE_CHECKING:
     from ..components.component_base import Component
     from ..transport.contract import Transport
 
-__all__ = ["LocalRecipe", "RecipeView", "RemoteRecipe", "default_topics", "describe_local"]
+__all__ = ["LocalRecipe", "RecipeView", "RemoteRecipe", "checked_description", "default_topics", "describe_local",
+           "unavailable_entry"]
 
 logger = logging.getLogger(__name__)
 
@@ -102,9 +103,13 @@ class RemoteRecipe:
         return sorted(self._transport.discover(timeout=self._timeout).components)
 
     def describe(self, name: str) -> dict[str, Any]:
+        """``name``'s describe reply, checked (:func:`checked_description`): a malformed one raises RemoteError."""
         if self._names is not None and name not in self._names:
             raise KeyError(name)
-        reply = _describe_remote(self._transport, name, self._timeout)
+        try:
+            reply = checked_description(name, _describe_remote(self._transport, name, self._timeout))
+        except (TypeError, ValueError, AttributeError) as exc:  # a reply of the wrong shape
+            raise RemoteError(f"component {name!r} sent a describe reply that does not parse: {exc}") from None
         self._described[name] = reply
         return reply
 
@@ -117,6 +122,44 @@ def _describe_remote(transport: Transport, name: str, timeout: float) -> dict[st
     from ..transport.graph import describe_component  # noqa: PLC0415  (attach mode only)
 
     return describe_component(transport, name, timeout=timeout)
+
+
+def _topic_entries(name: str, reply: dict[str, Any], key: str) -> list[dict[str, str]]:
+    entries = reply.get(key)
+    if not isinstance(entries, list):
+        raise RemoteError(f"component {name!r}: {key!r} of its describe reply is not a list")
+    for entry in entries:
+        if not (isinstance(entry, dict) and isinstance(entry.get("name"), str)
+                and isinstance(entry.get("msg_type"), str)):
+            raise RemoteError(f"component {name!r}: an entry of {key!r} is not {{'name': str, 'msg_type': str}}")
+    return [{"name": e["name"], "msg_type": e["msg_type"]} for e in entries]
+
+
+def checked_description(name: str, reply: Any) -> dict[str, Any]:
+    """``reply`` if it has the shape of a describe reply (the UI reads its inputs, outputs and actions),
+    else :class:`~agents_core.errors.RemoteError` saying what is wrong.
+
+    A component on the network may run another version, or be something else answering on
+    ``<name>/describe``: its reply is checked before anything is built from it.
+    """
+    if not isinstance(reply, dict):
+        raise RemoteError(f"component {name!r} sent a describe reply that is a {type(reply).__name__}, not a mapping")
+    checked = dict(reply)
+    checked["inputs"] = _topic_entries(name, reply, "inputs")
+    checked["outputs"] = _topic_entries(name, reply, "outputs")
+    actions = reply.get("actions", {})
+    if not isinstance(actions, dict) or not all(isinstance(k, str) and isinstance(v, dict) for k, v in actions.items()):
+        raise RemoteError(f"component {name!r}: 'actions' of its describe reply is not a mapping of descriptions")
+    for key in ("state", "health", "component_type", "run_type"):
+        if key in checked and not isinstance(checked[key], str):
+            checked[key] = str(checked[key])[:100]
+    return checked
+
+
+def unavailable_entry(name: str, reason: str) -> dict[str, Any]:
+    """What the UI shows for a component whose description could not be had: no topics, no actions."""
+    return {"name": name, "state": "unavailable", "health": "unknown", "error": reason[:500],
+            "inputs": [], "outputs": [], "actions": {}}
 
 
 def topic_from_description(entry: dict[str, Any]) -> Topic | None:

@@ -2,14 +2,17 @@
 
 from __future__ import annotations
 
+import asyncio
+import contextlib
 import logging
 import socket
+import struct
 import threading
 import time
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
-from ..errors import ConfigError
+from ..errors import AgentsError, ConfigError
 from ..topics import Topic
 from .app import UIState, create_app
 from .recipe_view import RecipeView, default_topics, topic_from_description
@@ -31,7 +34,12 @@ def resolve_topics(view: RecipeView, inputs: Sequence[Topic] | None, outputs: Se
     """
     if inputs is not None and outputs is not None:
         return list(inputs), list(outputs)
-    described = [view.describe(n) for n in view.component_names()]
+    described = []
+    for name in view.component_names():
+        try:
+            described.append(view.describe(name))
+        except (AgentsError, KeyError) as exc:  # one component that does not answer: the others still show
+            logger.warning("component %r is shown as unavailable: %s", name, exc)
     default_in, default_out = default_topics(described)
 
     def topics(entries: list[dict[str, Any]]) -> list[Topic]:
@@ -40,6 +48,17 @@ def resolve_topics(view: RecipeView, inputs: Sequence[Topic] | None, outputs: Se
 
     return (list(inputs) if inputs is not None else topics(default_in),
             list(outputs) if outputs is not None else topics(default_out))
+
+
+def _reset(transport: asyncio.Transport) -> None:
+    """Close ``transport`` with a TCP reset: a plain close would leave the kernel's send queue (and the
+    connection) waiting on a peer that does not read. Nothing happens to a connection already gone
+    (its socket object is closed: setsockopt fails, abort does nothing)."""
+    sock = transport.get_extra_info("socket")
+    if sock is not None:
+        with contextlib.suppress(OSError):  # linger 0: close() resets instead of queueing a FIN
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, struct.pack("ii", 1, 0))
+    transport.abort()
 
 
 class UIServer:
@@ -65,7 +84,9 @@ class UIServer:
     def url(self) -> str:
         """Where the page is (the bind address; 127.0.0.1 for a wildcard bind)."""
         host = "127.0.0.1" if self.settings.host in ("0.0.0.0", "::") else self.settings.host
-        return f"http://{host}:{self.port}/"
+        if ":" in host:
+            host = f"[{host}]"
+        return f"{'https' if self.settings.tls else 'http'}://{host}:{self.port}/"
 
     def start(self, timeout: float = 10.0) -> UIServer:
         """Bind and serve on a daemon thread; returns once the server accepts connections."""
@@ -84,8 +105,17 @@ class UIServer:
         self.port = int(sock.getsockname()[1])
         # websockets-sansio: no deprecated legacy code path; access log off (paths only, but quiet).
         config = uvicorn.Config(self.app, log_level="warning", access_log=False, ws="websockets-sansio", loop="asyncio",
-                                lifespan="on", timeout_graceful_shutdown=2)
-        self._server = uvicorn.Server(config)
+                                lifespan="on", timeout_graceful_shutdown=2, ssl_certfile=self.settings.tls_certfile,
+                                ssl_keyfile=self.settings.tls_keyfile)
+        try:
+            self._server = uvicorn.Server(config)
+            config.load()  # reads the certificate now: a bad one is a clear error here, not a dead thread
+        except (OSError, ValueError) as exc:
+            sock.close()
+            self._socket = None
+            self._server = None
+            raise ConfigError(f"the UI cannot serve TLS with {self.settings.tls_certfile!r}: {exc}") from exc
+        self.state.abort_connection = self._abort_connection
         self._thread = threading.Thread(target=self._server.run, kwargs={"sockets": [sock]},
                                         name="agents-ui", daemon=True)
         self._thread.start()
@@ -97,6 +127,19 @@ class UIServer:
             time.sleep(0.01)
         logger.info("UI at %s", self.url)
         return self
+
+    def _abort_connection(self, client: tuple[str, int], grace: float = 1.0) -> bool:
+        """Cut the TCP connection of ``client`` (host, port), unsent data and all, unless it is gone within
+        ``grace`` seconds (a client that reads gets its close frame first). On the event loop."""
+        server = self._server
+        if server is None:
+            return False
+        for protocol in list(server.server_state.connections):
+            transport = getattr(protocol, "transport", None)
+            if getattr(protocol, "client", None) == client and transport is not None:
+                asyncio.get_running_loop().call_later(grace, _reset, transport)
+                return True
+        return False
 
     def stop(self, timeout: float = 5.0) -> None:
         """Close every client and subscription and stop serving; idempotent."""

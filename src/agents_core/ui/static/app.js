@@ -84,8 +84,9 @@ async function onDetections(frame) {
   const ctx = canvas.getContext("2d");
   if (frame.image) {
     const img = await loadImage(frame.image);
-    canvas.width = img.naturalWidth; canvas.height = img.naturalHeight;
-    ctx.drawImage(img, 0, 0);
+    // width / height are the image's own (boxes are in its pixels), even when it was sent downscaled
+    canvas.width = frame.image.width || img.naturalWidth; canvas.height = frame.image.height || img.naturalHeight;
+    ctx.drawImage(img, 0, 0, canvas.width, canvas.height);
   } else if (!canvas.width) { canvas.width = 640; canvas.height = 480; }
   ctx.lineWidth = Math.max(2, canvas.width / 200);
   ctx.font = `${Math.max(12, canvas.width / 40)}px sans-serif`;
@@ -116,6 +117,12 @@ function onValue(frame) {
   pre.textContent = JSON.stringify(frame.value, null, 1);
 }
 
+function onError(frame) {
+  const p = panel(frame.topic, frame.msg_type);
+  let note = $(".error", p); if (!note) { note = el("div", { class: "error" }); p.append(note); }
+  note.textContent = frame.message;
+}
+
 function onStatus(frame) {
   const card = document.querySelector(`.component[data-name="${CSS.escape(frame.component)}"]`);
   if (!card) return;
@@ -126,7 +133,7 @@ function onStatus(frame) {
 }
 
 const HANDLERS = { text: onText, stream: onStream, image: onImage, detections: onDetections, audio: onAudio,
-                   status: onStatus, value: onValue };
+                   status: onStatus, value: onValue, error: onError };
 
 // -- components -------------------------------------------------------------------------------
 async function transition(name, which) {
