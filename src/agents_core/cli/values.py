@@ -48,13 +48,15 @@ def parse_value(msg_type: type[SupportedType], text: str) -> Any:
             raise ConfigError(f"value {text!r} does not fit {name}: {exc}") from None
     if not isinstance(raw, str):
         candidates.append(text)  # e.g. a String topic given "42"
-    last: Exception | None = None
+    errors: list[Exception] = []
     for candidate in candidates:
         try:
             return msg_type.validate(candidate)
         except (TypeError, ValueError) as exc:
-            last = exc
-    raise ConfigError(f"value {text!r} does not fit {name}: {last}")
+            errors.append(exc)
+    # The reason for the text's own reading (the number "1e39": out of float32's range), not for
+    # the last fallback tried (the string "1e39": not a number).
+    raise ConfigError(f"value {text!r} does not fit {name}: {errors[0]}")
 
 
 def summarize(value: Any, depth: int = 0) -> Any:
