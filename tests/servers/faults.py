@@ -11,6 +11,8 @@ server-sent events) and Ollama's (``GET /api/version``, ``POST /api/show``, ``PO
                               stream, blank lines for NDJSON, whitespace for a JSON answer (what
                               OpenAI sends before a slow non-streamed answer); never an answer.
 ``"trickle"``                 the correct answer, one byte every ``interval`` seconds.
+``"trickle_until_close"``     the same with no Content-Length or chunking: the body ends when the
+                              connection closes (HTTP/1.0 style), so a cut looks like its end.
 ``"headers_then_stall"``      status and headers, then nothing.
 ``"stall_before_headers"``    reads the request, then sends nothing.
 ``"first_chunk_then_stall"``  status, headers and the first piece of the answer, then nothing.
@@ -47,8 +49,9 @@ from .ollama_server import Fault, ProtocolHandler, ProtocolServer, RecordedReque
 
 __all__ = ["MODES", "FaultServer"]
 
-MODES = ("ok", "keepalive", "trickle", "headers_then_stall", "stall_before_headers", "first_chunk_then_stall",
-         "slow_chunks", "echo_auth", "key_in_json_500", "key_mid_stream", "malformed_json", "reset_midway")
+MODES = ("ok", "keepalive", "trickle", "trickle_until_close", "headers_then_stall", "stall_before_headers",
+         "first_chunk_then_stall", "slow_chunks", "echo_auth", "key_in_json_500", "key_mid_stream", "malformed_json",
+         "reset_midway")
 
 _CHAT_PATHS = {"/v1/chat/completions": "openai", "/api/chat": "ollama", "/api/generate": "ollama"}
 
@@ -179,6 +182,24 @@ class FaultServer(ProtocolServer):
             if self.wait_or_stop(self.interval):
                 break
         answer.handler.close_connection = True
+
+    def _trickle_until_close(self, answer: _Answer) -> None:
+        data = b"".join(self._stream_events(answer.protocol)) if answer.stream else self._whole_answer(answer.protocol)
+        handler = answer.handler
+        handler.send_response(200)
+        handler.send_header("Content-Type", answer.content_type)
+        handler.send_header("Connection", "close")
+        handler.end_headers()
+        handler.wfile.flush()
+        for index in range(len(data)):
+            try:
+                handler.wfile.write(data[index:index + 1])
+                handler.wfile.flush()
+            except OSError:  # the client cut the connection
+                break
+            if self.wait_or_stop(self.interval):
+                break
+        handler.close_connection = True
 
     def _headers_then_stall(self, answer: _Answer) -> None:
         if answer.stream:
