@@ -18,6 +18,8 @@ server-sent events) and Ollama's (``GET /api/version``, ``POST /api/show``, ``PO
 ``"first_chunk_then_stall"``  status, headers and the first piece of the answer, then nothing.
 ``"slow_chunks"``             a correct stream whose pieces come ``interval`` seconds apart.
 ``"echo_auth"``               401 with an error message quoting the ``Authorization`` header.
+``"echo_auth_base64"``        401 quoting the key base64-encoded: as an HTTP Basic credential
+                              (``user:key``) and as the bare URL-safe base64 of the key.
 ``"key_in_json_500"``         500 with a JSON error body holding the bare key.
 ``"key_mid_stream"``          200, one piece, then the protocol's mid-stream error quoting the key.
 ``"malformed_json"``          200 with a body that is not JSON (for a stream: an event that is not).
@@ -37,6 +39,7 @@ Usage::
 
 from __future__ import annotations
 
+import base64
 import contextlib
 import json
 import socket
@@ -50,8 +53,8 @@ from .ollama_server import Fault, ProtocolHandler, ProtocolServer, RecordedReque
 __all__ = ["MODES", "FaultServer"]
 
 MODES = ("ok", "keepalive", "trickle", "trickle_until_close", "headers_then_stall", "stall_before_headers",
-         "first_chunk_then_stall", "slow_chunks", "echo_auth", "key_in_json_500", "key_mid_stream", "malformed_json",
-         "reset_midway")
+         "first_chunk_then_stall", "slow_chunks", "echo_auth", "echo_auth_base64", "key_in_json_500", "key_mid_stream",
+         "malformed_json", "reset_midway")
 
 _CHAT_PATHS = {"/v1/chat/completions": "openai", "/api/chat": "ollama", "/api/generate": "ollama"}
 
@@ -243,6 +246,13 @@ class FaultServer(ProtocolServer):
 
     def _echo_auth(self, answer: _Answer) -> None:
         message = f"Invalid credentials: the header was 'Authorization: {answer.authorization}'"
+        answer.handler.send_json(401, {"error": {"message": message}} if answer.protocol == "openai"
+                                 else {"error": message})
+
+    def _echo_auth_base64(self, answer: _Answer) -> None:
+        basic = base64.b64encode(f"robot:{answer.key}".encode()).decode()
+        bare = base64.urlsafe_b64encode(answer.key.encode()).decode()
+        message = f"Invalid credentials: 'Authorization: Basic {basic}', token {bare}"
         answer.handler.send_json(401, {"error": {"message": message}} if answer.protocol == "openai"
                                  else {"error": message})
 
