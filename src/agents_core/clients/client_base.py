@@ -115,11 +115,13 @@ def scrub_text(text: str, secrets: Iterable[str]) -> str:
         if form in text:
             text = text.replace(form, SECRET_MASK)
     cores = [core for secret in secrets for core in _base64_cores(secret)]
-    if cores:
+    if any(core in text for core in cores):  # a plain search first: most texts hold none
         # The whole base64 run goes, not just the core: its edges would show bytes of the secret.
         text = _BASE64_RUN.sub(lambda m: SECRET_MASK if any(c in m.group(0) for c in cores) else m.group(0), text)
-    text = _BASIC.sub(lambda m: m.group(1) + SECRET_MASK if _basic_credential(m.group(2)) else m.group(0), text)
-    return _BEARER.sub(lambda m: m.group(1) + SECRET_MASK, text)
+    lowered = text.lower()  # the case-insensitive scans are skipped for texts without their word
+    if "basic" in lowered:
+        text = _BASIC.sub(lambda m: m.group(1) + SECRET_MASK if _basic_credential(m.group(2)) else m.group(0), text)
+    return _BEARER.sub(lambda m: m.group(1) + SECRET_MASK, text) if "bearer" in lowered else text
 
 
 def _shows(exc: BaseException, secrets: Iterable[str]) -> bool:
