@@ -3,11 +3,13 @@
 Keys, under the action name (``<base>`` is ``<ns>/<action>``; see ``docs/zenoh-wire-format.md``):
 
 ==========================================  =====================================================
-``<base>/@action/goal``                     queryable: ``{"goal_id", "goal"}`` -> ``{"accepted", "reason"}``
-``<base>/@action/cancel``                   queryable: ``{"goal_id"}`` -> ``{"accepted"}``
+``<base>/@action/goal``                     queryable: ``{"goal_id", "goal", "cancel_token"}`` ->
+                                            ``{"accepted", "reason"}``
+``<base>/@action/cancel``                   queryable: ``{"goal_id", "cancel_token"}`` -> ``{"accepted"}``
 ``<base>/@action/result``                   queryable: ``{"goal_id"}`` -> ``{"status", "result"}`` once the
                                             goal ended (the reply waits), ``{"pending": true}`` after
-                                            ``wait_s`` seconds (default 1, at most 5) if it still runs
+                                            ``wait_s`` seconds (default 1, clamped to 0..5; NaN is
+                                            refused) if it still runs
 ``<base>/@action/feedback/<goal_id>``       samples: the feedback map
 ``<base>/@action/status/<goal_id>``         samples: ``{"status": <GoalStatus number>}``
 ``<base>/@action/result/<goal_id>``         sample: the result reply's map, once, when the goal ends
@@ -23,12 +25,21 @@ server's ``accept`` is user code); result queries are held (one sweeper thread p
 with ``"feedback_sent": n``, the number of feedback samples the goal published: feedback and
 result travel on different paths, so the client waits (at most a second) for the feedback still
 on its way before it reports the result.
+
+Goal ids travel in key expressions any peer can read (``<base>/@action/status/<goal_id>``), so
+knowing one must not be enough to cancel the goal: the client sends a random ``cancel_token``
+with the goal, known only to it and the server, and a cancel must carry the same token. A goal
+sent without a token (a client written before tokens existed) can still be cancelled by its id
+alone, as before.
 """
 
 from __future__ import annotations
 
 import collections
+import hmac
 import logging
+import math
+import secrets
 import threading
 import time
 from typing import Any
@@ -37,6 +48,7 @@ import zenoh
 
 from agents_core.errors import RemoteError, RequestTimeoutError, ServiceUnavailableError, TransportError
 from agents_core.transport.driver import GoalEvents, GoalServerHooks, Lane
+from agents_core.transport.goal_serving import valid_goal_id
 from agents_core.transport.goals import GoalStatus
 
 from .codecs import MSGPACK, CodecError, pack, unpack
@@ -58,6 +70,8 @@ KEPT_COUNTS = 1024
 FEEDBACK_GRACE_S = 1.0
 #: How long a client whose result query found no server waits for the result sample a closing server sends.
 RESULT_SAMPLE_GRACE_S = 0.3
+#: Length bounds of a cancel token (ours: 32 hex digits, 128 random bits).
+MIN_CANCEL_TOKEN, MAX_CANCEL_TOKEN = 16, 128
 
 
 def _request(query: zenoh.Query) -> dict[str, Any]:
@@ -68,6 +82,30 @@ def _request(query: zenoh.Query) -> dict[str, Any]:
     if not isinstance(doc, dict):
         raise CodecError(f"a request must be a map, got {type(doc).__name__}")
     return doc
+
+
+def _cancel_token(request: dict[str, Any], what: str) -> str | None:
+    """The request's ``cancel_token`` (None when absent); CodecError for one that is not a fitting str."""
+    token = request.get("cancel_token")
+    if token is None:
+        return None
+    if not isinstance(token, str) or not MIN_CANCEL_TOKEN <= len(token) <= MAX_CANCEL_TOKEN \
+            or not token.isascii():
+        raise CodecError(f"a {what}'s cancel_token must be an ASCII str of {MIN_CANCEL_TOKEN} to "
+                         f"{MAX_CANCEL_TOKEN} characters")
+    return token
+
+
+def _result_wait(wait: Any) -> float:
+    """The seconds a result query may be held: ``wait_s`` clamped to 0..MAX_RESULT_WAIT_S (NaN refused).
+
+    A NaN deadline compares false with every time, so a held query would never be answered "pending".
+    """
+    if isinstance(wait, bool) or not isinstance(wait, int | float):
+        raise CodecError("a result request is {'goal_id': str, 'wait_s': number}")
+    if math.isnan(wait):
+        raise CodecError("a result request's wait_s must be a number of seconds, not NaN")
+    return min(max(float(wait), 0.0), MAX_RESULT_WAIT_S)
 
 
 def _answer(query: zenoh.Query, doc: dict[str, Any]) -> None:
@@ -104,6 +142,9 @@ class ZenohActionServer:
         # Feedback samples sent per goal, told with the result: the result travels on another
         # path than the feedback, so the client waits (bounded) for the feedback still on its way.
         self._sent: collections.OrderedDict[str, int] = collections.OrderedDict()
+        # The cancel token of each goal decided or being decided (None: sent without one). Entries go
+        # when the goal is rejected or finishes, so there are at most as many as goals running.
+        self._tokens: dict[str, str | None] = {}
         self._closed = False
         session = context.session
         self._entities = [
@@ -125,12 +166,23 @@ class ZenohActionServer:
                 request = _request(query)
                 goal_id, goal = request.get("goal_id"), request.get("goal")
                 if not isinstance(goal_id, str):
-                    raise CodecError("a goal request is {'goal_id': str, 'goal': map}")
+                    raise CodecError("a goal request is {'goal_id': str, 'goal': map, 'cancel_token': str}")
+                token = _cancel_token(request, "goal")
             except CodecError as exc:
                 self._hooks.reject(exc)
                 _answer_error(query, f"the goal did not decode: {exc}")
                 return
+            # The token is kept before the goal is decided, so that no cancel sees the goal running
+            # without it; never over the token of a goal with the same id (a peer re-sending a
+            # running goal's id must not replace its token).
+            with self._lock:
+                owns_token = goal_id not in self._tokens
+                if owns_token:
+                    self._tokens[goal_id] = token
             reason = self._hooks.on_goal(goal_id, goal)
+            if reason is not None and owns_token:
+                with self._lock:
+                    self._tokens.pop(goal_id, None)
             _answer(query, {"accepted": reason is None, "reason": reason or ""})
         if reason is None:
             self._hooks.on_accepted(goal_id)
@@ -141,12 +193,22 @@ class ZenohActionServer:
     def _serve_cancel(self, query: zenoh.Query) -> None:
         with query:
             try:
-                goal_id = _request(query).get("goal_id")
+                request = _request(query)
+                goal_id = request.get("goal_id")
                 if not isinstance(goal_id, str):
-                    raise CodecError("a cancel request is {'goal_id': str}")
+                    raise CodecError("a cancel request is {'goal_id': str, 'cancel_token': str}")
+                token = _cancel_token(request, "cancel request")
             except CodecError as exc:
                 self._hooks.reject(exc)
                 _answer_error(query, f"the cancel request did not decode: {exc}")
+                return
+            with self._lock:
+                known, required = goal_id in self._tokens, self._tokens.get(goal_id)
+            if known and required is not None and (
+                    token is None or not hmac.compare_digest(token.encode(), required.encode())):
+                logger.info("action %r: refused a cancel of goal %s without its cancel token", self.name,
+                            goal_id if valid_goal_id(goal_id) else "(invalid id)")
+                _answer(query, {"accepted": False, "reason": "the cancel token does not match the goal's"})
                 return
             _answer(query, {"accepted": self._hooks.on_cancel(goal_id)})
 
@@ -155,9 +217,9 @@ class ZenohActionServer:
         try:
             request = _request(query)
             goal_id = request.get("goal_id")
-            wait = request.get("wait_s", RESULT_WAIT_S)
-            if not isinstance(goal_id, str) or isinstance(wait, bool) or not isinstance(wait, int | float):
+            if not isinstance(goal_id, str):
                 raise CodecError("a result request is {'goal_id': str, 'wait_s': number}")
+            wait = _result_wait(request.get("wait_s", RESULT_WAIT_S))
         except CodecError as exc:
             self._hooks.reject(exc)
             _answer_error(query, f"the result request did not decode: {exc}")
@@ -167,7 +229,7 @@ class ZenohActionServer:
         if ended is not None:
             self._reply_result(query, goal_id, ended[0], ended[1])
             return
-        deadline = time.monotonic() + min(max(float(wait), 0.0), MAX_RESULT_WAIT_S)
+        deadline = time.monotonic() + wait
         with self._lock:
             held = self._held.setdefault(goal_id, [])
             pending = self._closed or len(held) >= MAX_HELD_QUERIES
@@ -239,6 +301,7 @@ class ZenohActionServer:
         with self._lock:
             held = self._held.pop(goal_id, [])
             sent = self._sent.get(goal_id, 0)
+            self._tokens.pop(goal_id, None)
         # Also as a sample: a client between two result queries still gets it if the server then closes.
         self._context.session.put(self._context.goal_key(self.name, "result", goal_id),
                                   pack({"status": int(status), "result": result, "feedback_sent": sent}),
@@ -269,6 +332,9 @@ class ZenohGoal:
         self._context = context
         self._name = name
         self._goal_id = goal_id
+        # Known only to this client and the server: a peer that reads the goal's status keys (and so
+        # its id) cannot cancel it without this.
+        self._cancel_token = secrets.token_hex(16)
         self._events = events
         self._done = threading.Event()
         self._feedback_key = context.goal_key(name, "feedback", goal_id)
@@ -312,7 +378,8 @@ class ZenohGoal:
         """Ask the server to take the goal; if accepted, start the thread that waits for its result."""
         started = time.monotonic()
         try:
-            answer = self._query("goal", {"goal_id": self._goal_id, "goal": goal}, timeout)
+            answer = self._query("goal", {"goal_id": self._goal_id, "goal": goal,
+                                          "cancel_token": self._cancel_token}, timeout)
         except (ServiceUnavailableError, RequestTimeoutError) as exc:
             if isinstance(exc, RequestTimeoutError) or time.monotonic() - started >= timeout:
                 # Accepted after its sender gave up, the goal would run for nobody: cancel it (best effort).
@@ -374,7 +441,8 @@ class ZenohGoal:
     def cancel(self, timeout: float) -> bool:
         """Ask the server to cancel the goal; False when it refuses or does not answer (see DriverGoal)."""
         try:
-            return self._query("cancel", {"goal_id": self._goal_id}, timeout).get("accepted") is True
+            request = {"goal_id": self._goal_id, "cancel_token": self._cancel_token}
+            return self._query("cancel", request, timeout).get("accepted") is True
         except (ServiceUnavailableError, RemoteError, RequestTimeoutError):
             return False
 

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import secrets
 import sys
 import threading
 import time
@@ -48,12 +49,14 @@ class Goal:
     def __init__(self, session: zenoh.Session, base: str, goal: dict[str, Any]) -> None:
         self.session, self.base = session, base
         self.goal_id = uuid.uuid4().hex
+        self.cancel_token = secrets.token_hex(16)  # only this client can cancel the goal
         self.feedback: list[dict[str, Any]] = []
         self.statuses: list[int] = []
         self.first_feedback = threading.Event()
         self.sub = session.declare_subscriber(f"{base}/@action/*/{self.goal_id}", self._on_sample)
         ok, self.answer = query(session, f"{base}/@action/goal",
-                                msgpack.packb({"goal_id": self.goal_id, "goal": goal}))
+                                msgpack.packb({"goal_id": self.goal_id, "goal": goal,
+                                               "cancel_token": self.cancel_token}))
         assert ok, self.answer
 
     def _on_sample(self, sample: zenoh.Sample) -> None:
@@ -75,7 +78,8 @@ class Goal:
         raise TimeoutError("no result")
 
     def cancel(self) -> Any:
-        return query(self.session, f"{self.base}/@action/cancel", msgpack.packb({"goal_id": self.goal_id}))[1]
+        request = {"goal_id": self.goal_id, "cancel_token": self.cancel_token}
+        return query(self.session, f"{self.base}/@action/cancel", msgpack.packb(request))[1]
 
 
 def main() -> int:

@@ -11,11 +11,15 @@ server-sent events) and Ollama's (``GET /api/version``, ``POST /api/show``, ``PO
                               stream, blank lines for NDJSON, whitespace for a JSON answer (what
                               OpenAI sends before a slow non-streamed answer); never an answer.
 ``"trickle"``                 the correct answer, one byte every ``interval`` seconds.
+``"trickle_until_close"``     the same with no Content-Length or chunking: the body ends when the
+                              connection closes (HTTP/1.0 style), so a cut looks like its end.
 ``"headers_then_stall"``      status and headers, then nothing.
 ``"stall_before_headers"``    reads the request, then sends nothing.
 ``"first_chunk_then_stall"``  status, headers and the first piece of the answer, then nothing.
 ``"slow_chunks"``             a correct stream whose pieces come ``interval`` seconds apart.
 ``"echo_auth"``               401 with an error message quoting the ``Authorization`` header.
+``"echo_auth_base64"``        401 quoting the key base64-encoded: as an HTTP Basic credential
+                              (``user:key``) and as the bare URL-safe base64 of the key.
 ``"key_in_json_500"``         500 with a JSON error body holding the bare key.
 ``"key_mid_stream"``          200, one piece, then the protocol's mid-stream error quoting the key.
 ``"malformed_json"``          200 with a body that is not JSON (for a stream: an event that is not).
@@ -35,6 +39,7 @@ Usage::
 
 from __future__ import annotations
 
+import base64
 import contextlib
 import json
 import socket
@@ -47,8 +52,9 @@ from .ollama_server import Fault, ProtocolHandler, ProtocolServer, RecordedReque
 
 __all__ = ["MODES", "FaultServer"]
 
-MODES = ("ok", "keepalive", "trickle", "headers_then_stall", "stall_before_headers", "first_chunk_then_stall",
-         "slow_chunks", "echo_auth", "key_in_json_500", "key_mid_stream", "malformed_json", "reset_midway")
+MODES = ("ok", "keepalive", "trickle", "trickle_until_close", "headers_then_stall", "stall_before_headers",
+         "first_chunk_then_stall", "slow_chunks", "echo_auth", "echo_auth_base64", "key_in_json_500", "key_mid_stream",
+         "malformed_json", "reset_midway")
 
 _CHAT_PATHS = {"/v1/chat/completions": "openai", "/api/chat": "ollama", "/api/generate": "ollama"}
 
@@ -180,6 +186,24 @@ class FaultServer(ProtocolServer):
                 break
         answer.handler.close_connection = True
 
+    def _trickle_until_close(self, answer: _Answer) -> None:
+        data = b"".join(self._stream_events(answer.protocol)) if answer.stream else self._whole_answer(answer.protocol)
+        handler = answer.handler
+        handler.send_response(200)
+        handler.send_header("Content-Type", answer.content_type)
+        handler.send_header("Connection", "close")
+        handler.end_headers()
+        handler.wfile.flush()
+        for index in range(len(data)):
+            try:
+                handler.wfile.write(data[index:index + 1])
+                handler.wfile.flush()
+            except OSError:  # the client cut the connection
+                break
+            if self.wait_or_stop(self.interval):
+                break
+        handler.close_connection = True
+
     def _headers_then_stall(self, answer: _Answer) -> None:
         if answer.stream:
             answer.handler.start_stream(answer.content_type)
@@ -222,6 +246,13 @@ class FaultServer(ProtocolServer):
 
     def _echo_auth(self, answer: _Answer) -> None:
         message = f"Invalid credentials: the header was 'Authorization: {answer.authorization}'"
+        answer.handler.send_json(401, {"error": {"message": message}} if answer.protocol == "openai"
+                                 else {"error": message})
+
+    def _echo_auth_base64(self, answer: _Answer) -> None:
+        basic = base64.b64encode(f"robot:{answer.key}".encode()).decode()
+        bare = base64.urlsafe_b64encode(answer.key.encode()).decode()
+        message = f"Invalid credentials: 'Authorization: Basic {basic}', token {bare}"
         answer.handler.send_json(401, {"error": {"message": message}} if answer.protocol == "openai"
                                  else {"error": message})
 

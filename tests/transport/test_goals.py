@@ -137,25 +137,26 @@ def test_result_timeout_and_closed_transport() -> None:
 def test_server_side_bounds_and_network_input() -> None:
     """What a peer can send is bounded: bad ids, duplicate ids, too many goals, undecodable requests."""
     release = threading.Event()
+    first = "abc1" * 8  # goal ids are 32 lowercase hex digits
     with MemoryTransport() as t:
         server = t.create_action_server("arm", VLA, lambda h: (release.wait(5.0), {})[1])
         assert "invalid goal id" in (server.on_goal("not-hex!", {"task": "x"}) or "")
         assert "invalid goal id" in (server.on_goal("a" * 65, {"task": "x"}) or "")
-        assert "unknown field" in (server.on_goal("abc1", {"task": "x", "evil": 1}) or "")
-        assert server.on_goal("abc1", {"task": "x"}) is None
-        server.on_accepted("abc1")
-        assert "already in use" in (server.on_goal("abc1", {"task": "x"}) or "")
+        assert "unknown field" in (server.on_goal(first, {"task": "x", "evil": 1}) or "")
+        assert server.on_goal(first, {"task": "x"}) is None
+        server.on_accepted(first)
+        assert "already in use" in (server.on_goal(first, {"task": "x"}) or "")
         for i in range(goal_serving.MAX_RUNNING_GOALS - 1):
-            assert server.on_goal(f"g{i}", {"task": "x"}) is None
-        assert "already runs" in (server.on_goal("onetoomany", {"task": "x"}) or "")
+            assert server.on_goal(f"{i:032x}", {"task": "x"}) is None
+        assert "already runs" in (server.on_goal("f" * 32, {"task": "x"}) or "")
         assert server.wait_result("nosuchgoal", 0.0) == (GoalStatus.UNKNOWN, {})
-        assert server.wait_result("abc1", 0.01) is None
+        assert server.wait_result(first, 0.01) is None
         assert server.on_cancel("nosuchgoal") is False
         server.reject("garbage")
         stats = server.statistics()
         assert stats.decode_errors == 1 and stats.rejected == 5 and stats.accepted == goal_serving.MAX_RUNNING_GOALS
         release.set()
-        assert server.wait_result("abc1", 5.0) == (GoalStatus.SUCCEEDED, {"success": False, "message": "",
+        assert server.wait_result(first, 5.0) == (GoalStatus.SUCCEEDED, {"success": False, "message": "",
                                                                            "steps": 0})
         server.close()  # the goals never started are aborted, and close returns in bounded time
         assert server.statistics().running == 0

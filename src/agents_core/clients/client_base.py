@@ -10,13 +10,18 @@ Servers echo what they were sent: an error body may hold the API key, or the who
 ``Authorization: Bearer <key>`` header. Every error a client raises goes through
 :meth:`BaseClient._guard` (or a :class:`~agents_core.clients.payloads.ChunkStream`), which
 replaces each configured secret (every attribute named in ``secret_fields``, plus any bearer
-token) with ``***`` in the message and in the exceptions chained to it (:func:`scrub_exception`);
+token, and every HTTP Basic credential) with ``***`` in the message and in the exceptions chained
+to it (:func:`scrub_exception`); a secret echoed base64-encoded (``Basic base64(user:key)``, or the
+key inside any base64 text, standard or URL-safe alphabet) is masked too;
 the clients' loggers scrub their records the same way. What reaches ``<name>/status``, the state
 queries and the logs is therefore free of them.
 """
 
 from __future__ import annotations
 
+import base64
+import binascii
+import functools
 import json
 import logging
 import re
@@ -61,19 +66,62 @@ SECRET_MASK = "***"
 _BEARER = re.compile(r"(?i)\b(bearer\s+)(?!\*\*\*)[^\s\"',;}\]]+")
 
 
+# Any HTTP Basic credential: "Basic <base64 of user:password>" -> "Basic ***" (checked by decoding).
+_BASIC = re.compile(r"(?i)\b(basic\s+)([A-Za-z0-9+/]{4,}={0,2})")
+# A run of base64 text (either alphabet), in which an encoded secret may hide.
+_BASE64_RUN = re.compile(r"[A-Za-z0-9+/_-]{8,}={0,2}")
+#: Encoded secrets shorter than this are not looked for in base64 text (too likely by chance).
+_MIN_BASE64_CORE = 8
+
+
 def _forms(secret: str) -> set[str]:
     # The secret as a server may echo it: raw, JSON-escaped, URL-encoded.
     return {secret, json.dumps(secret)[1:-1], quote(secret, safe=""), quote_plus(secret)}
 
 
+@functools.lru_cache(maxsize=64)
+def _base64_cores(secret: str) -> tuple[str, ...]:
+    """What any base64 text holding ``secret`` contains, whatever comes before and after it.
+
+    Base64 encodes 3 bytes as 4 characters, so the secret's characters depend on its offset modulo
+    3 in the encoded bytes (``user:`` before it in HTTP Basic): one core per offset, without the
+    groups it shares with its neighbours; in the standard and the URL-safe alphabet.
+    """
+    raw = secret.encode()
+    cores: set[str] = set()
+    for offset in range(3):
+        encoded = base64.b64encode(b"\0" * offset + raw).decode()
+        start = 4 if offset else 0  # the first group mixes the bytes before the secret with its own
+        end = len(encoded) if (offset + len(raw)) % 3 == 0 else len(encoded) - 4  # so does the last one
+        core = encoded[start:end]
+        if len(core) >= _MIN_BASE64_CORE:
+            cores.update((core, core.replace("+", "-").replace("/", "_")))
+    return tuple(cores)
+
+
+def _basic_credential(token: str) -> bool:
+    try:
+        return b":" in base64.b64decode(token, validate=True)
+    except (binascii.Error, ValueError):
+        return False
+
+
 def scrub_text(text: str, secrets: Iterable[str]) -> str:
-    """``text`` with every secret (and every bearer token) replaced by ``***``."""
-    forms = {form for secret in secrets if secret for form in _forms(secret) if form}
+    """``text`` with every secret (also base64-encoded), bearer token and Basic credential replaced by ``***``."""
+    secrets = [secret for secret in secrets if secret]
+    forms = {form for secret in secrets for form in _forms(secret) if form}
     # Longest first, so a secret that contains another is masked whole.
     for form in sorted(forms, key=len, reverse=True):
         if form in text:
             text = text.replace(form, SECRET_MASK)
-    return _BEARER.sub(lambda m: m.group(1) + SECRET_MASK, text)
+    cores = [core for secret in secrets for core in _base64_cores(secret)]
+    if any(core in text for core in cores):  # a plain search first: most texts hold none
+        # The whole base64 run goes, not just the core: its edges would show bytes of the secret.
+        text = _BASE64_RUN.sub(lambda m: SECRET_MASK if any(c in m.group(0) for c in cores) else m.group(0), text)
+    lowered = text.lower()  # the case-insensitive scans are skipped for texts without their word
+    if "basic" in lowered:
+        text = _BASIC.sub(lambda m: m.group(1) + SECRET_MASK if _basic_credential(m.group(2)) else m.group(0), text)
+    return _BEARER.sub(lambda m: m.group(1) + SECRET_MASK, text) if "bearer" in lowered else text
 
 
 def _shows(exc: BaseException, secrets: Iterable[str]) -> bool:

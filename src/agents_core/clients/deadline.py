@@ -388,6 +388,12 @@ class BoundedHTTP:
             raise
         try:
             response.read()
+            if watch.fired is not None:
+                # A body delimited by the connection's close ends "cleanly" when the watchdog cuts
+                # the socket: what was read is a truncated answer, and the cause is the deadline.
+                raise watch.error()
+        except InferenceTimeoutError:
+            raise
         except Exception as exc:
             if _timed_out(watch, exc):
                 raise watch.error() from exc

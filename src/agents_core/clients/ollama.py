@@ -264,6 +264,8 @@ class OllamaClient(HTTPClientBase, ModelClient):
         finally:
             watch.close()
             response.close()
+        if watch.fired is not None:  # the stream "ended" because the watchdog cut its connection
+            raise watch.error()
         raise ProtocolError(f"{context}: the progress stream ended without 'success'")
 
     def _load(self) -> None:

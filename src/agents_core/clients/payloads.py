@@ -115,6 +115,10 @@ class ChunkStream(Generic[T]):
             chunk = next(self._chunks)
         except StopIteration:
             self.close()
+            if watch is not None and watch.fired is not None:
+                # The watchdog cut a body delimited by the connection's close: its end is the cut,
+                # not the answer's (the stream is truncated).
+                raise scrub_exception(watch.error(), self._secrets) from None
             raise
         except Exception as exc:
             self.close()

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import collections
 import logging
+import re
 import threading
 import time
 import uuid
@@ -45,6 +46,7 @@ __all__ = [
     "abort_locally",
     "new_goal_id",
     "send_goal",
+    "valid_goal_id",
 ]
 
 logger = logging.getLogger(__name__)
@@ -58,8 +60,11 @@ GoalAccept = Callable[[dict[str, Any]], bool]
 MAX_RUNNING_GOALS = 32
 #: Results of ended goals kept for result requests that come after the end.
 KEPT_RESULTS = 256
-#: Longest goal id accepted from the network (ours are 32 hex digits).
-MAX_GOAL_ID_LENGTH = 64
+#: Longest goal id accepted from the network: exactly 32 lowercase hex digits (a UUID, as ROS 2 has it).
+MAX_GOAL_ID_LENGTH = 32
+#: A goal id as the wire documents it. ASCII only: ``str.isalnum``/``isdigit`` would also take
+#: Unicode letters and digits ("٣", "é"), which then end up in Zenoh keys and logs.
+_GOAL_ID = re.compile(r"[0-9a-f]{32}")
 #: How long closing a server waits for the threads of the goals it aborted to return.
 CLOSE_JOIN_S = 1.0
 #: Feedback messages waiting for a slow feedback callback before the oldest is dropped.
@@ -80,8 +85,9 @@ class ActionServerStatistics:
     running: int = 0
 
 
-def _valid_goal_id(goal_id: Any) -> bool:
-    return isinstance(goal_id, str) and 0 < len(goal_id) <= MAX_GOAL_ID_LENGTH and goal_id.isalnum()
+def valid_goal_id(goal_id: Any) -> bool:
+    """Whether ``goal_id`` (from the network) is 32 lowercase ASCII hex digits, as every goal id must be."""
+    return isinstance(goal_id, str) and _GOAL_ID.fullmatch(goal_id) is not None
 
 
 class CoreActionServer:
@@ -125,8 +131,8 @@ class CoreActionServer:
         return reason
 
     def _decide(self, goal_id: str, goal: Any) -> str | None:
-        if not _valid_goal_id(goal_id):
-            return f"invalid goal id {str(goal_id)[:80]!r} (letters and digits, at most {MAX_GOAL_ID_LENGTH})"
+        if not valid_goal_id(goal_id):
+            return f"invalid goal id {str(goal_id)[:80]!r} (expected 32 lowercase hex digits)"
         try:
             checked = self.action_type.validate("goal", goal)
         except TypeValidationError as exc:
@@ -170,7 +176,7 @@ class CoreActionServer:
 
     def on_cancel(self, goal_id: str) -> bool:
         """Mark a running goal canceling; False for a goal that has ended or is unknown."""
-        if not _valid_goal_id(goal_id):
+        if not valid_goal_id(goal_id):
             return False
         with self._lock:
             handle = self._running.get(goal_id)

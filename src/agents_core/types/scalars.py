@@ -45,7 +45,8 @@ def _real(name: str, value: Any, single: bool) -> float:
     if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating):
         raise TypeValidationError(f"{name} expects a number, got {type(value).__name__}")
     if single and math.isfinite(float(value)) and abs(float(value)) > float(np.finfo(np.float32).max):
-        raise TypeValidationError(f"{name} value {value} overflows float32")
+        raise TypeValidationError(f"{name} value {value} overflows float32 (out of range: "
+                                  f"|value| <= {float(np.finfo(np.float32).max):.8g})")
     return float(value)
 
 

@@ -2,13 +2,20 @@
 
 A URDF ``<joint>`` of type ``revolute`` or ``prismatic`` carries ``<limit lower= upper= velocity=
 effort=/>``; a ``continuous`` joint has no position limits but may have a velocity limit. Fixed,
-floating and planar joints are not commanded and are skipped. The file is size-bounded and may not
-declare a DOCTYPE or entities (no entity expansion from a file handed to a robot).
+floating and planar joints are not commanded and are skipped.
+
+The file is handed to a robot, so it is read defensively: it must be a regular file (not a FIFO or
+a device such as ``/dev/zero``) of at most :data:`MAX_URDF_BYTES`, in UTF-8 (the check for a DOCTYPE
+or entities, refused so that nothing is expanded, only means something in a known encoding: a
+UTF-16 file would hide them), each joint named once, and no negative velocity limit.
 """
 
 from __future__ import annotations
 
 import math
+import os
+import re
+import stat
 import xml.etree.ElementTree as ET
 from collections.abc import Mapping
 from pathlib import Path
@@ -23,6 +30,9 @@ __all__ = ["JointLimits", "joint_limits_from_config", "read_urdf_joint_limits"]
 #: A larger URDF is refused (real robot descriptions are well under a megabyte).
 MAX_URDF_BYTES = 16 * 1024 * 1024
 _COMMANDED = {"revolute", "prismatic", "continuous"}
+#: The encodings an XML declaration may name: UTF-8 and its subset ASCII.
+_UTF8_NAMES = {"utf-8", "utf8", "us-ascii", "ascii"}
+_DECLARED_ENCODING = re.compile(r"""^<\?xml[^>]*?\sencoding\s*=\s*["']([^"']*)["']""")
 
 
 @define(frozen=True)
@@ -64,18 +74,60 @@ def _number(text: str | None, where: str) -> float | None:
     return value
 
 
-def read_urdf_joint_limits(path: str | Path) -> dict[str, JointLimits]:
-    """The limits of the commanded joints of the URDF at ``path``, by joint name."""
-    p = Path(path)
+def _read_bounded(p: Path) -> bytes:
+    """The bytes of the regular file ``p``, at most :data:`MAX_URDF_BYTES` of them (ConfigError otherwise)."""
     try:
-        size = p.stat().st_size
-        if size > MAX_URDF_BYTES:
-            raise ConfigError(f"URDF {p}: {size} bytes, more than the {MAX_URDF_BYTES} allowed")
-        data = p.read_bytes()
+        # O_NONBLOCK: opening a FIFO with no writer must not hang (it is then refused as not a regular file).
+        fd = os.open(p, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0))
     except OSError as exc:
         raise ConfigError(f"cannot read URDF {p}: {exc}") from exc
-    if b"<!DOCTYPE" in data or b"<!ENTITY" in data:
+    try:
+        # fstat on the opened file, not stat on the path: the file checked is the file read.
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            raise ConfigError(f"URDF {p} is not a regular file")
+        chunks: list[bytes] = []
+        left = MAX_URDF_BYTES + 1  # one byte more than allowed tells a file that is too big (or grows)
+        while left > 0:
+            chunk = os.read(fd, min(left, 1 << 20))
+            if not chunk:
+                break
+            chunks.append(chunk)
+            left -= len(chunk)
+    except OSError as exc:
+        raise ConfigError(f"cannot read URDF {p}: {exc}") from exc
+    finally:
+        os.close(fd)
+    if left <= 0:
+        raise ConfigError(f"URDF {p}: more than the {MAX_URDF_BYTES} bytes allowed")
+    return b"".join(chunks)
+
+
+def _checked_text(p: Path, data: bytes) -> None:
+    """Refuse what is not UTF-8, or declares a DOCTYPE or entities (checked on the decoded text)."""
+    if b"\0" in data:
+        # XML has no NUL characters; they are what a UTF-16/32 file (with or without a BOM) is full of.
+        raise ConfigError(f"URDF {p}: not UTF-8 (NUL bytes: UTF-16 or UTF-32?); save it as UTF-8")
+    try:
+        text = data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise ConfigError(f"URDF {p}: not UTF-8 ({exc}); save it as UTF-8") from None
+    declared = _DECLARED_ENCODING.match(text)
+    if declared and declared.group(1).strip().lower() not in _UTF8_NAMES:
+        raise ConfigError(f"URDF {p}: declares encoding {declared.group(1)!r}; only UTF-8 is accepted")
+    if "<!DOCTYPE" in text or "<!ENTITY" in text:
         raise ConfigError(f"URDF {p}: DOCTYPE and ENTITY declarations are not accepted")
+
+
+def read_urdf_joint_limits(path: str | Path) -> dict[str, JointLimits]:
+    """The limits of the commanded joints of the URDF at ``path``, by joint name.
+
+    Raises :class:`ConfigError` naming the problem for a file that is not a regular UTF-8 file of at
+    most :data:`MAX_URDF_BYTES`, declares a DOCTYPE or entities, is not a ``<robot>``, names a joint
+    twice, or has a limit that is not a finite number (or a negative velocity).
+    """
+    p = Path(path)
+    data = _read_bounded(p)
+    _checked_text(p, data)
     try:
         root = ET.fromstring(data)
     except ET.ParseError as exc:
@@ -83,8 +135,14 @@ def read_urdf_joint_limits(path: str | Path) -> dict[str, JointLimits]:
     if root.tag != "robot":
         raise ConfigError(f"URDF {p}: the root element is <{root.tag}>, expected <robot>")
     limits: dict[str, JointLimits] = {}
+    named: set[str] = set()
     for joint in root.iter("joint"):
         name, kind = joint.get("name"), joint.get("type")
+        if name is not None and name in named:
+            # The second would silently replace the first's limits: a typo must not loosen a joint.
+            raise ConfigError(f"URDF {p}: joint {name!r} is declared twice")
+        if name is not None:
+            named.add(name)
         if not name or kind not in _COMMANDED:
             continue
         where = f"URDF {p} joint {name!r}"
@@ -110,7 +168,10 @@ def read_urdf_joint_limits(path: str | Path) -> dict[str, JointLimits]:
 def _checked(name: str, lower: float | None, upper: float | None, velocity: float | None, where: str) -> JointLimits:
     if lower is not None and upper is not None and lower > upper:
         raise ConfigError(f"{where}: lower limit {lower} is above upper limit {upper}")
-    if velocity is not None and velocity <= 0:
+    if velocity is not None and velocity < 0:
+        # Read as "none" (below), a sign typo would lift the joint's speed limit altogether.
+        raise ConfigError(f"{where}: limit velocity {velocity} is negative (a speed limit is >= 0)")
+    if velocity == 0:
         # URDF uses velocity="0" for "not given" in some exports; no limit is safer to read as none
         # than as "never move", which would freeze the joint without saying why.
         velocity = None
