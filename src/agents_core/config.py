@@ -23,6 +23,7 @@ import attrs
 from attrs import define, field
 
 from . import base_validators
+from ._lazy import lazy_exports
 from .checked_attrs import CheckedFieldsMeta
 from .errors import ConfigError
 
@@ -32,6 +33,7 @@ __all__ = [
     "LLMConfig",
     "MLLMConfig",
     "MapConfig",
+    "MemoryConfig",
     "ModelComponentConfig",
     "SemanticRouterConfig",
     "SpeechToTextConfig",
@@ -551,3 +553,8 @@ class VLAConfig(ModelComponentConfig):
     on_new_goal: str = field(default="reject", validator=base_validators.in_(["reject", "preempt"]))
     aggregation_function: str = field(default="weighted_average", validator=base_validators.in_(
         ["latest_only", "average", "weighted_average", "conservative"]))
+
+
+# MemoryConfig lives with its component (agents_core.components.memory); read lazily, so this module
+# never imports that package (which imports this one).
+__getattr__, _ = lazy_exports(__name__, {".components.memory.config": ("MemoryConfig",)})

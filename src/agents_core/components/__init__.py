@@ -16,6 +16,7 @@ _EXPORTS: dict[str, tuple[str, ...]] = {
     ".publisher": ("ComponentPublisher",),
     ".llm": ("LLM",),
     ".map_encoding": ("MapEncoding", "MapLayer"),
+    ".memory": ("MemLayer", "Memory"),
     ".mllm": ("MLLM", "VLM"),
     ".model_component": ("ModelComponent",),
     "..runtime.run_type": ("ComponentRunType",),
@@ -32,6 +33,7 @@ if TYPE_CHECKING:
     from .component_base import Component
     from .llm import LLM
     from .map_encoding import MapEncoding, MapLayer
+    from .memory import MemLayer, Memory
     from .mllm import MLLM, VLM
     from .model_component import ModelComponent
     from .publisher import ComponentPublisher
@@ -54,6 +56,8 @@ __all__ = [
     "ComponentRunType",
     "MapEncoding",
     "MapLayer",
+    "MemLayer",
+    "Memory",
     "ModelComponent",
     "Route",
     "SemanticRouter",
