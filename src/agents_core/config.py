@@ -33,7 +33,7 @@ __all__ = [
     "LLMConfig",
     "MLLMConfig",
     "MapConfig",
-    "MemoryConfig",
+    "MemoryConfig",  # noqa: F822  (resolved lazily by the __getattr__ at the end)
     "ModelComponentConfig",
     "SemanticRouterConfig",
     "SpeechToTextConfig",

@@ -196,15 +196,15 @@ class Memory(Component):
                     return
             value = text
         try:
-            text = self.layers[layer].text_of(value)
+            stored = self.layers[layer].text_of(value)
         except Exception as exc:  # a value without a text form must not break the transport's thread
             self._count("unreadable")
             self._logger.warning("layer %r: value not stored: %s", layer, exc)
             return
-        if text is None:
+        if stored is None:
             return
         with self._lock:
-            self._fresh[layer] = self._latest[layer] = (text, time.time())
+            self._fresh[layer] = self._latest[layer] = (stored, time.time())
 
     # -- lifecycle ----------------------------------------------------------------------------
 
@@ -262,7 +262,7 @@ class Memory(Component):
                                 client.initialize()
                     self._clients_ready = True
                 if self._embedder is None:
-                    self._embedder = ClientEmbedder(self.embedding_client)  # type: ignore[arg-type]
+                    self._embedder = ClientEmbedder(self.embedding_client)
             except ModelClientError:
                 self._count("embed_errors")
                 raise
