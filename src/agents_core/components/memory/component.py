@@ -148,8 +148,21 @@ class Memory(Component):
         self._clients_ready = False
         self._unplaced = 0  # values dropped for want of a position, since one last arrived
         for name in (*self.layers, position.name):
-            cb = self.callbacks.get(name) or self.trig_callbacks[name]
-            cb.on_callback_execute(self._on_position if name == position.name else self._value_hook(name))
+            cb = self.callbacks.get(name)
+            if cb is not None:  # trigger topics record their value in _make_topic_trigger, before the step
+                cb.on_callback_execute(self._on_position if name == position.name else self._value_hook(name))
+
+    def _make_topic_trigger(self, topic: Topic) -> Callable[[Any], None]:
+        fire = super()._make_topic_trigger(topic)
+
+        def record_then_fire(value: Any) -> None:
+            if topic.name == self.position.name:
+                self._on_position(value)
+            else:
+                self._on_value(topic.name, value)
+            fire(value)
+
+        return record_then_fire
 
     # -- counters -----------------------------------------------------------------------------
 
