@@ -29,6 +29,9 @@ METRICS: dict[str, list[tuple[str, str, str, str]]] = {
     "voice": [("stt_speed", "x realtime", "higher", "speed"), ("first_audio", "ms", "lower", "first_audio_ms")],
     # layer values written into a local Chroma through MapEncoding vs direct ChromaClient.add calls.
     "map": [("writes_per_s", "writes/s", "higher", "writes_per_s")],
+    # Memory component (paced: one value per step) vs emem's add with the same embeddings; search via execute_method.
+    "memory": [("stored_per_s", "obs/s", "higher", "writes_per_s"),
+               ("semantic_search", "us", "lower", "search_median_us")],
     # framework: the five-stage recipe with multiprocessing=True; raw: the same recipe in one process.
     # respawn: SIGKILL of a component process -> its new process active (multiprocessing only).
     "processes": [("start_to_active", "ms", "lower", "median_ms"),

@@ -19,7 +19,7 @@ from typing import Any
 import pytest
 
 #: Third-party packages of the model stack: none may load before a model component or client is used.
-HEAVY = ("httpx", "jinja2", "yaml", "llama_cpp")
+HEAVY = ("httpx", "jinja2", "yaml", "llama_cpp", "emem", "hnswlib")
 
 #: Modules that are model components or hold them: never on the light path.
 MODEL_COMPONENT_MODULES = ("agents_core.components.model_component", "agents_core.components.llm",
@@ -35,6 +35,7 @@ LIGHT = [
     "import agents_core.components, agents_core.clients, agents_core.utils, agents_core.ros",
     "import agents_core.engines, agents_core.launch, agents_core.components.vision, agents_core.components.vla",
     "import agents_core.config",
+    "import agents_core.components.memory",
 ]
 
 #: (package, name, defining module): reading the name from the package gives the defining module's object.
@@ -54,6 +55,9 @@ LAZY_NAMES = [
     ("agents_core.components", "VLA", "agents_core.components.vla.component"),
     ("agents_core.clients", "LeRobotClient", "agents_core.clients.lerobot.client"),
     ("agents_core", "Launcher", "agents_core.launch.launcher"),
+    ("agents_core.components", "Memory", "agents_core.components.memory.component"),
+    ("agents_core.config", "MemoryConfig", "agents_core.components.memory.config"),
+    ("agents_core.ros", "MemLayer", "agents_core.components.memory.layers"),
 ]
 
 #: The modules whose re-exports are lazy.

@@ -53,7 +53,8 @@ def test_transport_resolution_by_env_and_object(monkeypatch: pytest.MonkeyPatch)
 
 def test_ros_compat_module_exports() -> None:
     for name in ["Topic", "FixedInput", "SupportedType", "base_validators", "Launcher", "Event", "Action",
-                 "String", "Image", "Audio", "Detections", "StreamingString", "component_action"]:
+                 "String", "Image", "Audio", "Detections", "StreamingString", "component_action", "Memory",
+                 "MemLayer", "MemoryConfig"]:
         assert hasattr(agents_core.ros, name), name
     assert callable(agents_core.ros.base_validators.gt)
 

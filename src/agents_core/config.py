@@ -23,6 +23,7 @@ import attrs
 from attrs import define, field
 
 from . import base_validators
+from ._lazy import lazy_exports
 from .checked_attrs import CheckedFieldsMeta
 from .errors import ConfigError
 
@@ -33,6 +34,7 @@ __all__ = [
     "LLMConfig",
     "MLLMConfig",
     "MapConfig",
+    "MemoryConfig",  # noqa: F822  (resolved lazily by the __getattr__ at the end)
     "ModelComponentConfig",
     "SemanticRouterConfig",
     "SpeechToTextConfig",
@@ -554,10 +556,7 @@ class VLAConfig(ModelComponentConfig):
         ["latest_only", "average", "weighted_average", "conservative"]))
 
 
-def __getattr__(name: str) -> Any:
-    # Configs that live with their component package, imported on first use (no import circle).
-    if name == "CortexConfig":
-        from .components.cortex.config import CortexConfig  # noqa: PLC0415
-
-        return CortexConfig
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+# Configs that live with their component package (agents_core.components.memory, .cortex): read
+# lazily, so this module never imports those packages (which import this one).
+__getattr__, _ = lazy_exports(__name__, {".components.memory.config": ("MemoryConfig",),
+                                         ".components.cortex.config": ("CortexConfig",)})

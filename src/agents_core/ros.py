@@ -15,6 +15,7 @@ from ._lazy import lazy_exports
 #: Topic, Launcher, String`` loads the launcher and the type table, never the model components or clients.
 _EXPORTS: dict[str, tuple[str, ...]] = {
     ".actions": ("Action", "Fallback", "component_action", "component_fallback"),
+    ".components.memory": ("MemLayer", "Memory", "MemoryConfig"),
     ".components.semantic_router": ("Route",),
     ".config": ("BaseAttrs", "BaseComponentConfig"),
     ".events": ("Event",),
@@ -38,6 +39,7 @@ if TYPE_CHECKING:
     from . import base_validators
     from .actions import Action, Fallback, component_action, component_fallback
     from .callbacks import GenericCallback
+    from .components.memory import MemLayer, Memory, MemoryConfig
     from .components.semantic_router import Route
     from .config import BaseAttrs, BaseComponentConfig
     from .events import Event
@@ -123,6 +125,9 @@ __all__ = [
     "Launcher",
     "LifecycleState",
     "MapMetaData",
+    "MemLayer",
+    "Memory",
+    "MemoryConfig",
     "NavSatFix",
     "OccupancyGrid",
     "Odometry",

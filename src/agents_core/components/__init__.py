@@ -17,6 +17,7 @@ _EXPORTS: dict[str, tuple[str, ...]] = {
     ".publisher": ("ComponentPublisher",),
     ".llm": ("LLM",),
     ".map_encoding": ("MapEncoding", "MapLayer"),
+    ".memory": ("MemLayer", "Memory"),
     ".mllm": ("MLLM", "VLM"),
     ".model_component": ("ModelComponent",),
     "..runtime.run_type": ("ComponentRunType",),
@@ -34,6 +35,7 @@ if TYPE_CHECKING:
     from .cortex.component import Cortex
     from .llm import LLM
     from .map_encoding import MapEncoding, MapLayer
+    from .memory import MemLayer, Memory
     from .mllm import MLLM, VLM
     from .model_component import ModelComponent
     from .publisher import ComponentPublisher
@@ -57,6 +59,8 @@ __all__ = [
     "Cortex",
     "MapEncoding",
     "MapLayer",
+    "MemLayer",
+    "Memory",
     "ModelComponent",
     "Route",
     "SemanticRouter",
