@@ -9,7 +9,8 @@ Upstream names with no counterpart here: ``BaseComponent`` (write ``Component``,
 component yet), ``VisionLanguageAction`` (the VLA component is ``agents_core.components.VLA``), and
 the rclpy helpers ``MutuallyExclusiveCallbackGroup``, ``ServiceClientHandler``,
 ``ActionClientHandler``, ``run_external_processor``, ``get_ros_msg_fields_dict``,
-``ros_msg_to_str``, ``get_methods_with_decorator`` and ``ActionPhase``.
+``ros_msg_to_str``, ``get_methods_with_decorator`` and ``ActionPhase``. Upstream's ``actions``
+module is :mod:`agents_core.actions` (its names, ``Action`` and the decorators, are here).
 """
 
 from __future__ import annotations
@@ -41,10 +42,10 @@ _EXPORTS: dict[str, tuple[str, ...]] = {
     ".topics": ("FixedInput", "QoSConfig", "Topic"),
 }
 #: re-exported names that are modules themselves: name -> module.
-_MODULE_EXPORTS = {"actions": ".actions", "base_validators": ".base_validators"}
+_MODULE_EXPORTS = {"base_validators": ".base_validators"}
 
 if TYPE_CHECKING:
-    from . import actions, base_validators
+    from . import base_validators
     from .actions import Action, Fallback, component_action, component_fallback
     from .callbacks import GenericCallback
     from .components.map_encoding import MapLayer
@@ -157,7 +158,6 @@ __all__ = [
     "TrackingsMultiSource",
     "Twist",
     "Video",
-    "actions",
     "add_additional_datatypes",
     "base_validators",
     "component_action",

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from agents_core import Topic
-from agents_core.components import LLM, MLLM, Route, SemanticRouter
+from agents_core.components import LLM, MLLM, Route, SemanticRouter, Vision
 from agents_core.config import LLMConfig, SemanticRouterConfig, VisionConfig
 from agents_core.errors import WiringError
 from agents_core.messages import ImageMsg
@@ -20,6 +20,7 @@ from ..conftest import wait_for
 from .scripted_client import ScriptedChatClient, tool_call
 from .test_llm import _collect, running
 from .test_mllm_and_router import _WordVectorDB
+from .vision_recipe import needs_ssd, photo
 
 QUESTION, ANSWER = Topic("question", "String"), Topic("answer", "String")
 CAMERA, OTHER_CAMERA = Topic("camera", "Image"), Topic("other_camera", "Image")
@@ -81,11 +82,7 @@ def test_describe_takes_upstreams_topic_name_and_query() -> None:
 
 @pytest.mark.local_models
 def test_take_picture_takes_upstreams_topic_name_and_save_path(tmp_path: Path) -> None:
-    from PIL import Image as PILImage
-
-    from agents_core.components import Vision
-
-    from .vision_recipe import needs_ssd, photo
+    from PIL import Image as PILImage  # noqa: PLC0415  (the local extra's Pillow: only this test needs it)
 
     objects = Topic("objects", "Detections")
     vision = Vision(inputs=[CAMERA, OTHER_CAMERA], outputs=[objects],

@@ -11,6 +11,7 @@ import agents_core.ros
 from agents_core import Topic
 from agents_core.clients import ChromaClient, OllamaClient
 from agents_core.clients.client_base import client_from_spec
+from agents_core.components import ComponentRunType, MapLayer
 from agents_core.config import LLMConfig, MLLMConfig, SpeechToTextConfig, VisionConfig
 from agents_core.errors import ConfigError, TypeValidationError
 from agents_core.messages import DetectionsMsg, PoseMsg
@@ -45,13 +46,9 @@ def test_distance_func_is_accepted_in_the_llm_config(config_class: Any) -> None:
 
 
 def test_agents_ros_exports_the_upstream_names_we_implement() -> None:
-    from agents_core import actions
-    from agents_core.components import ComponentRunType, MapLayer
-
     assert agents_core.ros.MapLayer is MapLayer
     assert agents_core.ros.ComponentRunType is ComponentRunType
-    assert agents_core.ros.actions is actions
-    assert {"MapLayer", "ComponentRunType", "actions"} <= set(agents_core.ros.__all__)
+    assert {"MapLayer", "ComponentRunType"} <= set(agents_core.ros.__all__)
 
 
 DETECTIONS = Topic("det", "Detections")
