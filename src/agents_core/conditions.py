@@ -7,6 +7,12 @@ pass part of the triggering message to the action.
 
 For simple types carried as builtins (String, Bool, Int32, Float64, multi-arrays), the message
 itself is the field ``data`` (as in the ROS messages of the same name).
+
+The operators of upstream's field references work as written there: ``is_in`` / ``not_in``,
+``contains`` / ``not_contains`` (a str, or with a list: all / not all of its items),
+``contains_any`` / ``contains_all`` / ``not_contains_any`` / ``not_contains_all`` (a list field
+against a list of items, e.g. ``detections.msg.labels.contains_any(["person"])``),
+``is_true`` / ``is_false``, ``~ref`` (the field is False) and ``ref[i]`` (an item of an array field).
 """
 
 from __future__ import annotations
@@ -31,7 +37,7 @@ class FieldRef:
 
     __slots__ = ("path", "topic")
 
-    def __init__(self, topic: Topic, path: tuple[str, ...]) -> None:
+    def __init__(self, topic: Topic, path: tuple[str | int, ...]) -> None:
         self.topic = topic
         self.path = path
 
@@ -59,12 +65,18 @@ class FieldRef:
             if i == 0 and name == "data" and not attrs.has(type(value)):
                 continue
             try:
-                value = getattr(value, name)
-            except AttributeError:
+                value = value[name] if isinstance(name, int) else getattr(value, name)
+            except (AttributeError, IndexError, TypeError, KeyError):
                 raise ConfigError(
-                    f"topic {self.topic.name!r}: message has no field {'.'.join(self.path[: i + 1])!r}"
+                    f"topic {self.topic.name!r}: message has no field {_dotted(self.path[: i + 1])!r}"
                 ) from None
         return value
+
+    def __getitem__(self, index: int) -> FieldRef:
+        """An item of an array field: ``topic.msg.data[0] > 5``."""
+        if isinstance(index, bool) or not isinstance(index, int):
+            raise ConfigError(f"{self}: only int indices select an item of a field, got {index!r}")
+        return FieldRef(self.topic, (*self.path, index))
 
     def _compare(self, op: Callable[[Any, Any], Any], symbol: str, other: Any) -> Condition:
         return Condition(lambda values: bool(op(self.resolve(values[self.topic.name]), other)),
@@ -95,12 +107,77 @@ class FieldRef:
         options = list(values)
         return self._compare(lambda a, b: any(_equal(a, x) for x in b), "in", options)
 
+    def not_in(self, values: Iterable[Any]) -> Condition:
+        """True when the field's value is none of ``values``."""
+        options = list(values)
+        return self._compare(lambda a, b: not any(_equal(a, x) for x in b), "not in", options)
+
     def contains(self, item: Any) -> Condition:
-        """True when the field (a str, list or array) contains ``item``."""
-        return self._compare(lambda a, b: b in a, "contains", item)
+        """True when the field (a str, list or array) contains ``item``; with a list or tuple of items,
+        when it contains all of them (as upstream's ``contains``)."""
+        if isinstance(item, list | tuple):
+            return self.contains_all(item)
+        return self._compare(lambda a, b: b in _items(a), "contains", item)
+
+    def not_contains(self, item: Any) -> Condition:
+        """The negation of :meth:`contains`: with a list or tuple, True when at least one item is missing."""
+        if isinstance(item, list | tuple):
+            return self.not_contains_all(item)
+        return self._compare(lambda a, b: b not in _items(a), "not contains", item)
+
+    def contains_any(self, items: Iterable[Any]) -> Condition:
+        """True when the field (a list or array; a single value counts as a list of one) holds at least one
+        of ``items``: ``detections.msg.labels.contains_any(["person", "dog"])``."""
+        return self._compare(lambda a, b: any(x in _items(a) for x in b), "contains any of", _listed(items))
+
+    def contains_all(self, items: Iterable[Any]) -> Condition:
+        """True when the field holds every one of ``items``."""
+        return self._compare(lambda a, b: all(x in _items(a) for x in b), "contains all of", _listed(items))
+
+    def not_contains_any(self, items: Iterable[Any]) -> Condition:
+        """True when the field holds none of ``items``."""
+        return self._compare(lambda a, b: not any(x in _items(a) for x in b), "contains none of",
+                             _listed(items))
+
+    def not_contains_all(self, items: Iterable[Any]) -> Condition:
+        """True when at least one of ``items`` is missing from the field."""
+        return self._compare(lambda a, b: not all(x in _items(a) for x in b), "misses one of", _listed(items))
+
+    def is_true(self) -> Condition:
+        """True when the (bool) field is True."""
+        return self._compare(lambda a, b: bool(a) is b, "is", True)
+
+    def is_false(self) -> Condition:
+        """True when the (bool) field is False."""
+        return self._compare(lambda a, b: bool(a) is b, "is", False)
+
+    def __invert__(self) -> Condition:
+        """``~topic.msg.flag``: the field is False (upstream's shorthand)."""
+        return self.is_false()
 
     def __repr__(self) -> str:
-        return ".".join((f"{self.topic.name}.msg", *self.path))
+        return _dotted((f"{self.topic.name}.msg", *self.path))
+
+
+def _dotted(path: tuple[str | int, ...]) -> str:
+    return "".join(f"[{p}]" if isinstance(p, int) else (f".{p}" if i else p) for i, p in enumerate(path))
+
+
+def _listed(items: Iterable[Any]) -> list[Any]:
+    if isinstance(items, str):
+        # A str is an iterable of characters: contains_any("person") would match any letter.
+        raise ConfigError(f"expected a list of items, got the str {items!r}: write [{items!r}]")
+    return list(items)
+
+
+def _items(value: Any) -> Any:
+    """The field as a container: arrays as lists (``in`` on an array compares element-wise), a scalar as a list
+    of one (as upstream)."""
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, str | list | tuple | set | frozenset | dict):
+        return value
+    return [value]
 
 
 def _equal(a: Any, b: Any) -> bool:

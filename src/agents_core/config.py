@@ -222,6 +222,8 @@ class LLMConfig(ModelComponentConfig):
     :param enable_rag: look up the query in the component's vector database and give the model
         the ``n_results`` closest documents as context.
     :param collection_name: the database collection used for RAG.
+    :param distance_func: ``"l2"``, ``"cosine"`` or ``"ip"``: the metric of the RAG collection when
+        ``add_documents`` creates it (an existing collection keeps its own).
     :param n_results: how many documents RAG adds.
     :param add_metadata: also give the model the documents' metadata.
     """
@@ -238,6 +240,7 @@ class LLMConfig(ModelComponentConfig):
     max_tool_rounds: int = field(default=5, validator=base_validators.in_range(1, 100))
     enable_rag: bool = field(default=False)
     collection_name: str | None = field(default=None, validator=_optional_str)
+    distance_func: str = field(default="l2", validator=base_validators.in_(["l2", "cosine", "ip"]))
     n_results: int = field(default=1, validator=base_validators.in_range(1, 1000))
     add_metadata: bool = field(default=False)
 
@@ -343,6 +346,8 @@ class VisionConfig(ModelComponentConfig):
         None: from a labels file beside the model, the model's metadata, or COCO.
     :param dataset_labels_file: a labels file for the local model (see
         :func:`~agents_core.engines.local_vision.read_labels_file`).
+    :param enable_local_classifier: upstream's name of ``enable_local_model`` for Vision: True turns
+        it on (and reads back whether the local detector is enabled).
     """
 
     threshold: float = field(default=0.5, validator=base_validators.in_range(0.0, 1.0))
@@ -359,6 +364,11 @@ class VisionConfig(ModelComponentConfig):
     dataset_labels: list[str] | dict[int, str] | None = field(default=None, validator=_optional_labels,
                                                               metadata=AT_CONFIGURE)
     dataset_labels_file: str | None = field(default=None, validator=_optional_str, metadata=AT_CONFIGURE)
+    enable_local_classifier: bool = field(default=False, metadata=AT_CONFIGURE)
+
+    def __attrs_post_init__(self) -> None:
+        # One setting under two names: either turns the local detector on, both read the same afterwards.
+        self.enable_local_model = self.enable_local_classifier = self.enable_local_model or self.enable_local_classifier
 
     def _get_inference_params(self) -> dict[str, Any]:
         params: dict[str, Any] = {"threshold": self.threshold, "get_dataset_labels": self.get_dataset_labels}
@@ -402,7 +412,8 @@ class SpeechToTextConfig(ModelComponentConfig):
     """Settings of :class:`~agents_core.components.SpeechToText`.
 
     :param enable_vad: cut the incoming audio stream into utterances with Silero VAD (each becomes
-        one transcript); off: every Audio message is one utterance.
+        one transcript); off: every Audio message is one utterance. None (default): on when a
+        ``vad_model_path`` is given, else off (upstream's default).
     :param vad_threshold: speech probability above which audio counts as speech.
     :param min_silence_duration_ms: the silence that ends an utterance.
     :param min_speech_duration_ms: shorter bursts (a click, a cough) are not utterances.
@@ -426,7 +437,7 @@ class SpeechToTextConfig(ModelComponentConfig):
     :param ncpu_local_model: CPU threads of the local recognizer (default 2).
     """
 
-    enable_vad: bool = field(default=True, metadata=AT_CONFIGURE)
+    enable_vad: bool | None = field(default=None, metadata=AT_CONFIGURE)
     vad_threshold: float = field(default=0.5, validator=base_validators.in_range(0.01, 0.99), metadata=AT_CONFIGURE)
     min_silence_duration_ms: int = field(default=500, validator=base_validators.in_range(50, 10_000),
                                          metadata=AT_CONFIGURE)
@@ -454,6 +465,8 @@ class SpeechToTextConfig(ModelComponentConfig):
             raise ConfigError(f"SpeechToTextConfig.wakeword_threshold must be None or in (0, 1), got {value!r}")
 
     def __attrs_post_init__(self) -> None:
+        if self.enable_vad is None:
+            self.enable_vad = self.vad_model_path is not None
         if self.enable_wakeword and not self.enable_vad:
             raise ConfigError("SpeechToTextConfig: enable_wakeword needs enable_vad (the command after the wake "
                               "word is the next utterance)")

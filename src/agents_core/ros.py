@@ -3,6 +3,14 @@
 ``from agents_core.ros import Topic, Launcher, Image`` works as ``from agents.ros import ...``
 did upstream. Nothing here depends on ROS: each name lives in a descriptive module of its own
 and works on every transport.
+
+Upstream names with no counterpart here: ``BaseComponent`` (write ``Component``, from
+:mod:`agents_core.components`), ``Monitor`` (the launcher supervises), ``MemLayer`` (no Memory
+component yet), ``VisionLanguageAction`` (the VLA component is ``agents_core.components.VLA``), and
+the rclpy helpers ``MutuallyExclusiveCallbackGroup``, ``ServiceClientHandler``,
+``ActionClientHandler``, ``run_external_processor``, ``get_ros_msg_fields_dict``,
+``ros_msg_to_str``, ``get_methods_with_decorator`` and ``ActionPhase``. Upstream's ``actions``
+module is :mod:`agents_core.actions` (its names, ``Action`` and the decorators, are here).
 """
 
 from __future__ import annotations
@@ -15,11 +23,13 @@ from ._lazy import lazy_exports
 #: Topic, Launcher, String`` loads the launcher and the type table, never the model components or clients.
 _EXPORTS: dict[str, tuple[str, ...]] = {
     ".actions": ("Action", "Fallback", "component_action", "component_fallback"),
+    ".components.map_encoding": ("MapLayer",),
     ".components.memory": ("MemLayer", "Memory", "MemoryConfig"),
     ".components.semantic_router": ("Route",),
     ".config": ("BaseAttrs", "BaseComponentConfig"),
     ".events": ("Event",),
     ".launch.launcher": ("Launcher",),
+    ".runtime.run_type": ("ComponentRunType",),
     ".status": ("HealthStatus", "LifecycleState"),
     ".supported_types": (
         "Audio", "Bool", "CameraInfo", "ComponentStatus", "CompressedImage", "Detections", "DetectionsMultiSource",
@@ -39,11 +49,13 @@ if TYPE_CHECKING:
     from . import base_validators
     from .actions import Action, Fallback, component_action, component_fallback
     from .callbacks import GenericCallback
+    from .components.map_encoding import MapLayer
     from .components.memory import MemLayer, Memory, MemoryConfig
     from .components.semantic_router import Route
     from .config import BaseAttrs, BaseComponentConfig
     from .events import Event
     from .launch.launcher import Launcher
+    from .runtime.run_type import ComponentRunType
     from .status import HealthStatus, LifecycleState
     from .supported_types import (
         RGBD,
@@ -100,6 +112,7 @@ __all__ = [
     "BaseComponentConfig",
     "Bool",
     "CameraInfo",
+    "ComponentRunType",
     "ComponentStatus",
     "CompressedImage",
     "Detections",
@@ -124,6 +137,7 @@ __all__ = [
     "LaserScan",
     "Launcher",
     "LifecycleState",
+    "MapLayer",
     "MapMetaData",
     "MemLayer",
     "Memory",

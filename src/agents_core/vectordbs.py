@@ -32,6 +32,15 @@ def _bool(instance: Any, attribute: Any, value: Any) -> None:
         raise ConfigError(f"{type(instance).__name__}.{attribute.name} must be a bool, got {value!r}")
 
 
+def _embeddings(instance: Any, attribute: Any, value: Any) -> None:
+    if value == "sentence-transformers":
+        raise ConfigError(f"{type(instance).__name__}.embeddings: sentence-transformers is not built in; give the "
+                          "client an embedding_client (any model client with embed(), e.g. an OllamaClient or a "
+                          "GenericHTTPClient on an embeddings server)")
+    if value not in ("ollama", None):
+        raise ConfigError(f"{type(instance).__name__}.embeddings must be 'ollama' or None, got {value!r}")
+
+
 @define(kw_only=True)
 class DB(BaseAttrs):
     """Base of vector database descriptions.
@@ -61,10 +70,12 @@ class ChromaDB(DB):
     :class:`~agents_core.clients.chroma.ChromaClient`.
 
     Chroma stores vectors but computes none over HTTP: the client's embedding client turns
-    documents and queries into vectors. Names (tenant, database, collection) are checked by the
-    server, whose rules may change between versions, so only emptiness is checked here.
+    documents and queries into vectors. A client given none uses the embedding model named here,
+    as upstream: ``ChromaDB()`` embeds with Ollama's ``bge-large:latest`` on 127.0.0.1:11434.
+    Names (tenant, database, collection) are checked by the server, whose rules may change
+    between versions, so only emptiness is checked here.
 
-    :param name: an identifier chosen by the user.
+    :param name: an identifier chosen by the user (default ``"chroma"``).
     :param db_location: where the server keeps its data (``chroma run --path``); informative
         only, since a remote server chooses its own path.
     :param tenant: the Chroma tenant holding the database.
@@ -75,13 +86,25 @@ class ChromaDB(DB):
         fixes it when a collection is created: an existing collection keeps its own.
     :param create_if_missing: create the tenant and the database when the server lacks them
         (collections are always created on first write).
+    :param embeddings: the embedding backend of a client given no ``embedding_client``:
+        ``"ollama"`` (upstream's default) or None (every ``db_input`` carries its vectors).
+        Upstream's ``"sentence-transformers"`` runs in-process and is not built in: give an
+        ``embedding_client`` instead.
+    :param checkpoint: the Ollama embedding model.
+    :param ollama_host: the Ollama server's host.
+    :param ollama_port: its port.
     """
 
+    name: str = field(default="chroma", validator=_non_empty_str)
     tenant: str = field(default="default_tenant", validator=_non_empty_str)
     database: str = field(default="default_database", validator=_non_empty_str)
     collection_name: str = field(default="agents_collection", validator=_non_empty_str)
     distance_func: str = field(default="l2", validator=base_validators.in_(["l2", "cosine", "ip"]))
     create_if_missing: bool = field(default=True, validator=_bool)
+    embeddings: str | None = field(default="ollama", validator=_embeddings)
+    checkpoint: str = field(default="bge-large:latest", validator=_non_empty_str)
+    ollama_host: str = field(default="127.0.0.1", validator=_non_empty_str)
+    ollama_port: int = field(default=11434, validator=base_validators.in_range(1, 65535))
 
     def _get_init_params(self) -> dict[str, Any]:
         return {
@@ -91,4 +114,8 @@ class ChromaDB(DB):
             "collection_name": self.collection_name,
             "distance_func": self.distance_func,
             "create_if_missing": self.create_if_missing,
+            "embeddings": self.embeddings,
+            "checkpoint": self.checkpoint,
+            "ollama_host": self.ollama_host,
+            "ollama_port": self.ollama_port,
         }

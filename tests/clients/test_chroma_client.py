@@ -216,7 +216,7 @@ def test_db_input_is_validated_before_any_request() -> None:
         client.query({"query": "door", "n_results": 0})
     with pytest.raises(ConfigError, match="exactly one of"):
         client.metadata_query({})
-    without_embedder = ChromaClient(ChromaDB(name="map"), port=free_tcp_port())
+    without_embedder = ChromaClient(ChromaDB(name="map", embeddings=None), port=free_tcp_port())
     with pytest.raises(ConfigError, match="needs embeddings"):
         without_embedder.add({"ids": ["a"], "documents": ["x"]})
 

@@ -128,8 +128,9 @@ class LLM(ModelComponent):
             raise WiringError(f"component {self.component_name!r}: config.enable_rag needs a db_client")
         #: The conversation so far (user and assistant turns; the system prompt is kept apart).
         self.messages: list[dict[str, Any]] = []
-        # Prompts are plain text, not HTML: no autoescaping. StrictUndefined turns a typo into an error.
-        self._env = jinja2.Environment(undefined=jinja2.StrictUndefined, autoescape=False)
+        # Prompts are plain text, not HTML: no autoescaping. A variable the template names but the inputs
+        # lack renders empty, as upstream (its recipes rely on it: a Detections input that has not arrived).
+        self._env = jinja2.Environment(autoescape=False)
         self._topic_templates: dict[str, jinja2.Template] = {}
         self._component_template: jinja2.Template | None = None
         self._tools: dict[str, _Tool] = {}
@@ -181,7 +182,7 @@ class LLM(ModelComponent):
         try:
             return template.render(**values)
         except jinja2.UndefinedError as exc:
-            # A variable whose topic has not delivered yet: say which, instead of sending "None".
+            # A missing variable renders empty, but reading into one ({{ pose.x }}) cannot: say which.
             raise AlgorithmFailure(f"component {self.component_name!r}: {what} needs a value that has not "
                                    f"arrived yet: {exc}") from exc
 
@@ -243,19 +244,34 @@ class LLM(ModelComponent):
             return []
         return [t.description for t in self._tools.values()]
 
-    def _run_tool(self, call: Mapping[str, Any]) -> tuple[_Tool | None, str]:
+    def _run_tool(self, call: Mapping[str, Any]) -> tuple[_Tool | None, Any]:
+        """The tool's return value (an error text when it failed or does not exist)."""
         name = call["function"]["name"]
         tool = self._tools.get(name)
         if tool is None:
             return None, f"error: there is no tool named {name!r}"
         try:
-            result = tool.func(**call["function"]["arguments"])
+            return tool, tool.func(**call["function"]["arguments"])
         except Exception as exc:
             # The model gets to see what went wrong and may try again differently.
             self._logger.warning("tool %s(%s) raised %s: %s", name, call["function"]["arguments"],
                                  type(exc).__name__, exc)
             return tool, f"error: {type(exc).__name__}: {exc}"
-        return tool, result if isinstance(result, str) else json.dumps(result, default=str)
+
+    def _publish_tool_result(self, value: Any) -> None:
+        """A tool's own return value on the outputs (``send_tool_response_to_model=False``), as upstream:
+        an output with a pre-processor gets the value itself (to turn into its type, e.g. a list into a
+        PoseStamped); a text output without one gets its JSON text."""
+        if isinstance(value, str):
+            self._publish_answer(value)
+            return
+        for pub in self.publishers_dict.values():
+            if pub.has_preprocessors or not issubclass(pub.topic.msg_type, String):
+                pub.publish(value)
+                continue
+            text = json.dumps(value, default=str)
+            streaming = issubclass(pub.topic.msg_type, StreamingString)
+            pub.publish(StreamingStringMsg(data=text, stream=False, done=True) if streaming else text)
 
     # -- RAG ------------------------------------------------------------------------------------
 
@@ -266,7 +282,7 @@ class LLM(ModelComponent):
         if self.db_client is None:
             raise WiringError(f"component {self.component_name!r} has no db_client to add documents to")
         db_input: dict[str, Any] = {"collection_name": self._collection(), "ids": list(ids),
-                                    "documents": list(documents)}
+                                    "documents": list(documents), "distance_func": self.config.distance_func}
         if metadatas is not None:
             db_input["metadatas"] = list(metadatas)
         self.db_client.add(db_input)
@@ -354,11 +370,12 @@ class LLM(ModelComponent):
             for call in calls:
                 tool, output = self._run_tool(call)
                 if tool is None or tool.send_back:
+                    content = output if isinstance(output, str) else json.dumps(output, default=str)
                     messages.append({"role": "tool", "tool_call_id": call["id"], "name": call["function"]["name"],
-                                     "content": output})
+                                     "content": content})
                     answer_again = True
                 else:
-                    self._publish_answer(output)
+                    self._publish_tool_result(output)
             if not answer_again:
                 return None
         raise AlgorithmFailure(f"component {self.component_name!r}: the model was still calling tools after "

@@ -123,8 +123,8 @@ class MapLayer:
             import jinja2  # noqa: PLC0415  (only layers with a template need it)
 
             try:
-                self._compiled = jinja2.Environment(undefined=jinja2.StrictUndefined,
-                                                    autoescape=False).from_string(self.template)
+                # A name the template uses but the message lacks renders empty, as upstream's templates.
+                self._compiled = jinja2.Environment(autoescape=False).from_string(self.template)
             except jinja2.TemplateSyntaxError as exc:
                 raise ConfigError(f"MapLayer {self.name!r}: template is not valid Jinja2: {exc}") from exc
 

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import json
 import re
+import time
 from collections.abc import Iterable, Sequence
 from typing import Any
 
@@ -101,16 +102,21 @@ class MLLM(LLM):
             raise WiringError(f"component {self.component_name!r}: task {self.config.task!r} publishes "
                               f"{wanted.type_name()}, but no output topic has that type")
 
-    def _latest_frames(self) -> list[ImageMsg]:
+    def _latest_frames(self, source: str | None = None) -> list[ImageMsg]:
         frames: list[ImageMsg] = []
         for name, cb in {**self.callbacks, **self.trig_callbacks}.items():
-            if issubclass(self._topic(name).msg_type, Image) and cb.msg is not None:
+            if issubclass(self._topic(name).msg_type, Image) and cb.msg is not None and source in (None, name):
                 frames.append(cb.msg)
         return frames
 
-    def _answer(self, query: str) -> str | None:
-        """Ask ``query`` about the latest frames; a structured task publishes its typed output."""
-        frames = self._latest_frames()
+    def _answer(self, query: str, source: str | None = None, timeout: float = 0.0) -> str | None:
+        """Ask ``query`` about the latest frames (of ``source`` only when given, waiting up to ``timeout``
+        seconds for one); a structured task publishes its typed output."""
+        deadline = time.monotonic() + timeout
+        frames = self._latest_frames(source)
+        while not frames and time.monotonic() < deadline:
+            time.sleep(0.02)
+            frames = self._latest_frames(source)
         if not frames:
             self._logger.warning("no image has arrived yet: question %r not asked", query[:80])
             return None
@@ -178,12 +184,26 @@ class MLLM(LLM):
     @component_action(description={
         "description": "Describe what the robot's camera sees, or answer a question about it.",
         "parameters": {"type": "object",
-                       "properties": {"question": {"type": "string", "description": "what to ask about the image"}},
+                       "properties": {"query": {"type": "string", "description": "what to ask about the image"},
+                                      "topic_name": {"type": "string", "description": "the camera topic (optional)"}},
                        "required": []},
     })
-    def describe(self, question: str = "Describe what you see in one sentence.") -> str:
-        """Ask ``question`` about the latest image now; the answer is published and returned."""
-        return self._answer(question) or ""
+    def describe(self, topic_name: str | None = None, query: str | None = None, timeout: float = 0.5, *,
+                 question: str | None = None) -> str:
+        """Ask about the latest image now; the answer is published and returned.
+
+        Upstream's form ``describe(topic_name, query)`` looks at that image input only (waiting up
+        to ``timeout`` seconds for a frame); ``describe(question)`` and ``describe(question=...)``
+        ask about every image input's latest frame.
+        """
+        images = {t.name for t in self.inputs if issubclass(t.msg_type, Image)}
+        if topic_name is not None and topic_name not in images and query is None and question is None:
+            topic_name, question = None, topic_name  # describe("what is on the table?"): a question, not a topic
+        if topic_name is not None and topic_name not in images:
+            raise WiringError(f"component {self.component_name!r}: {topic_name!r} is not one of its image inputs "
+                              f"{sorted(images)}")
+        text = query or question or "Describe what you see in one sentence."
+        return self._answer(text, topic_name, timeout if topic_name is not None else 0.0) or ""
 
     def _deploy_local_model(self) -> None:
         from ..engines.local_llm import LocalVLM  # noqa: PLC0415  (llama-cpp-python is optional)

@@ -39,6 +39,11 @@ class ComponentPublisher:
         if publisher is not None:
             publisher.close()
 
+    @property
+    def has_preprocessors(self) -> bool:
+        """Whether values are transformed before publishing (so any value may be given to :meth:`publish`)."""
+        return bool(self._preprocessors)
+
     def add_preprocessor(self, func: Callable[[Any], Any]) -> None:
         """Transform every value with ``func`` before it is published (in the order added)."""
         self._preprocessors.append(func)

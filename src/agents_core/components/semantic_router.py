@@ -144,9 +144,10 @@ class SemanticRouter(ModelComponent):
                 ids.append(f"{route.name}:{i}")
                 documents.append(sample)
                 metadatas.append({"route_name": route.name})
-        # Upsert: restarting the router must not duplicate the samples.
+        # The collection is rebuilt: samples of routes a previous run had (or of another recipe using the
+        # same router_name) would otherwise still match, and route to a topic this router does not have.
         self.db_client.add({"collection_name": self.config.router_name, "distance_func": self.config.distance_func,
-                            "ids": ids, "documents": documents, "metadatas": metadatas})
+                            "ids": ids, "documents": documents, "metadatas": metadatas, "reset_collection": True})
         self._logger.info("stored %d samples of %d routes in %r", len(ids), len(self.routes), self.config.router_name)
 
     # -- routing --------------------------------------------------------------------------------

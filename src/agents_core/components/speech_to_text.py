@@ -6,8 +6,9 @@ any other component, or from a local microphone (``enable_microphone``, the ``vo
 chunk is down-mixed and resampled to the 16 kHz mono the models take
 (:mod:`agents_core.engines.audio`); the resampler keeps its state across chunks.
 
-With ``enable_vad`` (the default), Silero VAD cuts the stream into utterances (speech start ->
-``min_silence_duration_ms`` of silence) and each utterance becomes one transcript. With
+With ``enable_vad`` (on when a ``vad_model_path`` is given), Silero VAD cuts the stream into
+utterances (speech start -> ``min_silence_duration_ms`` of silence) and each utterance becomes one
+transcript. With
 ``enable_wakeword`` as well, only the utterance after the wake word (microWakeWord, e.g.
 ``"hey_jarvis"``) is transcribed; a wake word said in one breath with the command counts too.
 Without VAD every Audio message is one utterance.

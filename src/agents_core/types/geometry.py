@@ -141,9 +141,33 @@ class PointStamped(Point):
 
 
 class Pose(SupportedType):
-    """A pose (:class:`~agents_core.messages.PoseMsg`)."""
+    """A pose (:class:`~agents_core.messages.PoseMsg`).
+
+    Besides a PoseMsg, an output may be given as upstream's array: ``[x, y, z]`` (no rotation) or
+    ``[x, y, z, qw, qx, qy, qz]`` (the quaternion's scalar part first, as upstream; PoseMsg itself
+    stores ``[qx, qy, qz, qw]``).
+    """
 
     value_class = PoseMsg
+
+    @classmethod
+    def convert(cls, output: Any, frame_id: str | None = None, **_: Any) -> Any:
+        """A PoseMsg as it is, or one from upstream's array form (see the class docstring)."""
+        if isinstance(output, PoseMsg):
+            return output
+        if isinstance(output, str | bytes | dict) or not isinstance(output, list | tuple | np.ndarray):
+            raise TypeValidationError(f"expects PoseMsg or an array [x, y, z(, qw, qx, qy, qz)], "
+                                      f"got {type(output).__name__}")
+        try:
+            values = np.asarray(output, dtype=np.float64).reshape(-1)
+        except (TypeError, ValueError) as exc:
+            raise TypeValidationError(f"an array pose must hold numbers, got {output!r:.60}") from exc
+        if values.size not in (3, 7) or not np.all(np.isfinite(values)):
+            raise TypeValidationError(f"an array pose is [x, y, z] or [x, y, z, qw, qx, qy, qz] of finite "
+                                      f"numbers, got {values.size} value(s): {output!r:.60}")
+        orientation = values[[4, 5, 6, 3]] if values.size == 7 else np.array([0.0, 0.0, 0.0, 1.0])
+        header = Header(frame_id=frame_id) if frame_id is not None else Header()
+        return PoseMsg(position=values[:3], orientation=orientation, header=header)
 
     @classmethod
     def example(cls) -> Any:

@@ -63,8 +63,10 @@ class ChromaClient(HTTPClientBase, DBClient):
     :param port: its port (``chroma run`` defaults to 8000).
     :param response_timeout: seconds one HTTP request may take, connect to last byte.
     :param embedding_client: the :class:`~agents_core.clients.model_base.ModelClient` (or its
-        serialized dict) computing embeddings; may be None when every ``db_input`` carries its
-        vectors.
+        serialized dict) computing embeddings. None: the ChromaDB's ``embeddings`` backend (an
+        :class:`~agents_core.clients.ollama.OllamaClient` on its ``checkpoint``, used on first
+        embedding, as upstream), or, with ``embeddings=None``, none: every ``db_input`` then
+        carries its vectors.
     :param connection_retries: how many more times ``check_connection()`` asks for the
         heartbeat of a server that cannot be reached or answers 5xx (0 to 10).
     :param init_on_activation: call ``initialize()`` during configure.
@@ -110,6 +112,10 @@ class ChromaClient(HTTPClientBase, DBClient):
         self.settings = ChromaDB.from_dict({"name": self.db_name, **self.db_init_params}, source=f"{name} db")
         self.db_init_params = self.settings._get_init_params()
         embedder = client_from_spec(embedding_client) if isinstance(embedding_client, dict) else embedding_client
+        # Built from the ChromaDB's own fields (upstream's way): not serialized, rebuilt from them.
+        self._embedder_from_db = embedder is None and self.settings.embeddings == "ollama"
+        if self._embedder_from_db:
+            embedder = self._ollama_embedder(logging_level)
         if embedder is not None:
             if not isinstance(embedder, ModelClient):
                 raise ConfigError(f"{name}: embedding_client must be a ModelClient or its dict, "
@@ -129,6 +135,15 @@ class ChromaClient(HTTPClientBase, DBClient):
         self.auth_header = auth_header
         self.use_https = bool(use_https)
         self._database = ChromaDatabase(self._api, self.settings, self.logger, self._label)
+
+    def _ollama_embedder(self, logging_level: str) -> ModelClient:
+        from ...models import OllamaModel  # noqa: PLC0415  (only a client without an embedding_client needs it)
+        from ..ollama import OllamaClient  # noqa: PLC0415
+
+        # Not initialized at configure (a pull would download the model): the first embedding uses it.
+        return OllamaClient(OllamaModel(name=f"{self.db_name}_embeddings", checkpoint=self.settings.checkpoint),
+                            host=self.settings.ollama_host, port=self.settings.ollama_port,
+                            init_on_activation=False, logging_level=logging_level)
 
     # -- HTTP plumbing --------------------------------------------------------------------------
 
@@ -171,7 +186,7 @@ class ChromaClient(HTTPClientBase, DBClient):
         if not isinstance(body, dict) or "nanosecond heartbeat" not in body:
             raise ProtocolError(f"{self._label()}: GET {_API_PREFIX}/heartbeat answered {body!r}, "
                                 "not a Chroma heartbeat")
-        if self.embedding_client is not None:
+        if self.embedding_client is not None and not self._embedder_from_db:
             self.embedding_client.check_connection()
 
     def _initialize(self) -> None:
@@ -187,8 +202,8 @@ class ChromaClient(HTTPClientBase, DBClient):
 
     def _embed(self, texts: list[str], what: str) -> list[list[float]]:
         if self.embedding_client is None:
-            raise ConfigError(f"{type(self).__name__}: {what} needs embeddings: give an embedding_client "
-                              "or pass the vectors in db_input")
+            raise ConfigError(f"{type(self).__name__}: {what} needs embeddings: give an embedding_client, "
+                              "ChromaDB(embeddings='ollama') or pass the vectors in db_input")
         vectors: list[list[float]] = []
         batch = self._database.batch_size()
         for start in range(0, len(texts), batch):
@@ -326,7 +341,8 @@ class ChromaClient(HTTPClientBase, DBClient):
 
     def serialize(self) -> dict[str, Any]:
         spec = super().serialize()
-        spec["embedding_client"] = self.embedding_client.serialize() if self.embedding_client is not None else None
+        given = None if self._embedder_from_db else self.embedding_client
+        spec["embedding_client"] = given.serialize() if given is not None else None
         return spec
 
     def __repr__(self) -> str:

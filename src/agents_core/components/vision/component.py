@@ -22,7 +22,10 @@ oversized image, undecodable bytes) fails the step with :class:`~agents_core.err
 from __future__ import annotations
 
 import io
+import re
+import time
 from collections.abc import Sequence
+from pathlib import Path
 from typing import Any
 
 import attrs
@@ -324,12 +327,34 @@ class Vision(ModelComponent):
 
     @component_action(description={
         "description": "Detect objects in the camera's latest frame now and say what was seen.",
-        "parameters": {"type": "object", "properties": {}, "required": []},
+        "parameters": {"type": "object", "properties": {
+            "topic_name": {"type": "string", "description": "the camera topic (optional: the first camera)"},
+            "save_path": {"type": "string", "description": "a folder to save the picture in (optional)"}},
+            "required": []},
     })
-    def take_picture(self) -> dict[str, Any]:
+    def take_picture(self, topic_name: str | None = None, save_path: str | None = None,
+                     timeout: float = 0.5) -> dict[str, Any]:
         """Detect objects in the latest frame of each camera now; publishes as a step would and returns
-        ``{"detections": [{"source", "labels", "scores", "boxes", "stamp"}, ...]}``."""
-        latest = self._latest()
+        ``{"detections": [{"source", "labels", "scores", "boxes", "stamp"}, ...]}``.
+
+        Upstream's form ``take_picture(topic_name, save_path)``: only that camera (waiting up to
+        ``timeout`` seconds for a frame), and with ``save_path`` the frame is also saved there as a
+        PNG file (Pillow), whose path the answer gives as ``"path"``.
+        """
+        index_of = {t.name: i for i, t in enumerate(self._sources)}
+        if topic_name is not None and topic_name not in index_of:
+            raise WiringError(f"component {self.component_name!r}: {topic_name!r} is not one of its cameras "
+                              f"{sorted(index_of)}")
+        deadline = time.monotonic() + (timeout if topic_name is not None else 0.0)
+        while True:
+            latest = self._latest()
+            if topic_name is not None:
+                callbacks = {**self.callbacks, **self.trig_callbacks}
+                msg = callbacks[topic_name].msg
+                latest = [(index_of[topic_name], msg)] if msg is not None else []
+            if latest or time.monotonic() >= deadline:
+                break
+            time.sleep(0.02)
         if not latest:
             raise AlgorithmFailure(f"component {self.component_name!r}: no frame has arrived yet")
         frames = [(index, *frame_to_rgb(value, self.config.max_image_side)) for index, value in latest]
@@ -337,7 +362,25 @@ class Vision(ModelComponent):
         detections = [self._to_detections(found, image) for (_, image, _), found in zip(frames, result["output"],
                                                                                        strict=True)]
         self._publish_results(frames, detections, frames[0][0])
-        return {"detections": [{"source": self._sources[index].name, "labels": list(det.labels),
-                                "scores": [round(float(s), 4) for s in det.scores],
-                                "boxes": det.boxes.round(1).tolist(), "stamp": image.header.stamp}
-                               for (index, image, _), det in zip(frames, detections, strict=True)]}
+        answer: dict[str, Any] = {
+            "detections": [{"source": self._sources[index].name, "labels": list(det.labels),
+                            "scores": [round(float(s), 4) for s in det.scores],
+                            "boxes": det.boxes.round(1).tolist(), "stamp": image.header.stamp}
+                           for (index, image, _), det in zip(frames, detections, strict=True)]}
+        if save_path is not None:
+            answer["path"] = _save_picture(frames[0][2], self._sources[frames[0][0]].name, save_path)
+        return answer
+
+
+def _save_picture(pixels: npt.NDArray[np.uint8], source: str, folder: str) -> str:
+    """Save an RGB frame as ``<folder>/<source>_<time>.png``; returns the file's path."""
+    try:
+        from PIL import Image as PILImage  # noqa: PLC0415  (optional: only saving pictures needs it)
+    except ImportError as exc:
+        raise AlgorithmFailure("saving a picture needs Pillow: pip install pillow") from exc
+    directory = Path(folder).expanduser()
+    directory.mkdir(parents=True, exist_ok=True)
+    stem = re.sub(r"[^A-Za-z0-9_.-]", "_", source)
+    path = directory / f"{stem}_{time.strftime('%Y%m%d_%H%M%S')}_{time.time_ns() % 10**9:09d}.png"
+    PILImage.fromarray(np.ascontiguousarray(pixels)).save(path)
+    return str(path)
