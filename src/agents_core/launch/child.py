@@ -264,9 +264,8 @@ def _await_startup(startup: _Startup, commands: queue.SimpleQueue[str], reporter
 
 def run(spec_line: bytes, reporter: _Reporter, stdin: _PipeLines) -> int:
     """Build, run and stop the component of ``spec_line``; the process's exit status."""
-    from .spec import ComponentSpec  # noqa: PLC0415
-
     from ..events import Event  # noqa: PLC0415
+    from .spec import ComponentSpec  # noqa: PLC0415
 
     spec = ComponentSpec.from_dict(json.loads(spec_line))
     parent_pid = spec.parent_pid or os.getppid()
