@@ -34,6 +34,7 @@ from ..runtime.component_runtime import ComponentRuntime
 from ..runtime.health import ANY_FAILURE
 from ..runtime.run_type import ComponentRunType
 from ..runtime.worker import WorkerStatistics
+from ..setup_calls import constructor, setup_method, start_recording
 from ..status import HealthStatus, LifecycleState
 from ..topics import Topic, validate_topic_name
 from ..transport.core import status_topic
@@ -79,8 +80,16 @@ class Component:
         # the component from them in its own process (see agents_core.launch.spec).
         instance = super().__new__(cls)
         instance._init_arguments = (args, dict(kwargs))
+        start_recording(instance)  # the setup calls made after construction (agents_core.setup_calls)
         return instance
 
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        # Setup calls a constructor makes are not recorded: the component's process makes them again.
+        if "__init__" in cls.__dict__:
+            cls.__init__ = constructor(cls.__dict__["__init__"])  # type: ignore[method-assign]
+
+    @constructor
     def __init__(
         self,
         inputs: Sequence[Topic] | None = None,
@@ -245,6 +254,7 @@ class Component:
 
     # -- processors -------------------------------------------------------------------------
 
+    @setup_method
     def add_publisher_preprocessor(self, topic: Topic | str, func: Callable[[Any], Any]) -> None:
         """Transform values published on output ``topic`` with ``func`` first."""
         name = topic.name if isinstance(topic, Topic) else topic
@@ -252,6 +262,7 @@ class Component:
             raise WiringError(f"component {self.component_name!r} has no output {name!r}")
         self.publishers_dict[name].add_preprocessor(func)
 
+    @setup_method
     def add_callback_postprocessor(self, topic: Topic | str, func: Callable[[Any], Any]) -> None:
         """Transform what ``get_output()`` returns for input ``topic`` with ``func``."""
         name = topic.name if isinstance(topic, Topic) else topic

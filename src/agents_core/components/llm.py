@@ -25,6 +25,7 @@ from ..clients.model_base import ModelClient
 from ..config import LLMConfig
 from ..errors import AlgorithmFailure, ConfigError, WiringError
 from ..messages import DetectionsMsg, StreamingStringMsg
+from ..setup_calls import setup_method
 from ..status import LifecycleState
 from ..supported_types import Detections, StreamingString, String, SupportedType
 from ..topics import Topic
@@ -142,6 +143,7 @@ class LLM(ModelComponent):
         """Set (or clear, with None) the system prompt; it survives history resets."""
         self.config.system_prompt = prompt
 
+    @setup_method
     def set_topic_prompt(self, input_topic: Topic, template: str | Path) -> None:
         """Render the text of ``input_topic`` through a Jinja2 template before it is sent.
 
@@ -153,6 +155,7 @@ class LLM(ModelComponent):
             raise WiringError(f"component {self.component_name!r}: {input_topic.name!r} is not one of its inputs")
         self._topic_templates[input_topic.name] = self._compile(template, f"prompt of topic {input_topic.name!r}")
 
+    @setup_method
     def set_component_prompt(self, template: str | Path) -> None:
         """Build every query from one Jinja2 template over all input topics (see :meth:`set_topic_prompt`)."""
         self._component_template = self._compile(template, "component prompt")
@@ -211,6 +214,7 @@ class LLM(ModelComponent):
 
     # -- tools ----------------------------------------------------------------------------------
 
+    @setup_method
     def register_tool(self, tool: Callable[..., Any], tool_description: Mapping[str, Any],
                       send_tool_response_to_model: bool = False) -> None:
         """Let the model call ``tool``.
@@ -288,6 +292,7 @@ class LLM(ModelComponent):
         self.db_client.add(db_input)
         return True
 
+    @setup_method
     def set_rag_filter(self, where: dict[str, Any] | None) -> bool:
         """Only use documents whose metadata match ``where`` for RAG (e.g. ``{"layer": "detections"}`` on a
         MapEncoding collection); None: all documents."""

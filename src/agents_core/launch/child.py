@@ -170,6 +170,7 @@ class _Startup:
 
         spec = self.spec
         try:
+            spec.extend_import_path()  # the recipe's sibling modules, wherever it was started from
             if spec.recipe_path is not None:
                 import_recipe(spec.recipe_path, RECIPE_MODULE)
             component = spec.build()
@@ -256,12 +257,14 @@ def _await_startup(startup: _Startup, commands: queue.SimpleQueue[str], reporter
                 raise error if error is not None else RuntimeError("the component's startup failed")
         if command in _STOPS:
             _abandon_startup(startup, reporter, command)
-        deferred.append(command)
+        if command != "fire-trigger":  # a firing before the activation is dropped, as a step would be
+            deferred.append(command)
     return deferred
 
 
 def run(spec_line: bytes, reporter: _Reporter, stdin: _PipeLines) -> int:
     """Build, run and stop the component of ``spec_line``; the process's exit status."""
+    from ..events import Event  # noqa: PLC0415
     from .spec import ComponentSpec  # noqa: PLC0415
 
     spec = ComponentSpec.from_dict(json.loads(spec_line))
@@ -284,7 +287,10 @@ def run(spec_line: bytes, reporter: _Reporter, stdin: _PipeLines) -> int:
         reporter.send(state=component.lifecycle_state.value)
         while True:
             command = deferred.pop(0) if deferred else _next_command(commands)
-            if command == "deactivate":
+            if command == "fire-trigger":  # the launcher saw the trigger event fire (spec.LauncherEvent)
+                if isinstance(component.trigger, Event):
+                    component.trigger.trigger()
+            elif command == "deactivate":
                 component.deactivate()
                 reporter.send(state=component.lifecycle_state.value)
             elif command == "shutdown":

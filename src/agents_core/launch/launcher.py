@@ -22,6 +22,13 @@ keeps its own transport to watch events; an action on a component in another pro
 through that component's services (``<name>/execute_method`` for ``@component_action``
 methods, the lifecycle for ``activate`` / ``deactivate`` / ...).
 
+A component triggered by an Event runs in its process too: the launcher evaluates the event (it
+watches every event's topics) and sends each firing down that process's command pipe, where a
+stand-in event of the same name fires the component's step. ``Launcher()`` with
+``multiprocessing=True`` and no transport named anywhere (argument, ``AGENTS_TRANSPORT``, config
+file) runs on Zenoh when it is installed, saying so in the log, and otherwise in one process
+with a WARNING, as upstream recipes expect; a memory transport named explicitly is refused.
+
 ``Launcher(config_file="robot.yaml")`` reads the transport settings (a ``transport`` section:
 ``name`` plus the transport's options) and one section per component name (its config fields)
 from one YAML or TOML file.
@@ -101,6 +108,8 @@ class Launcher:
         self._process_fail_retries: int | None = None
         self._process_giveup: Action | None = None
         self._multiprocessing = False
+        self._fail_action: tuple[str, int | None] | None = None
+        self._fallback_rate: float | None = None
         self._supervisor: Supervisor | None = None
         self._stopped_supervisor: Supervisor | None = None
         self._ui_options: dict[str, Any] | None = None
@@ -131,6 +140,8 @@ class Launcher:
             if any(c.component_name == other.component_name for other in self.components):
                 raise WiringError(f"two components are named {c.component_name!r}; names must be unique")
             self.components.append(c)
+        if self._multiprocessing:
+            _check_transferable(self.components)
         for event, actions in (events_actions or {}).items():
             if not isinstance(event, Event):
                 raise WiringError(f"events_actions keys must be Event objects, got {type(event).__name__}")
@@ -171,6 +182,33 @@ class Launcher:
         if on_giveup is not None:
             self.on_giveup(on_giveup)
 
+    def on_fail(self, action_name: str, max_retries: int | None = None) -> None:
+        """Give every component the fallback ``component.<action_name>()`` for any failure (upstream's form).
+
+        ``launcher.on_fail(action_name="restart")`` is ``c.on_fail(Action(c.restart), max_retries)`` for each
+        component, applied at start (to the components added by then). A component without that
+        method is refused at start, naming it.
+        """
+        if not isinstance(action_name, str) or not action_name.isidentifier():
+            raise ConfigError(f"on_fail: action_name must be a method name such as 'restart', got {action_name!r}")
+        if max_retries is not None and (isinstance(max_retries, bool) or not isinstance(max_retries, int)
+                                        or max_retries < 0):
+            raise ConfigError(f"on_fail: max_retries must be an int >= 0 or None, got {max_retries!r}")
+        self._fail_action = (action_name, max_retries)
+
+    @property
+    def fallback_rate(self) -> float | None:
+        """Upstream's polling rate of fallbacks (Hz). Here a fallback runs as soon as a failure is seen,
+        with no polling: the value is checked and kept, and the launcher says once at start that it
+        does not delay fallbacks."""
+        return self._fallback_rate
+
+    @fallback_rate.setter
+    def fallback_rate(self, rate: float | None) -> None:
+        if rate is not None and (isinstance(rate, bool) or not isinstance(rate, int | float) or not rate > 0):
+            raise ConfigError(f"fallback_rate must be a rate in Hz > 0, got {rate!r}")
+        self._fallback_rate = None if rate is None else float(rate)
+
     def on_giveup(self, action: Action) -> None:
         """Run ``action`` once a component process has crashed more often than ``on_process_fail`` allows."""
         if not isinstance(action, Action):
@@ -194,6 +232,8 @@ class Launcher:
             raise ConfigError("nothing to launch: call add_pkg(components=[...]) first")
         _refuse_inside_component_process()
         self._apply_component_sections()
+        self._apply_fail_action()
+        self._choose_default_transport()
         self._transport = resolve_transport(self._transport_spec, **self._transport_options)
         self._owns_transport = isinstance(self._transport_spec, str) or self._transport_spec is None
         if self._multiprocessing and not self._transport.capabilities.cross_process:
@@ -231,6 +271,34 @@ class Launcher:
         logger.info("launched %d component(s) on %s", len(self.components), self._transport.name)
         return self
 
+    def _apply_fail_action(self) -> None:
+        if self._fallback_rate is not None:
+            logger.warning("fallback_rate=%g Hz is not a polling rate here: each fallback runs as soon as its "
+                           "component reports the failure", self._fallback_rate)
+        if self._fail_action is None:
+            return
+        action_name, max_retries = self._fail_action
+        for c in self.components:
+            method = getattr(c, action_name, None)
+            if not callable(method):
+                raise ConfigError(f"on_fail(action_name={action_name!r}): component {c.component_name!r} "
+                                  f"({type(c).__name__}) has no method {action_name!r}")
+            c.on_fail(Action(method), max_retries)
+
+    def _choose_default_transport(self) -> None:
+        """``multiprocessing=True`` with no transport named anywhere: Zenoh if installed, else one process."""
+        if not self._multiprocessing or self._transport_spec is not None \
+                or os.environ.get(TRANSPORT_ENV_VAR, "").strip():
+            return
+        if "zenoh" in _cross_process_transports():
+            logger.info("multiprocessing=True and no transport named: running the component processes on "
+                        "'zenoh' (name one with Launcher(transport=...) or %s)", TRANSPORT_ENV_VAR)
+            self._transport_spec = "zenoh"
+        else:
+            logger.warning("multiprocessing=True needs a cross-process transport and none is installed "
+                           "(pip install 'agents_core[zenoh]'): running every component in this one process")
+            self._multiprocessing = False
+
     def _apply_component_sections(self) -> None:
         names = [c.component_name for c in self.components]
         for name in self._component_sections:
@@ -266,6 +334,11 @@ class Launcher:
                 _check_remote_action(event, action)
         retries = self._process_fail_retries if self._process_fail_retries is not None else 0
         self._supervisor = Supervisor(specs, max_retries=retries, on_giveup=self._gave_up_on)
+        for c in self.components:
+            if isinstance(c.trigger, Event):
+                forward = functools.partial(_forward_trigger, self._supervisor, c.component_name)
+                c.trigger.add_listener(forward)
+                self._event_runners.append((c.trigger, forward))
         self._supervisor.start()
 
     def _gave_up_on(self, component_name: str) -> None:
@@ -432,6 +505,20 @@ class Launcher:
 
     def __exit__(self, *exc: object) -> None:
         self.stop()
+
+
+def _forward_trigger(supervisor: Supervisor, component_name: str, event: Event, values: Mapping[str, Any]) -> None:
+    """The trigger event of a component in its own process fired here: fire its stand-in there."""
+    if not supervisor.child(component_name).send("fire-trigger"):
+        logger.debug("component %r is not running: trigger event %r dropped", component_name, event.name)
+
+
+def _check_transferable(components: Sequence[Component]) -> None:
+    """Refuse at add_pkg what cannot reach a component process (a lambda given to a setup call, ...)."""
+    from .spec import ComponentSpec  # noqa: PLC0415
+
+    for c in components:
+        ComponentSpec.from_component(c, "", {}, 0)
 
 
 _LIFECYCLE_METHODS = frozenset({"configure", "activate", "deactivate", "cleanup", "shutdown"})

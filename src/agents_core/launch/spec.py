@@ -8,7 +8,21 @@ holds its class (``module:qualname``), those arguments encoded through a **value
 methods, with JSON-like arguments), and how to reach the transport. A class defined in the
 recipe itself (the ``__main__`` module) is named ``RECIPE_MODULE:qualname``; the child imports
 the recipe file by path under that module name, so its ``if __name__ == "__main__":`` block
-does not run.
+does not run. The launcher's ``sys.path`` travels too, so a recipe's sibling modules import
+the same in the child whatever directory the recipe was started from.
+
+What the recipe did to the component after building it travels as well: the calls of its
+setup methods (:mod:`agents_core.setup_calls`: ``register_tool``, ``set_topic_prompt``,
+processors, ...), replayed in order, and public attributes it assigned (an attribute named as a
+constructor parameter, such as ``additional_model_clients``, becomes that argument; another one
+is set again after construction). A function crosses by its qualified name (a module-level
+``def``); a lambda or a nested function cannot, and is refused at ``add_pkg`` naming the
+component, the call and the function. :func:`check_rebuild` rebuilds the component in the
+launcher and refuses, naming the attribute, any difference that would remain.
+
+A component triggered by an :class:`~agents_core.events.Event` gets a stand-in event of the same
+name (:class:`LauncherEvent`): the launcher watches the event's topics and evaluates its
+condition, as it does for every event, and sends each firing down the child's command pipe.
 
 A spec may hold secrets (a client's API key): it travels over a pipe, never in argv, the
 environment or a file. ``SPEC_VERSION`` is checked by the child, so a launcher and a child
@@ -20,6 +34,7 @@ from __future__ import annotations
 import enum
 import importlib
 import inspect
+import os
 import sys
 from collections.abc import Callable, Mapping
 from pathlib import Path
@@ -29,7 +44,9 @@ import attrs
 
 from ..config import BaseAttrs
 from ..errors import ConfigError
+from ..events import Event
 from ..registry import Registry
+from ..setup_calls import SETUP_MARK, SetupCall, recorded_setup_calls
 from ..topics import FixedInput, QoSConfig, Topic
 
 if TYPE_CHECKING:
@@ -39,6 +56,7 @@ __all__ = [
     "RECIPE_MODULE",
     "SPEC_VERSION",
     "ComponentSpec",
+    "LauncherEvent",
     "ValueCodec",
     "check_rebuild",
     "class_path",
@@ -48,7 +66,7 @@ __all__ = [
     "register_value_codec",
 ]
 
-SPEC_VERSION = 1
+SPEC_VERSION = 2
 #: The module name a child imports the recipe file under.
 RECIPE_MODULE = "agents_recipe"
 #: Marks an encoded (non-JSON) value: ``{TAG: codec name, "v": data}``.
@@ -111,6 +129,13 @@ def encode_value(value: Any, where: str = "value") -> Any:
     if isinstance(value, dict) and all(isinstance(k, str) for k in value) and TAG not in value:
         return {k: encode_value(v, f"{where}[{k!r}]") for k, v in value.items()}
     codec = _by_class.find_for_class(type(value)) or _client_codec_for(value)
+    if codec is None and inspect.isroutine(value):
+        return {TAG: "function", "v": _encode_function(value, where)}
+    if codec is None and isinstance(value, Event):
+        raise ConfigError(f"{where}: event {value.name!r} is evaluated in the launcher; a component process gets "
+                          "only its trigger event (the launcher forwards its firings). Use the event as the "
+                          "component's trigger or in add_pkg(events_actions=...), or run it with "
+                          "multiprocessing=False")
     if codec is None:
         raise ConfigError(f"{where}: a {type(value).__name__} cannot be sent to a component process (known: "
                           f"JSON values, {', '.join(sorted(_codecs))}); build it in the component instead")
@@ -169,6 +194,40 @@ def _encode_enum(value: enum.Enum) -> dict[str, Any]:
     return {"class": class_path(type(value)), "name": value.name}
 
 
+def _encode_function(func: Any, where: str) -> str:
+    """A function as ``module:qualname``, when importing that name gives this very function back."""
+    owner = getattr(func, "__self__", None)
+    module = getattr(func, "__module__", None) or getattr(getattr(func, "__objclass__", None), "__module__", None)
+    qualname = getattr(func, "__qualname__", "") or ""
+    shown = f"{module}.{qualname}" if module else repr(func)
+    fix = ("define it with `def` at the top level of a module or of the recipe and pass that, or run the "
+           "component with multiprocessing=False")
+    if owner is not None and not inspect.ismodule(owner):
+        raise ConfigError(f"{where}: {shown} is a method bound to a {type(owner).__name__}, which a component "
+                          f"process cannot rebuild; {fix}")
+    if not module or not qualname or "<" in qualname:
+        what = "a lambda" if "<lambda>" in qualname else "a function defined inside another function"
+        raise ConfigError(f"{where}: {shown} is {what}: a component process cannot import it; {fix}")
+    found: Any = sys.modules.get(module)
+    for part in qualname.split("."):
+        found = getattr(found, part, None)
+    if found is not func:
+        raise ConfigError(f"{where}: {shown} is not reachable under that name in its module; {fix}")
+    return f"{RECIPE_MODULE if module == '__main__' else module}:{qualname}"
+
+
+def _decode_function(path: str) -> Any:
+    func = import_class(path)
+    if not callable(func):
+        raise ConfigError(f"{path!r} is not callable")
+    return func
+
+
+class LauncherEvent(Event):
+    """The trigger event of a component in its own process: fired by the launcher, which evaluates the
+    recipe's event of the same name and forwards each firing down the process's command pipe."""
+
+
 def _client_codec_for(value: Any) -> ValueCodec | None:
     """The client codec for a model or database client. Looked up by module, not imported here: the
     clients load httpx, which a component process without clients should not pay for at start."""
@@ -188,6 +247,9 @@ def _register_builtin_codecs() -> None:
     register_value_codec(ValueCodec("path", Path, str, Path))
     register_value_codec(ValueCodec("tuple", tuple, lambda t: [encode_value(v) for v in t],
                                     lambda d: tuple(decode_value(v) for v in d)))
+    # Encoding through encode_value (which knows where the function is used); decoding by name.
+    _codecs.register("function", ValueCodec("function", object, str, _decode_function))
+    register_value_codec(ValueCodec("launcher event", LauncherEvent, lambda e: e.name, LauncherEvent))
 
 
 _register_builtin_codecs()
@@ -211,6 +273,12 @@ class ComponentSpec:
     #: Fallbacks and give-up actions the recipe set on the component: its own methods only.
     fallbacks: dict[str, Any] = attrs.field(factory=dict)
     giveup: list[Any] = attrs.field(factory=list)
+    #: Setup calls made after construction (``{"method", "args", "kwargs"}``), replayed in order.
+    setup_calls: list[Any] = attrs.field(factory=list)
+    #: Public attributes the recipe assigned after construction, set again after it.
+    attributes: dict[str, Any] = attrs.field(factory=dict)
+    #: The launcher's import path, put in front of the child's (a recipe's sibling modules).
+    sys_path: list[str] = attrs.field(factory=list)
     version: int = SPEC_VERSION
 
     @classmethod
@@ -220,10 +288,16 @@ class ComponentSpec:
         name = component.component_name
         where = f"component {name!r}"
         args, kwargs = getattr(component, "_init_arguments", ((), {}))
-        bound = _bind_config(component, args, kwargs)
+        positional, keywords = _bind_config(component, args, kwargs)
+        trigger = component.trigger
+        if isinstance(trigger, Event):
+            # The launcher evaluates the event and forwards its firings (see LauncherEvent).
+            stand_in = LauncherEvent(trigger.name)
+            positional = tuple(stand_in if a is trigger else a for a in positional)
+            keywords = {k: stand_in if v is trigger else v for k, v in keywords.items()}
         spec = cls(component_name=name, component_class=class_path(type(component)),
-                   args=[encode_value(a, f"{where}: argument {i}") for i, a in enumerate(bound[0])],
-                   kwargs={k: encode_value(v, f"{where}: argument {k!r}") for k, v in bound[1].items()},
+                   args=[encode_value(a, f"{where}: argument {i}") for i, a in enumerate(positional)],
+                   kwargs={k: encode_value(v, f"{where}: argument {k!r}") for k, v in keywords.items()},
                    transport=transport,
                    transport_options={k: encode_value(v, f"transport option {k!r}")
                                       for k, v in transport_options.items()},
@@ -231,14 +305,26 @@ class ComponentSpec:
                    fallbacks={kind: {"actions": [_encode_own_action(component, a) for a in fallback.actions],
                                      "max_retries": fallback.max_retries}
                               for kind, fallback in component.runtime.health.fallbacks.items()},
-                   giveup=[_encode_own_action(component, a) for a in component.runtime.health.giveup_actions])
-        if type(component).__module__ == "__main__" or _mentions_recipe(spec):
+                   giveup=[_encode_own_action(component, a) for a in component.runtime.health.giveup_actions],
+                   setup_calls=[_encode_setup_call(where, call) for call in recorded_setup_calls(component)],
+                   sys_path=_import_path())
+        spec.find_recipe(where)
+        return spec
+
+    def find_recipe(self, where: str) -> None:
+        """Set :attr:`recipe_path` when the spec names something defined in the running recipe."""
+        if self.recipe_path is None and _mentions_recipe(self):
             main_file = getattr(sys.modules.get("__main__"), "__file__", None)
             if main_file is None:
-                raise ConfigError(f"{where} uses a class defined in an interactive session; multiprocessing "
-                                  "needs it in a module or a recipe file")
-            spec.recipe_path = str(Path(main_file).resolve())
-        return spec
+                raise ConfigError(f"{where} uses a class or function defined in an interactive session; "
+                                  "multiprocessing needs it in a module or a recipe file")
+            self.recipe_path = str(Path(main_file).resolve())
+
+    def extend_import_path(self) -> None:
+        """Put the launcher's import path in front of this process's (before importing anything it names)."""
+        for entry in reversed(self.sys_path):
+            if entry not in sys.path:
+                sys.path.insert(0, entry)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-like form (what goes down the pipe)."""
@@ -262,13 +348,22 @@ class ComponentSpec:
             raise ConfigError(f"component spec: {exc}") from exc
 
     def build(self) -> Component:
-        """Import the component's class and construct it from the decoded arguments."""
+        """Construct the component from the decoded arguments, then set what the recipe set after that:
+        its public attributes, its setup calls (in order), its fallbacks."""
         from ..components.component_base import Component  # noqa: PLC0415
 
         component_class = import_class(self.component_class)
         if not (isinstance(component_class, type) and issubclass(component_class, Component)):
             raise ConfigError(f"{self.component_class!r} is not a Component class")
         component: Component = component_class(*decode_value(self.args), **decode_value(self.kwargs))
+        for name, value in self.attributes.items():
+            setattr(component, name, decode_value(value))
+        for call in self.setup_calls:
+            method = getattr(component, str(call["method"]), None)
+            if not getattr(method, SETUP_MARK, False):  # only what setup_calls records, nothing else
+                raise ConfigError(f"component {self.component_name!r}: {call['method']!r} is not a setup method")
+            assert method is not None
+            method(*decode_value(call["args"]), **decode_value(call["kwargs"]))
         self._restore_fallbacks(component)
         return component
 
@@ -340,8 +435,21 @@ def _encode_own_action(component: Component, action: Any) -> dict[str, Any]:
             "kwargs": encode_value(dict(action.kwargs), where)}
 
 
+def _encode_setup_call(where: str, call: SetupCall) -> dict[str, Any]:
+    first = call.args[0] if call.args else None
+    about = first.name if isinstance(first, Topic) else first if isinstance(first, str) and len(first) < 80 else None
+    here = f"{where}: {call.method}(" + (f"{about!r}, ...)" if about is not None else "...)")
+    return {"method": call.method, "args": [encode_value(a, here) for a in call.args],
+            "kwargs": {k: encode_value(v, f"{here} {k}=") for k, v in call.kwargs.items()}}
+
+
+def _import_path() -> list[str]:
+    """This process's ``sys.path`` as absolute directories (``""`` is the current directory)."""
+    return [os.path.abspath(entry or os.curdir) for entry in sys.path if isinstance(entry, str)]
+
+
 def _extra_state(component: Component) -> dict[str, int]:
-    """What a component holds beyond its constructor's doing that a child could not rebuild."""
+    """What a component holds beyond its constructor's doing that no attribute shows."""
     health = component.runtime.health
     return {"fallbacks": len(health.fallbacks) + len(health.giveup_actions),
             "publisher pre-processors": sum(len(p._preprocessors) for p in component.publishers_dict.values()),
@@ -349,24 +457,81 @@ def _extra_state(component: Component) -> dict[str, int]:
                                             (*component.callbacks.values(), *component.trig_callbacks.values()))}
 
 
-def check_rebuild(component: Component, spec: ComponentSpec) -> None:
-    """Rebuild ``component`` from ``spec`` here, and refuse state added after construction.
+#: Attributes compared by other means (the config is bound as an argument, the trigger is a stand-in).
+_NOT_COMPARED = frozenset({"config", "trigger", "runtime"})
+_OPAQUE = object()
 
-    The child would silently lack fallbacks or processors that the recipe added to the
-    component after building it; this fails in the parent, naming the component, instead.
+
+def _public_state(component: Component) -> dict[str, Any]:
+    """The component's public attributes, encoded (``_OPAQUE`` for a value no codec knows)."""
+    state: dict[str, Any] = {}
+    for name, value in vars(component).items():
+        if name.startswith("_") or name in _NOT_COMPARED:
+            continue
+        try:
+            state[name] = encode_value(value, name)
+        except ConfigError:
+            state[name] = _OPAQUE
+    return state
+
+
+def _constructor_parameters(component: Component) -> set[str]:
+    """Parameter names the component's constructor takes (through ``**kwargs`` too, up its classes)."""
+    names: set[str] = set()
+    for klass in type(component).__mro__:
+        init = klass.__dict__.get("__init__")
+        if init is None or klass is object:
+            continue
+        params = inspect.signature(init).parameters.values()
+        names.update(p.name for p in params if p.kind not in (p.VAR_POSITIONAL, p.VAR_KEYWORD))
+        if not any(p.kind is p.VAR_KEYWORD for p in params):
+            break  # this constructor passes nothing more up
+    return names
+
+
+def _carry_attributes(component: Component, spec: ComponentSpec, rebuilt: Component) -> bool:
+    """Put in ``spec`` the public attributes of ``component`` that ``rebuilt`` lacks or has otherwise;
+    whether there were any. ConfigError naming an attribute that cannot cross."""
+    where = f"component {component.component_name!r}"
+    now, then = _public_state(component), _public_state(rebuilt)
+    parameters = _constructor_parameters(component)
+    changed = False
+    for name, value in now.items():
+        if name in then and (value is _OPAQUE or value == then[name]):
+            continue  # the same, or two values of a kind no codec knows (a queue, a lock): built alike
+        if value is _OPAQUE:
+            encode_value(getattr(component, name), f"{where}: attribute {name!r} (set after construction)")
+        if name in parameters:  # the constructor checks it as it checks its own arguments
+            spec.kwargs[name] = value
+        else:
+            spec.attributes[name] = value
+        changed = True
+    return changed
+
+
+def check_rebuild(component: Component, spec: ComponentSpec) -> None:
+    """Rebuild ``component`` from ``spec`` here; carry the attributes assigned after construction into
+    ``spec``, and refuse, naming it, whatever the child would still lack.
     """
     where = f"component {component.component_name!r}"
-    from ..events import Event  # noqa: PLC0415
-
-    if isinstance(component.trigger, Event):
-        raise ConfigError(f"{where} is triggered by an event, which multiprocessing does not carry yet; trigger it "
-                          "with a topic, or run it with multiprocessing=False")
     if spec.recipe_path is not None and RECIPE_MODULE not in sys.modules:
         # In the launcher's process the recipe is __main__: the same module under the child's name.
         sys.modules[RECIPE_MODULE] = sys.modules["__main__"]
     rebuilt = spec.build()
+    if _carry_attributes(component, spec, rebuilt):
+        spec.find_recipe(where)
+        if spec.recipe_path is not None and RECIPE_MODULE not in sys.modules:
+            sys.modules[RECIPE_MODULE] = sys.modules["__main__"]
+        rebuilt = spec.build()
+    now, then = _public_state(component), _public_state(rebuilt)
+    for name, value in now.items():
+        if value is not _OPAQUE and then.get(name, _OPAQUE) != value:
+            raise ConfigError(f"{where}: attribute {name!r} set after construction does not come out the same in a "
+                              "component process; set it through the constructor, or run it with "
+                              "multiprocessing=False")
     before, after = _extra_state(component), _extra_state(rebuilt)
     for what, count in before.items():
         if count != after[what]:
-            raise ConfigError(f"{where}: {what} added after construction are not carried to a component process; "
-                              "add them in the component's __init__, or run it with multiprocessing=False")
+            raise ConfigError(f"{where}: {what} added after construction are not carried to a component process "
+                              "(set other than through the component's methods); add them in the component's "
+                              "__init__, or run it with multiprocessing=False")

@@ -38,6 +38,7 @@ from ...errors import AlgorithmFailure, ComponentError, ConfigError, ModelClient
 from ...events import Event
 from ...messages import JointJogMsg, JointStateMsg, JointTrajectoryMsg, JointTrajectoryPointMsg
 from ...runtime.run_type import ComponentRunType
+from ...setup_calls import setup_method
 from ...status import HealthStatus, LifecycleState
 from ...supported_types import RGBD, Image, JointJog, JointState, JointTrajectory
 from ...topics import Topic
@@ -162,10 +163,12 @@ class VLA(ModelComponent):
 
     # -- settings ----------------------------------------------------------------------------------
 
+    @setup_method
     def set_aggregation_function(self, func: str | AggregationFunction) -> None:
         """How overlapping action chunks combine: a built-in name or ``f(queued, incoming) -> action``."""
         self._aggregate = aggregation_function(func)
 
+    @setup_method
     def set_termination_trigger(self, mode: str = "timesteps", stop_event: Event | None = None,
                                 max_timesteps: int | None = None) -> None:
         """How a goal ends successfully: ``"timesteps"`` (after ``max_timesteps`` commands) or ``"event"``
