@@ -285,7 +285,8 @@ def run(spec_line: bytes, reporter: _Reporter, stdin: _PipeLines) -> int:
         while True:
             command = deferred.pop(0) if deferred else _next_command(commands)
             if command == "deactivate":
-                component.deactivate()
+                # stop(): deactivate only when active; an outside deactivate may have come first.
+                component.stop()
                 reporter.send(state=component.lifecycle_state.value)
             elif command == "shutdown":
                 break
