@@ -1,8 +1,9 @@
 """Actions, fallbacks, and the decorators that expose component methods to them.
 
 ``Action(method, args, kwargs, description=...)`` wraps a callable to run when an event fires or
-a component fails; ``description`` is free text for people and planners (Cortex shows it). Arguments may be field references such as ``topic.msg.data``: they are replaced by the
-matching part of the message that fired the event. An action whose method belongs to a
+a component fails; ``description`` is free text for people and planners (Cortex shows it).
+Arguments may be field references such as ``topic.msg.data``: they are replaced by the matching
+part of the message that fired the event. An action whose method belongs to a
 component runs on that component's serial worker, never concurrently with its steps.
 
 ``@component_action`` marks a method that outside callers may run through the component's
