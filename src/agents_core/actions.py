@@ -1,8 +1,9 @@
 """Actions, fallbacks, and the decorators that expose component methods to them.
 
-``Action(method, args, kwargs)`` wraps a callable to run when an event fires or a component
-fails. Arguments may be field references such as ``topic.msg.data``: they are replaced by the
-matching part of the message that fired the event. An action whose method belongs to a
+``Action(method, args, kwargs, description=...)`` wraps a callable to run when an event fires or
+a component fails; ``description`` is free text for people and planners (Cortex shows it).
+Arguments may be field references such as ``topic.msg.data``: they are replaced by the matching
+part of the message that fired the event. An action whose method belongs to a
 component runs on that component's serial worker, never concurrently with its steps.
 
 ``@component_action`` marks a method that outside callers may run through the component's
@@ -32,10 +33,14 @@ class Action:
     """A deferred call: ``method(*args, **kwargs)``, with message fields resolved at run time."""
 
     def __init__(self, method: Callable[..., Any], args: Sequence[Any] | Any = (),
-                 kwargs: Mapping[str, Any] | None = None) -> None:
+                 kwargs: Mapping[str, Any] | None = None, description: str | None = None) -> None:
         if not callable(method):
             raise ConfigError(f"Action method must be callable, got {type(method).__name__}")
+        if description is not None and not isinstance(description, str):
+            raise ConfigError(f"Action description must be a str, got {type(description).__name__}")
         self.method = method
+        #: What the action does, in words (upstream's ``Action(..., description=...)``); None if not given.
+        self.description = description
         self.args = tuple(args) if isinstance(args, list | tuple) else (args,)
         self.kwargs = dict(kwargs or {})
 
@@ -46,6 +51,7 @@ class Action:
 
     @property
     def name(self) -> str:
+        """The method's name."""
         return getattr(self.method, "__name__", type(self.method).__name__)
 
     @property

@@ -27,7 +27,7 @@ from typing import Any, Literal, Union
 
 import attrs
 
-from .errors import ConfigError
+from .errors import ConfigError, PositionalArgumentsError
 
 __all__ = ["CheckedFieldsMeta", "check_declared_type", "describe_annotation"]
 
@@ -144,7 +144,8 @@ class CheckedFieldsMeta(type):
         try:
             return super().__call__(*args, **kwargs)
         except TypeError as exc:
-            # Missing required or extra positional arguments: attrs' own message, as a ConfigError.
+            # Missing required or extra positional arguments: attrs' own message, as a ConfigError
+            # that is still the TypeError attrs promises.
             if "__init__()" in str(exc):
-                raise ConfigError(f"{cls.__name__}: {exc}") from exc
+                raise PositionalArgumentsError(f"{cls.__name__}: {exc}") from exc
             raise

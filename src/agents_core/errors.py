@@ -12,6 +12,8 @@ so code that does not know this module still handles them sensibly::
     │   │       └── JsonLimitError          (both in agents_core.bounded_json)
     │   ├── UnknownTypeError (LookupError)  a msg_type name is not registered
     │   ├── TopicNameError                  a topic or service name no transport can carry
+    │   ├── PositionalArgumentsError (TypeError)
+    │   │                                   a config or model built with positional arguments
     │   └── WiringError                     inputs / outputs / trigger do not fit a component
     ├── TransportError                      the middleware failed
     │   ├── TransportNotAvailableError (ImportError)
@@ -45,6 +47,7 @@ __all__ = [
     "InferenceTimeoutError",
     "LifecycleError",
     "ModelClientError",
+    "PositionalArgumentsError",
     "ProtocolError",
     "RemoteError",
     "RequestTimeoutError",
@@ -73,6 +76,14 @@ class TypeValidationError(ConfigError, TypeError):
 
 class UnknownTypeError(ConfigError, LookupError):
     """A message type name is not in the SupportedType registry."""
+
+
+class PositionalArgumentsError(ConfigError, TypeError):
+    """A config or model was built with positional (or missing required) arguments.
+
+    Also a ``TypeError``: what attrs' ``@define(kw_only=True)`` raises there, so
+    ``except TypeError`` (the spec's promise) still catches it.
+    """
 
 
 class TopicNameError(ConfigError):

@@ -175,8 +175,9 @@ def test_component_status_and_logs_never_show_the_key(server: FaultServer, caplo
     with caplog.at_level(logging.DEBUG), launcher:
         launcher.transport.create_subscription(llm.status_topic, statuses.append)
         launcher.transport.create_publisher(question).publish("hi")
-        assert wait_for(lambda: any(s.health == "COMPONENT_FAILURE" for s in statuses), timeout=10)
-    failure = next(s for s in statuses if s.health == "COMPONENT_FAILURE")
+        # An error answer is an inference that failed: ALGORITHM_FAILURE, as upstream.
+        assert wait_for(lambda: any(s.health == "ALGORITHM_FAILURE" for s in statuses), timeout=10)
+    failure = next(s for s in statuses if s.health == "ALGORITHM_FAILURE")
     assert "HTTPStatusError" in failure.message and "Bearer ***" in failure.message, failure.message
     for status in statuses:
         _no_key(status.message)

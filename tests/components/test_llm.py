@@ -308,7 +308,8 @@ def test_stalled_stream_ends_with_done_fails_health_and_falls_back() -> None:
         backup = GenericHTTPClient(GenericLLM(name="m", checkpoint="m"), port=working.port, inference_timeout=10)
         llm = _llm(broken, LLMConfig(stream=True), outputs=[stream_out],
                    additional_model_clients={"backup": backup})
-        llm.on_component_fail(Action(llm.change_model_client, args=("backup",)), max_retries=1)
+        # A stream that times out is an inference that failed: ALGORITHM_FAILURE, as upstream.
+        llm.on_algorithm_fail(Action(llm.change_model_client, args=("backup",)), max_retries=1)
         with running(llm) as launcher:
             streamed, statuses = _collect(launcher, stream_out), _collect(launcher, llm.status_topic)
             pub = launcher.transport.create_publisher(QUESTION)
@@ -316,8 +317,8 @@ def test_stalled_stream_ends_with_done_fails_health_and_falls_back() -> None:
             # Listeners get their closing message although the answer never finished.
             assert wait_for(lambda: any(m.done for m in streamed), timeout=5)
             assert [(m.data, m.done) for m in streamed] == [("Hello ", False), ("", True)]
-            assert wait_for(lambda: any(s.health == "COMPONENT_FAILURE" for s in statuses))
-            failure = next(s for s in statuses if s.health == "COMPONENT_FAILURE")
+            assert wait_for(lambda: any(s.health == "ALGORITHM_FAILURE" for s in statuses))
+            failure = next(s for s in statuses if s.health == "ALGORITHM_FAILURE")
             assert "InferenceTimeoutError" in failure.message and "stream_chunk_timeout" in failure.message
             assert wait_for(lambda: llm.model_client is backup), "the fallback switched to the backup"
             streamed.clear()

@@ -201,6 +201,11 @@ class Component:
         return self.runtime.discarded_outputs
 
     @property
+    def skipped_outputs(self) -> int:
+        """Outputs not published because a publisher pre-processor returned None ("nothing to publish")."""
+        return sum(pub.skipped_outputs for pub in self.publishers_dict.values())
+
+    @property
     def overtaken_steps(self) -> int:
         """Steps that were running when a deactivate came, whose results were discarded."""
         return self.runtime.overtaken_steps
@@ -225,8 +230,9 @@ class Component:
         return found
 
     def component_description(self) -> dict[str, Any]:
-        """What ``<name>/describe`` answers: name, type, run type, state, health, inputs, outputs, actions."""
-        return {
+        """What ``<name>/describe`` answers: name, type, run type, state, health, inputs, outputs, actions
+        (and ``action_type`` for an action server)."""
+        description: dict[str, Any] = {
             "name": self.component_name,
             "component_type": type(self).__name__,
             "run_type": self.run_type.value,
@@ -236,6 +242,9 @@ class Component:
             "outputs": [{"name": t.name, "msg_type": t.type_name} for t in self.outputs],
             "actions": self.available_actions(),
         }
+        if self.run_type == ComponentRunType.ACTION_SERVER and self._action_type is not None:
+            description["action_type"] = self._action_type
+        return description
 
     # -- goals (ACTION_SERVER components) ---------------------------------------------------
 
@@ -256,7 +265,11 @@ class Component:
 
     @setup_method
     def add_publisher_preprocessor(self, topic: Topic | str, func: Callable[[Any], Any]) -> None:
-        """Transform values published on output ``topic`` with ``func`` first."""
+        """Transform values published on output ``topic`` with ``func`` first.
+
+        ``func`` returning None means "nothing to publish" this time: the value is skipped and
+        counted (:attr:`skipped_outputs`), not an error.
+        """
         name = topic.name if isinstance(topic, Topic) else topic
         if name not in self.publishers_dict:
             raise WiringError(f"component {self.component_name!r} has no output {name!r}")
@@ -291,9 +304,12 @@ class Component:
         """Run ``action`` when the transport fails under a step."""
         self.runtime.health.set_fallback(HealthStatus.SYSTEM_FAILURE.name, action, max_retries)
 
-    def on_giveup(self, action: Action | Sequence[Action]) -> None:
-        """Run ``action`` once when a fallback has used up all its retries."""
-        self.runtime.health.set_giveup(action)
+    def on_giveup(self, action: Action | Sequence[Action], max_retries: int | None = None) -> None:
+        """Run ``action`` once when a fallback has used up all its retries.
+
+        ``max_retries``: how many times an action that raises is tried (default once).
+        """
+        self.runtime.health.set_giveup(action, max_retries)
 
     # -- lifecycle --------------------------------------------------------------------------
 
@@ -321,6 +337,23 @@ class Component:
     def shutdown(self) -> None:
         """any -> finalized: release everything (deactivating first if active)."""
         self.runtime.shutdown()
+
+    def restart(self) -> None:
+        """Bring the component back to active, from whatever state it is in (upstream's ``restart``).
+
+        active: deactivate, then activate; inactive: activate; unconfigured: configure and
+        activate; error: clean up, configure and activate. A finalized component cannot restart
+        (:class:`~agents_core.errors.LifecycleError`).
+        """
+        self.runtime.restart()
+
+    def stop(self) -> None:
+        """Stop working, staying configured: deactivate when active (upstream's ``stop``); else nothing."""
+        self.runtime.stop()
+
+    def broadcast_status(self) -> None:
+        """Publish the lifecycle state and health now on ``<name>/status`` (upstream's ``broadcast_status``)."""
+        self.runtime.report_status()
 
     def hurry_shutdown(self) -> None:
         """Stop waiting for a running step in deactivate and shutdown (what a second Ctrl-C asks)."""

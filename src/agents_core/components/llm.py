@@ -98,7 +98,9 @@ class LLM(ModelComponent):
 
     :param inputs: String topics (required) and optional Detections topics, whose labels can be
         used in prompt templates.
-    :param outputs: String and/or StreamingString topics.
+    :param outputs: String and/or StreamingString topics; a topic of another type (``PoseStamped``,
+        say) gets the text answer through a publisher pre-processor that converts it
+        (``add_publisher_preprocessor``; without one, configure refuses the output).
     :param model_client: the model client; None with ``config.enable_local_model``.
     :param config: an :class:`~agents_core.config.LLMConfig`.
     :param db_client: a vector database client, needed with ``config.enable_rag``.
@@ -108,8 +110,11 @@ class LLM(ModelComponent):
 
     config_class = LLMConfig
     allowed_inputs: AllowedTypes | None = MappingProxyType({"Required": [String], "Optional": [Detections]})
-    allowed_outputs: AllowedTypes | None = MappingProxyType({"Required": [[String, StreamingString]]})
+    # Any output type, as upstream: one that is not text needs a publisher pre-processor that turns
+    # the answer into it (checked at configure, since it is added after construction).
+    allowed_outputs: AllowedTypes | None = None
     handled_outputs: Sequence[type[SupportedType]] = (String, StreamingString)
+    converts_outputs_with_preprocessor = True
 
     def __init__(
         self,
@@ -401,8 +406,9 @@ class LLM(ModelComponent):
 
     def _text_publishers(self) -> tuple[list[Any], list[Any]]:
         streaming = [p for p in self.publishers_dict.values() if issubclass(p.topic.msg_type, StreamingString)]
+        # Text outputs, and outputs whose pre-processor converts the text (checked at configure).
         plain = [p for p in self.publishers_dict.values() if not issubclass(p.topic.msg_type, StreamingString)
-                 and issubclass(p.topic.msg_type, String)]
+                 and (issubclass(p.topic.msg_type, String) or p.has_preprocessors)]
         return streaming, plain
 
     def _publish_answer(self, output: str | Iterable[str]) -> str:
@@ -427,7 +433,8 @@ class LLM(ModelComponent):
         ``done=True`` message. When the stream fails midway (the server dropped, a stream timeout
         passed), the listeners still get that closing ``done=True`` message, with empty text (the
         partial answer has already gone out piece by piece), and then the error is raised again,
-        so the step fails: the health becomes COMPONENT_FAILURE and the fallbacks run. The
+        so the step fails: the health becomes ALGORITHM_FAILURE (COMPONENT_FAILURE when the
+        server cannot be reached at all) and the fallbacks run. The
         unfinished sentence held for String outputs is not published then.
         """
         streaming, plain = self._text_publishers()

@@ -92,7 +92,8 @@ class MLLM(LLM):
         **kwargs: Any,
     ) -> None:
         self.allowed_inputs = {"Required": [String, Image], "Optional": [Detections]}
-        self.allowed_outputs = {"Required": [[String, StreamingString, Detections, PointsOfInterest]]}
+        # Any output type, as LLM: other types need a publisher pre-processor (checked at configure).
+        self.allowed_outputs = None
         self.handled_outputs = [String, StreamingString, Detections, PointsOfInterest]
         super().__init__(inputs=inputs, outputs=outputs, model_client=model_client, config=config,
                          db_client=db_client, trigger=trigger, component_name=component_name, **kwargs)
@@ -159,7 +160,8 @@ class MLLM(LLM):
         for pub in self.publishers_dict.values():
             if issubclass(pub.topic.msg_type, typed):
                 pub.publish(msg)
-            elif issubclass(pub.topic.msg_type, String) and not issubclass(pub.topic.msg_type, StreamingString):
+            elif (issubclass(pub.topic.msg_type, String) or pub.has_preprocessors) \
+                    and not issubclass(pub.topic.msg_type, StreamingString):
                 pub.publish(text)
 
     @staticmethod

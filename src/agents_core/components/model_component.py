@@ -6,9 +6,24 @@ produce) before ``super().__init__``.
 
 Configure connects the client (``check_connection``, then ``initialize`` when
 ``init_on_activation``) or deploys the local model, then warms up if ``config.warmup``.
-``_call_inference`` raises a typed error when inference fails; the runtime turns it into a
-health status and runs the configured fallback (for instance ``change_model_client`` or
-``fallback_to_local``).
+
+Which failure is which (as upstream's ``model_component.py`` and its ``model_client_fallback``
+recipe):
+
+- the model setup failing at configure (the server is down, the model does not load) is a
+  COMPONENT_FAILURE: the ``on_component_fail`` / ``on_fail`` fallbacks run (``change_model_client``,
+  ``fallback_to_local``, ...) and the setup is tried again with what they switched to. When nothing
+  works the component still comes up, unhealthy, says so in one WARNING line, and each step tries
+  the setup again;
+- an inference that fails (an error answer, a timeout, an unreadable or empty answer) is an
+  ALGORITHM_FAILURE, so ``on_algorithm_fail`` chains fire; a client that cannot reach its server
+  at all (:class:`~agents_core.errors.ClientConnectionError`) and a component with neither a client
+  nor a local model are COMPONENT_FAILURE (see
+  :func:`~agents_core.runtime.component_runtime.is_algorithm_failure`).
+
+A subclass that does not implement ``_create_input`` never builds a model input, so it may exist
+without a client (upstream's ``SecurityCamera`` example); one that does needs a client or
+``config.enable_local_model``.
 """
 
 from __future__ import annotations
@@ -22,13 +37,20 @@ from ..actions import component_fallback
 from ..clients.db_base import DBClient
 from ..clients.model_base import ModelClient
 from ..config import ModelComponentConfig
-from ..errors import ComponentError, InferenceError, RequestTimeoutError, WiringError
+from ..errors import ComponentError, InferenceError, ModelClientError, RequestTimeoutError, WiringError
+from ..runtime.run_type import ComponentRunType
 from ..runtime.worker import control_deadline_passed
+from ..status import HealthStatus
 from ..supported_types import SupportedType
 from ..topics import Topic
 from .component_base import Component, TriggerType
 
 __all__ = ["ModelComponent"]
+
+#: How many times configure tries the model setup, fallbacks in between, before it gives up.
+_MAX_SETUP_ATTEMPTS = 5
+#: A timer faster than this on a model component gets a warning at construction (the float trigger).
+_MODEL_CALLS_PER_SECOND_WARNING = 1.0
 
 
 class ModelComponent(Component):
@@ -42,6 +64,10 @@ class ModelComponent(Component):
     config_class = ModelComponentConfig
     #: The output types this component can produce (every output topic must be one of them).
     handled_outputs: Sequence[type[SupportedType]] = ()
+    #: Whether an output of another type is allowed when a publisher pre-processor turns the
+    #: component's output into it (checked at configure: the pre-processor is added after
+    #: construction). False: such an output is refused at construction.
+    converts_outputs_with_preprocessor: bool = False
 
     def __init__(
         self,
@@ -76,6 +102,10 @@ class ModelComponent(Component):
                 raise WiringError(f"component {self.component_name!r}: additional model client {key!r} "
                                   f"is a {type(client).__name__}, not a ModelClient")
         self._validate_handled_outputs()
+        self._warn_fast_timer()
+        # The client whose setup (check_connection, initialize) has succeeded; a step sets up a
+        # client that is not it first (the setup failed at configure, the server may be back).
+        self._ready_client: ModelClient | None = None
         self.local_model: Callable[..., Any] | None = None
         self.req_queue: queue.Queue[dict[str, Any]] = queue.Queue()
         self.resp_queue: queue.Queue[Any] = queue.Queue()
@@ -83,12 +113,40 @@ class ModelComponent(Component):
         self._streaming_thread: threading.Thread | None = None
 
     def _runs_without_model(self) -> bool:
-        """Whether this component can work with neither a client nor a local model (e.g. a router
-        in vector mode); subclasses that can override it."""
-        return False
+        """Whether this component can work with neither a client nor a local model.
+
+        By default: when its class does not implement ``_create_input``, so never calls a model
+        (upstream's ``SecurityCamera``). Subclasses that can otherwise (a router in vector mode)
+        override it.
+        """
+        return type(self)._create_input is ModelComponent._create_input
+
+    def _warn_fast_timer(self) -> None:
+        trigger = self.trigger
+        if (self.run_type == ComponentRunType.TIMED and isinstance(trigger, int | float)
+                and trigger > _MODEL_CALLS_PER_SECOND_WARNING):
+            # Upstream's code reads a float trigger as a period in seconds, and its recipes are
+            # written that way; here (and in the spec) it is a rate.
+            self._logger.warning("component %r: trigger=%g means %g Hz here (%g model calls a second); upstream "
+                                 "recipes meant every %g s: use trigger=1/%g", self.component_name, trigger,
+                                 trigger, trigger, trigger, trigger)
+
+    def _unhandled_outputs(self) -> list[Topic]:
+        return [t for t in self.outputs if not any(issubclass(t.msg_type, h) for h in self.handled_outputs)]
+
+    def _check_outputs_converted(self) -> None:
+        """At configure: every output the component cannot produce itself has a pre-processor."""
+        if not self.handled_outputs or not self.converts_outputs_with_preprocessor:
+            return
+        for t in self._unhandled_outputs():
+            if not self.publishers_dict[t.name].has_preprocessors:
+                raise WiringError(
+                    f"component {self.component_name!r} produces {[h.type_name() for h in self.handled_outputs]}, "
+                    f"not {t.type_name} for output {t.name!r}: add a pre-processor that turns its output into "
+                    f"{t.type_name} with add_publisher_preprocessor({t.name!r}, func) before launching")
 
     def _validate_handled_outputs(self) -> None:
-        if not self.handled_outputs:
+        if not self.handled_outputs or self.converts_outputs_with_preprocessor:
             return
         for t in self.outputs:
             if not any(issubclass(t.msg_type, h) for h in self.handled_outputs):
@@ -108,15 +166,45 @@ class ModelComponent(Component):
     # warm-up may use it), released at shutdown, switched by change_model_client.
 
     def custom_on_configure(self) -> None:
+        self._check_outputs_converted()
         if self.db_client is not None:
             self._start_client(self.db_client)
-        if self.model_client is not None:
-            self._start_client(self.model_client)
-        elif self.config.enable_local_model:
+        self._set_up_model()
+
+    def _set_up_model(self) -> None:
+        """Connect the model client (or deploy the local model) and warm up, running the fallbacks
+        when the client fails (see the module docstring); never raises a client error."""
+        for _ in range(_MAX_SETUP_ATTEMPTS):
+            client, local = self.model_client, self.local_model
+            try:
+                self._start_model()
+            except ModelClientError as exc:
+                ran = self.runtime.health.failed(HealthStatus.COMPONENT_FAILURE, exc, "model setup at configure")
+                if not ran:
+                    break
+                if self.model_client is not client or self.local_model is not local:
+                    self._logger.info("trying the model setup again with what the fallback switched to")
+                continue
+            if self.health_status != HealthStatus.HEALTHY:
+                self.runtime.health.step_succeeded()
+            return
+        self._logger.warning("component %r comes up unhealthy (%s): its model setup failed (%s); each step tries "
+                             "it again", self.component_name, self.health_status.name, self.health_message)
+
+    def _start_model(self) -> None:
+        if self.model_client is None and self.local_model is None and self.config.enable_local_model:
             self._deploy_local_model()
+        self._ensure_client_ready()
         if self.config.warmup and (self.model_client is not None or self.local_model is not None):
             self._logger.info("warming up")
             self._warmup()
+
+    def _ensure_client_ready(self) -> None:
+        """Set up the model client unless that already succeeded (a ModelClientError if it fails)."""
+        client = self.model_client
+        if client is not None and self._ready_client is not client:
+            self._start_client(client)
+            self._ready_client = client
 
     def _start_client(self, client: ModelClient | DBClient) -> None:
         client.check_connection()
@@ -165,6 +253,7 @@ class ModelComponent(Component):
         Raises a :class:`~agents_core.errors.ModelClientError` subclass on failure.
         """
         if self.model_client is not None:
+            self._ensure_client_ready()
             return self.model_client.inference(inference_input)
         if self.local_model is not None:
             result = self.local_model(**inference_input) if unpack else self.local_model(inference_input)
@@ -203,6 +292,7 @@ class ModelComponent(Component):
                                       "took longer than the caller waited; still using the previous client")
         old = self.model_client
         self.model_client = client
+        self._ready_client = client
         if old is not None and old is not client:
             self._release_client(old)
         self._logger.info("now using model client %r", model_client_name)

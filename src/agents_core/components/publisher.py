@@ -1,11 +1,13 @@
 """``ComponentPublisher``: a component's publisher for one output topic.
 
-Its pre-processors run before the value is validated and sent; an output of a step that a
-deactivate overtook is discarded and counted, not an error.
+Its pre-processors run before the value is validated and sent; a pre-processor that returns None
+means "nothing to publish" (as upstream), and an output of a step that a deactivate overtook is
+discarded: both are counted, neither is an error.
 """
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
@@ -18,6 +20,8 @@ if TYPE_CHECKING:
 
 __all__ = ["ComponentPublisher"]
 
+logger = logging.getLogger(__name__)
+
 
 class ComponentPublisher:
     """A component's publisher for one output topic, applying its pre-processors before sending."""
@@ -28,6 +32,12 @@ class ComponentPublisher:
         self._runtime = runtime
         self._preprocessors: list[Callable[[Any], Any]] = []
         self._publisher: Publisher | None = None
+        self._skipped = 0
+
+    @property
+    def skipped_outputs(self) -> int:
+        """Values a pre-processor turned into None, so not published."""
+        return self._skipped
 
     def attach(self, publisher: Publisher) -> None:
         """Publish through ``publisher`` from now on (at activate)."""
@@ -63,6 +73,11 @@ class ComponentPublisher:
             raise ComponentError(f"component {self._component_name!r}: output {self.topic.name!r} is not active")
         for func in self._preprocessors:
             value = func(value)
+            if value is None:
+                self._skipped += 1
+                logger.debug("component %r: a pre-processor of %r returned None; nothing published",
+                             self._component_name, self.topic.name)
+                return
         try:
             publisher.publish(value)
         except TransportClosedError:

@@ -291,7 +291,8 @@ def run(spec_line: bytes, reporter: _Reporter, stdin: _PipeLines) -> int:
                 if isinstance(component.trigger, Event):
                     component.trigger.trigger()
             elif command == "deactivate":
-                component.deactivate()
+                # stop(): deactivate only when active; an outside deactivate may have come first.
+                component.stop()
                 reporter.send(state=component.lifecycle_state.value)
             elif command == "shutdown":
                 break

@@ -25,7 +25,16 @@ from concurrent.futures import Future
 from typing import TYPE_CHECKING, Any
 
 from ..config import configure_time_fields
-from ..errors import AlgorithmFailure, ComponentError, ConfigError, RequestTimeoutError, TransportError, WiringError
+from ..errors import (
+    AlgorithmFailure,
+    ClientConnectionError,
+    ComponentError,
+    ConfigError,
+    ModelClientError,
+    RequestTimeoutError,
+    TransportError,
+    WiringError,
+)
 from ..events import Event
 from ..status import HealthStatus, LifecycleState
 from ..topics import FixedInput
@@ -41,7 +50,34 @@ if TYPE_CHECKING:
     from ..transport.delivery import SubscriptionStatistics
     from .hooks import ComponentHooks
 
-__all__ = ["ComponentRuntime"]
+__all__ = ["ComponentRuntime", "describe_trigger", "is_algorithm_failure"]
+
+
+def is_algorithm_failure(exc: BaseException) -> bool:
+    """Whether a step's exception is an ALGORITHM_FAILURE rather than a COMPONENT_FAILURE.
+
+    As upstream: an inference that ran and failed (the server answered an error, timed out,
+    sent something unreadable or nothing) is an algorithm failure, and so is
+    :class:`~agents_core.errors.AlgorithmFailure`. A client that cannot reach its server at all
+    (:class:`~agents_core.errors.ClientConnectionError`) leaves the component unable to work: a
+    component failure, like a model setup that fails at configure.
+    """
+    if isinstance(exc, AlgorithmFailure):
+        return True
+    return isinstance(exc, ModelClientError) and not isinstance(exc, ClientConnectionError)
+
+
+def describe_trigger(trigger: Any, run_type: ComponentRunType) -> str:
+    """One line saying when a component runs its steps (logged at activate)."""
+    if run_type == ComponentRunType.TIMED:
+        rate = float(trigger)
+        return f"trigger: a timer at {rate:g} Hz (a step every {1.0 / rate:.3g} s)"
+    if isinstance(trigger, Event):
+        return f"trigger: event {trigger.name!r}"
+    names = [t.name for t in (trigger if isinstance(trigger, list | tuple) else [trigger]) if hasattr(t, "name")]
+    if names:
+        return f"trigger: a message on {', '.join(repr(n) for n in names)}"
+    return f"trigger: none ({run_type.value}: answers requests)"
 
 
 class ComponentRuntime:
@@ -176,6 +212,25 @@ class ComponentRuntime:
                 self._component.deactivate()
             self.transition("shutdown")
 
+    def restart(self) -> None:
+        """Back to active from any state but finalized (see ``Component.restart``)."""
+        c = self._component
+        with self.lifecycle.lock:
+            state = self.state
+            if state == LifecycleState.ACTIVE:
+                c.deactivate()
+            elif state == LifecycleState.ERROR:
+                c.cleanup()
+            if self.state == LifecycleState.UNCONFIGURED:
+                c.configure()
+            c.activate()
+
+    def stop(self) -> None:
+        """Deactivate when active; nothing in any other state (see ``Component.stop``)."""
+        with self.lifecycle.lock:
+            if self.state == LifecycleState.ACTIVE:
+                self._component.deactivate()
+
     def _on_transition_failed(self, name: str, exc: Exception) -> None:
         self.health.set(HealthStatus.COMPONENT_FAILURE, f"{name} failed: {exc}")
 
@@ -215,6 +270,7 @@ class ComponentRuntime:
             # Inline: the middleware's thread stores the value and enqueues the step on this
             # component's worker, whose bounded queue is then the only queue of the hop.
             self._subscriptions.append(transport.create_subscription(t, cb._receive, owner=self._name, inline=True))
+        self._logger.info("%s", describe_trigger(c.trigger, c.run_type))
         if c.run_type == ComponentRunType.TIMED:
             assert isinstance(c.trigger, int | float)
             self._timers.append(PeriodicTimer(float(c.trigger), self._submit_timed_step, f"{self._name}:trigger"))
@@ -331,7 +387,7 @@ class ComponentRuntime:
                 # stream) failed because the component was asked to stop.
                 self._overtaken_steps += 1
                 self._logger.debug("a step overtaken by deactivate ended with %s: %s", type(exc).__name__, exc)
-            elif isinstance(exc, AlgorithmFailure):
+            elif is_algorithm_failure(exc):
                 self.health.step_failed(HealthStatus.ALGORITHM_FAILURE, exc)
             elif isinstance(exc, TransportError):
                 self.health.step_failed(HealthStatus.SYSTEM_FAILURE, exc)

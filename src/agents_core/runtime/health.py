@@ -14,6 +14,7 @@ from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 from ..actions import Action, Fallback
+from ..errors import ConfigError
 from ..status import HealthStatus
 
 __all__ = ["ANY_FAILURE", "Health"]
@@ -36,6 +37,7 @@ class Health:
         self._message = ""
         self._fallbacks: dict[str, Fallback] = {}
         self._giveup_actions: list[Action] = []
+        self._giveup_tries = 1
         self._gave_up = False
         self._failed_steps = 0
         # Set by a failure (or a change away from HEALTHY), cleared by the next good step: the
@@ -76,9 +78,17 @@ class Health:
         """Answer failures of ``kind`` (a ``HealthStatus`` name or :data:`ANY_FAILURE`) with ``action``."""
         self._fallbacks[kind] = action if isinstance(action, Fallback) else Fallback(action, max_retries)
 
-    def set_giveup(self, action: Action | Sequence[Action]) -> None:
-        """Run ``action`` (or each in turn) once when a fallback has used up all its retries."""
+    def set_giveup(self, action: Action | Sequence[Action], max_retries: int | None = None) -> None:
+        """Run ``action`` (or each in turn) once when a fallback has used up all its retries.
+
+        ``max_retries`` (upstream's argument): how many times an action that raises is tried
+        (default once).
+        """
+        if max_retries is not None and (isinstance(max_retries, bool) or not isinstance(max_retries, int)
+                                        or max_retries < 1):
+            raise ConfigError(f"max_retries must be a positive int or None, got {max_retries!r}")
         self._giveup_actions = [action] if isinstance(action, Action) else list(action)
+        self._giveup_tries = max_retries or 1
 
     # -- what happens to it --------------------------------------------------------------------
 
@@ -95,26 +105,45 @@ class Health:
     def step_failed(self, status: HealthStatus, exc: Exception) -> None:
         """A step raised: set the health and run the matching fallback (or give up)."""
         self._failed_steps += 1
+        self.failed(status, exc, "step")
+
+    def failed(self, status: HealthStatus, exc: Exception, during: str) -> bool:
+        """Something failed ``during`` a step or a transition: set the health, run the matching fallback.
+
+        Returns whether a fallback action ran (False: none matches, or they are used up and the
+        ``on_giveup`` actions ran instead).
+        """
         self._recovering = True
-        self._logger.error("step failed (%s): %s: %s", status.name, type(exc).__name__, exc,
+        self._logger.error("%s failed (%s): %s: %s", during, status.name, type(exc).__name__, exc,
                            exc_info=self._logger.isEnabledFor(logging.DEBUG))
         self.set(status, f"{type(exc).__name__}: {exc}")
         fallback = self._fallbacks.get(status.name) or self._fallbacks.get(ANY_FAILURE)
         if fallback is None:
-            return
+            return False
         action = fallback.next_action()
         if action is None:
             if not self._gave_up:
                 self._gave_up = True
                 self._logger.error("fallbacks exhausted; giving up")
                 for giveup in self._giveup_actions:
-                    self.run_action(giveup, {})
-            return
+                    self._run_giveup(giveup)
+            return False
         self._logger.info("running fallback %s", action.name)
         self.run_action(action, {})
+        return True
+
+    def _run_giveup(self, action: Action) -> None:
+        for attempt in range(1, self._giveup_tries + 1):
+            try:
+                action({})
+                return
+            except Exception:
+                self._logger.exception("give-up action %s failed (try %d of %d)", action.name, attempt,
+                                       self._giveup_tries)
 
     def step_succeeded(self) -> None:
-        """A step ended well: after failures, healthy again and the fallbacks start over."""
+        """A step (or a retried configure) ended well: after failures, healthy again and the
+        fallbacks start over."""
         if not self._recovering:
             return
         self._recovering = False

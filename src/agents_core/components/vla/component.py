@@ -274,6 +274,12 @@ class VLA(ModelComponent):
             self._run_lock.release()
 
     def _run_goal(self, handle: GoalHandle) -> dict[str, Any]:
+        try:
+            # The policy server may have been down at configure: the component came up unhealthy
+            # and each goal tries the setup again.
+            self._ensure_client_ready()
+        except ModelClientError as exc:
+            return self._abort(handle, f"the policy server failed: {exc}", HealthStatus.COMPONENT_FAILURE, 0)
         task = str(handle.goal.get("task", ""))
         max_steps = int(handle.goal.get("max_steps") or 0) or self.config.max_timesteps
         queue = ActionChunkQueue(self._aggregate)
