@@ -196,15 +196,17 @@ def test_child_exits_when_its_launcher_pid_is_not_its_parent() -> None:
 
 def test_fallbacks_on_the_components_own_methods_are_carried() -> None:
     component = _shout()
-    component.on_component_fail(Action(component.set_suffix, args=("!!",)), max_retries=2)
-    component.on_giveup(Action(component.deactivate))
+    component.on_component_fail(Action(component.set_suffix, args=("!!",), description="louder"), max_retries=2)
+    component.on_giveup(Action(component.deactivate), max_retries=3)
     spec = ComponentSpec.from_component(component, "zenoh", {}, os.getpid())
     check_rebuild(component, spec)
     rebuilt = ComponentSpec.from_dict(json.loads(json.dumps(spec.to_dict()))).build()
     fallback = rebuilt.runtime.health.fallbacks["COMPONENT_FAILURE"]
     assert fallback.max_retries == 2
     assert fallback.actions[0].method.__self__ is rebuilt and fallback.actions[0].args == ("!!",)
+    assert fallback.actions[0].description == "louder"
     assert rebuilt.runtime.health.giveup_actions[0].name == "deactivate"
+    assert rebuilt.runtime.health.giveup_retries == 3
 
 
 def test_a_fallback_on_another_object_is_refused() -> None:

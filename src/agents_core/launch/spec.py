@@ -273,6 +273,7 @@ class ComponentSpec:
     #: Fallbacks and give-up actions the recipe set on the component: its own methods only.
     fallbacks: dict[str, Any] = attrs.field(factory=dict)
     giveup: list[Any] = attrs.field(factory=list)
+    giveup_retries: int = 1
     #: Setup calls made after construction (``{"method", "args", "kwargs"}``), replayed in order.
     setup_calls: list[Any] = attrs.field(factory=list)
     #: Public attributes the recipe assigned after construction, set again after it.
@@ -306,6 +307,7 @@ class ComponentSpec:
                                      "max_retries": fallback.max_retries}
                               for kind, fallback in component.runtime.health.fallbacks.items()},
                    giveup=[_encode_own_action(component, a) for a in component.runtime.health.giveup_actions],
+                   giveup_retries=component.runtime.health.giveup_retries,
                    setup_calls=[_encode_setup_call(where, call) for call in recorded_setup_calls(component)],
                    sys_path=_import_path())
         spec.find_recipe(where)
@@ -374,13 +376,13 @@ class ComponentSpec:
 
         def action(data: dict[str, Any]) -> Action:
             return Action(getattr(component, data["method"]), args=decode_value(data["args"]),
-                          kwargs=decode_value(data["kwargs"]))
+                          kwargs=decode_value(data["kwargs"]), description=data.get("description"))
 
         # Replaced, not added to: what the constructor set is part of what the parent had.
         for kind, data in self.fallbacks.items():
             health.set_fallback(kind, Fallback([action(a) for a in data["actions"]], data["max_retries"]))
         if self.giveup:
-            health.set_giveup([action(a) for a in self.giveup])
+            health.set_giveup([action(a) for a in self.giveup], self.giveup_retries)
 
     def __repr__(self) -> str:
         # Never the arguments: a client's spec may hold an API key.
@@ -432,7 +434,7 @@ def _encode_own_action(component: Component, action: Any) -> dict[str, Any]:
         raise ConfigError(f"{where} is not a method of the component; in a component process a fallback can "
                           "only run the component's own methods")
     return {"method": action.name, "args": encode_value(list(action.args), where),
-            "kwargs": encode_value(dict(action.kwargs), where)}
+            "kwargs": encode_value(dict(action.kwargs), where), "description": action.description}
 
 
 def _encode_setup_call(where: str, call: SetupCall) -> dict[str, Any]:

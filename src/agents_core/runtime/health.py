@@ -67,6 +67,11 @@ class Health:
         return dict(self._fallbacks)
 
     @property
+    def giveup_retries(self) -> int:
+        """How many times a raising give-up action is tried."""
+        return self._giveup_tries
+
+    @property
     def giveup_actions(self) -> list[Action]:
         """The actions run once when a fallback is exhausted."""
         return list(self._giveup_actions)
