@@ -134,7 +134,6 @@ def test_model_client_fallback_in_one_process(ollama: OllamaTestServer, roboml: 
 
 
 @pytest.mark.zenoh
-@_issue26("state set after construction (additional_model_clients) is not carried to the component's process")
 def test_model_client_fallback_on_zenoh(ollama: OllamaTestServer, roboml: RoboMLTestServer, tmp_path: Path) -> None:
     roboml.set_fault("error", times=1000)
     with launched_as_script(RECIPES / "model_client_fallback.py", _ports(ollama, roboml), tmp_path) as (proc, asker):
@@ -143,7 +142,6 @@ def test_model_client_fallback_on_zenoh(ollama: OllamaTestServer, roboml: RoboML
     assert "".join(answers).startswith("You said:"), answers
 
 
-@_issue26("a model client that fails at configure does not run the component's fallbacks")
 def test_model_client_fallback_when_the_remote_server_is_down_at_start(
         ollama: OllamaTestServer, monkeypatch: pytest.MonkeyPatch) -> None:
     down = RoboMLTestServer().start()
