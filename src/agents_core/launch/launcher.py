@@ -223,7 +223,7 @@ class Launcher:
                 self._start_processes()
                 self._watch_events()
                 for row in self._supervisor.describe() if self._supervisor is not None else []:
-                    report.component(str(row["name"]), str(row["state"]), "process", f"pid {row['pid']}")
+                    report.component(str(row["name"]), str(row["state"]), "-", f"own process, pid {row['pid']}")
             else:
                 for c in self.components:
                     c.runtime.bind(self._transport)

@@ -124,7 +124,7 @@ class LaunchReport:
 
     def component(self, name: str, state: str, health: str, note: str = "") -> None:
         """One component's row, as it comes up (or changes)."""
-        mark = "✓" if state == "active" and health == "healthy" else "•"
+        mark = "✓" if state == "active" and not health.endswith("failure") else "•"
         tail = f"  {note}" if note else ""
         plain = f"  {mark} {name:<{_WIDTH}} {state:<8} {health}{tail}"
         colour = "green" if mark == "✓" else "yellow"
