@@ -41,7 +41,7 @@ def main(argv: list[str] | None = None) -> None:
     photos = sorted(args.images.glob("*.png")) if args.images.is_dir() else []
     if not args.model.is_file() or not photos:
         sys.exit(f"no detector at {args.model} or no photos in {args.images} (see --help)")
-    from PIL import Image as PILImage  # the local extra
+    from PIL import Image as PILImage  # noqa: PLC0415  (the local extra: after the check above, for its message)
 
     config = VisionConfig(enable_local_model=True, local_model_path=str(args.model), threshold=0.5,
                           labels_to_track=["person", "cat", "cup"])
@@ -56,7 +56,8 @@ def main(argv: list[str] | None = None) -> None:
             index = value.header.stamp_ns // 10**9
             if index not in seen and 0 <= index < len(photos):
                 seen[index] = value
-                print(f"{photos[index].name}: tracking {list(value.labels)} ids {[int(i) for i in value.ids]}", flush=True)
+                ids = [int(i) for i in value.ids]
+                print(f"{photos[index].name}: tracking {list(value.labels)} ids {ids}", flush=True)
                 if len(seen) == len(photos):
                     all_seen.set()
 
