@@ -103,7 +103,7 @@ def install_check(session: nox.Session) -> None:
 def lint(session: nox.Session) -> None:
     """Ruff: style, imports, likely bugs."""
     session.install("ruff>=0.5")
-    session.run("ruff", "check", "src", "tests", "benchmarks", "noxfile.py")
+    session.run("ruff", "check", "src", "tests", "benchmarks", "examples", "noxfile.py")
 
 
 @nox.session
@@ -111,6 +111,7 @@ def types(session: nox.Session) -> None:
     """mypy --strict on src/ (with the web UI's Starlette and uvicorn, whose types it checks against)."""
     session.install("-e", ".[dev,zenoh,cli,ui]")
     session.run("mypy", "src")
+    session.run("mypy", "--strict", "--explicit-package-bases", "examples", env={"MYPYPATH": "examples"})
 
 
 @nox.session

@@ -6,6 +6,8 @@ over the installed cross-process transports; see that module for the harness tha
 
 from __future__ import annotations
 
+import os
+
 import pytest
 
 from agents_core.testing.helpers import free_tcp_port, wait_for
@@ -13,6 +15,10 @@ from agents_core.testing.recipes import recipe_transport
 from agents_core.transport import MemoryTransport
 
 __all__ = ["free_tcp_port", "recipe_transport", "wait_for"]
+
+# Launchers print status lines on stderr by default (agents_core.launch.report); the suite's
+# output, and the recipes it starts as child processes, stay quiet. The report's tests turn them on.
+os.environ.setdefault("AGENTS_QUIET", "1")
 
 
 @pytest.fixture

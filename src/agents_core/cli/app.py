@@ -10,6 +10,7 @@ from typing import Annotated
 
 import typer
 
+from ..console import QUIET_ENV_VAR
 from ..errors import AgentsError, ConfigError
 from ..transport.registry import TRANSPORT_ENV_VAR
 from . import components, topics
@@ -38,8 +39,13 @@ def run(ctx: typer.Context,
             "--connect", "-c", help="Zenoh endpoint(s) to connect to, e.g. a router; makes the recipe a client "
                                     "unless --mode says otherwise")] = None,
         mode: Annotated[str | None, typer.Option("--mode", help="Zenoh session mode: peer, client or router")] = None,
+        quiet: Annotated[bool, typer.Option(
+            "--quiet", "-q", help="no status lines on stderr (sets AGENTS_QUIET=1)")] = False,
         ) -> None:
-    """Run a recipe file as ``__main__`` (extra arguments go to the recipe's ``sys.argv``)."""
+    """Run a recipe file as ``__main__`` (extra arguments go to the recipe's ``sys.argv``).
+
+    The recipe's launcher prints its transport, components, UI address and how to stop on stderr.
+    """
     if not recipe.is_file():
         raise fail(f"recipe {str(recipe)!r} is not a file")
     if transport is not None:
@@ -52,6 +58,8 @@ def run(ctx: typer.Context,
         if mode not in ("peer", "client", "router"):
             raise fail(f"unknown Zenoh mode {mode!r}; use peer, client or router")
         os.environ[ZENOH_MODE_ENV_VAR] = mode
+    if quiet:
+        os.environ[QUIET_ENV_VAR] = "1"
     path = str(recipe.resolve())
     sys.argv = [path, *ctx.args]
     # The recipe's own imports (a module beside it) work as with `python recipe.py`.

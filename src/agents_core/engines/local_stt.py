@@ -34,6 +34,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from ..console import say
 from ..errors import ConfigError, InferenceError
 from .audio import float_to_int16
 from .model_files import looks_like_hub_id
@@ -84,6 +85,7 @@ def _model_dir(path_or_id: str, what: str) -> Path:
     except ImportError as exc:
         raise ConfigError(f"{what}: {path_or_id!r} is not a local directory, and downloading it needs "
                           "`pip install huggingface-hub` (or set local_model_path to a local directory)") from exc
+    say(f"agents: {what}: fetching the hub repository {path_or_id} (cached after the first time)")
     try:
         # Only the int8 exports and the token table: the fp32 files of these repositories are large.
         return Path(huggingface_hub.snapshot_download(path_or_id, allow_patterns=["*int8*.onnx", "*tokens.txt"]))

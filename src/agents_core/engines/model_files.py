@@ -17,6 +17,7 @@ import importlib.util
 import logging
 from pathlib import Path
 
+from ..console import say
 from ..errors import ConfigError
 
 __all__ = ["DEFAULT_LLM_FILE", "DEFAULT_LLM_PACKAGE", "default_llm_path", "looks_like_hub_id", "resolve_model_file"]
@@ -92,6 +93,8 @@ def _download(hub_id: str, pattern: str, what: str) -> Path:
     if not matches:
         raise ConfigError(f"{what}: hub repository {repo_id!r} has no file matching {file_pattern!r}")
     _logger.info("downloading %s from %s (progress below)", matches[0], repo_id)
+    # On stderr even with no logging set up: the bar below would otherwise come unexplained.
+    say(f"agents: {what}: fetching {matches[0]} from the hub repository {repo_id} (cached after the first time)")
     try:
         # hf_hub_download draws its own progress bar and caches the file for the next start.
         return Path(huggingface_hub.hf_hub_download(repo_id=repo_id, filename=matches[0]))

@@ -51,12 +51,14 @@ from typing import TYPE_CHECKING, Any
 from ..actions import Action
 from ..components.component_base import Component
 from ..config import load_config_file
+from ..console import say
 from ..errors import ComponentError, ConfigError, WiringError
 from ..events import Event, EventListener
 from ..runtime.worker import StepWorker
 from ..status import LifecycleState
 from ..transport.contract import Subscription, Transport
 from ..transport.registry import TRANSPORT_ENV_VAR, resolve_transport
+from .report import LaunchReport, component_row
 
 if TYPE_CHECKING:
     from .supervisor import Supervisor
@@ -79,11 +81,15 @@ class Launcher:
     :param config_file: a YAML or TOML file with a ``transport`` section (``name`` and the
         transport's options; what is passed here explicitly wins) and a section per component
         name with config fields, applied when the launcher starts.
+    :param quiet: True: print no status lines. By default :meth:`start` prints a few lines on
+        stderr (transport, components, UI address, how to stop; :mod:`agents_core.launch.report`)
+        unless ``AGENTS_QUIET=1`` or the ``agents_core`` logger has a level above INFO.
     """
 
     def __init__(self, transport: str | Transport | None = None, *,
                  transport_options: Mapping[str, Any] | None = None,
-                 config_file: str | os.PathLike[str] | None = None) -> None:
+                 config_file: str | os.PathLike[str] | None = None, quiet: bool | None = None) -> None:
+        self._quiet = quiet
         self._component_sections: dict[str, dict[str, Any]] = {}
         self._config_file = str(config_file) if config_file is not None else None
         file_transport: dict[str, Any] = {}
@@ -244,6 +250,9 @@ class Launcher:
                               f"({', '.join(_cross_process_transports()) or 'none installed'}); "
                               f"{transport.name!r} lives in one process")
         self._started = True
+        report = LaunchReport(self._quiet)
+        report.transport(self._transport)
+        failing: tuple[str | None, str] = (None, "start")
         try:
             self._action_worker = StepWorker("launcher-actions", 1, "drop_newest")
             for event, actions in self.events_actions.items():
@@ -253,21 +262,30 @@ class Launcher:
             if self._multiprocessing:
                 self._start_processes()
                 self._watch_events()
+                for row in self._supervisor.describe() if self._supervisor is not None else []:
+                    report.component(str(row["name"]), str(row["state"]), "-", f"own process, pid {row['pid']}")
             else:
                 for c in self.components:
                     c.runtime.bind(self._transport)
                 self._watch_events()
                 for c in self.components:
+                    failing = (c.component_name, "configure")
                     c.configure()
                 for c in self.components:
+                    failing = (c.component_name, "activate")
                     c.activate()
+                    report.component(*component_row(c))
             if self._ui_options is not None:
                 from ..ui.launch import start_ui  # noqa: PLC0415  (the UI is optional)
 
+                failing = (None, "start the web UI")
                 self._ui = start_ui(self.components, self._transport, **self._ui_options)
-        except BaseException:
+                report.ui(str(self._ui.url))
+        except BaseException as exc:
+            report.failed(*failing, exc)
             self.stop()
             raise
+        report.running(len(self.components))
         logger.info("launched %d component(s) on %s", len(self.components), self._transport.name)
         return self
 
@@ -469,6 +487,7 @@ class Launcher:
             nonlocal received
             received += 1
             if received == 1:
+                say("agents: stopping (Ctrl-C again to hurry)", quiet=self._quiet)
                 logger.info("received signal %d, shutting down (again to hurry, a third time to exit at once)",
                             signum)
                 self._stop_requested.set()
@@ -492,6 +511,7 @@ class Launcher:
         finally:
             try:
                 self.stop()
+                say("agents: stopped", quiet=self._quiet)
             finally:
                 for sig, old in previous.items():
                     signal.signal(sig, old)

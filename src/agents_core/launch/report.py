@@ -1,0 +1,163 @@
+"""What a running recipe tells the person who started it: a few lines on stderr.
+
+:class:`~agents_core.launch.Launcher` reports, without any logging configured::
+
+    agents: transport zenoh (peer; listen tcp/127.0.0.1:7447; multicast scouting off)
+      ✓ talker     active  healthy
+      ✓ listener   active  healthy
+    agents: web UI at http://127.0.0.1:5001/
+    agents: 2 component(s) running; press Ctrl-C to stop
+
+and, when something fails, which component and why (``✗ vision  failed to configure: ...``).
+The lines are coloured by ``rich`` when it is installed (the ``cli`` extra) and stderr is a
+terminal, plain text otherwise. ``Launcher(quiet=True)``, ``AGENTS_QUIET=1`` or a level above
+INFO on the ``agents_core`` logger silence them (see :mod:`agents_core.console`).
+
+The transport line reads the transport's settings by duck typing (this module imports neither
+zenoh nor rclpy): Zenoh's mode and endpoints from its driver's ``config``, ROS 2's domain id and
+discovery range.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from typing import Any, TextIO
+
+from ..console import quiet_requested
+
+__all__ = ["LaunchReport", "component_row", "describe_transport"]
+
+_WIDTH = 12  # the component-name column; longer names simply push the row
+
+
+def describe_transport(transport: Any) -> str:
+    """One line naming ``transport`` and where it reaches: endpoints, domain, or this process."""
+    name = str(getattr(transport, "name", type(transport).__name__))
+    driver = getattr(transport, "driver", None)
+    if name == "memory":
+        return "memory (in this process only)"
+    if name == "zenoh":
+        config = getattr(driver, "config", None)
+        if config is None:
+            return name
+        return f"zenoh ({_zenoh_endpoints(config)})"
+    if name == "ros2":
+        return f"ros2 (domain {_ros_domain(driver)}; discovery range {_ros_range()})"
+    return name
+
+
+def _zenoh_endpoints(config: Any) -> str:
+    mode = getattr(config, "mode", None) or "peer"
+    listen = getattr(config, "listen", None)
+    connect = getattr(config, "connect", None)
+    parts = [str(mode)]
+    if getattr(config, "config_file", None):
+        parts.append(f"config file {config.config_file}")
+    elif listen is None and connect is None:
+        port = getattr(config, "port", 7447)
+        parts.append(f"loopback rendezvous tcp/127.0.0.1:{port}")
+    if listen:
+        parts.append("listen " + ", ".join(listen))
+    if connect:
+        parts.append("connect " + ", ".join(connect))
+    parts.append("multicast scouting " + ("on" if getattr(config, "multicast_scouting", False) else "off"))
+    namespace = getattr(config, "namespace", "")
+    if namespace:
+        parts.append(f"namespace {namespace}")
+    return "; ".join(parts)
+
+
+def _ros_domain(driver: Any) -> str:
+    try:
+        return str(driver.node.context.get_domain_id())
+    except Exception:  # an older rclpy, or a driver without a node: the environment says the same
+        return os.environ.get("ROS_DOMAIN_ID", "0") or "0"
+
+
+def _ros_range() -> str:
+    value = os.environ.get("ROS_AUTOMATIC_DISCOVERY_RANGE", "").strip()
+    if value:
+        return value
+    return "LOCALHOST" if os.environ.get("ROS_LOCALHOST_ONLY", "") == "1" else "SUBNET"
+
+
+class LaunchReport:
+    """The status lines of one launcher run (silent when quiet).
+
+    :param quiet: True silences it; None asks :func:`agents_core.console.quiet_requested`.
+    :param stream: where the lines go (stderr by default).
+    """
+
+    def __init__(self, quiet: bool | None = None, stream: TextIO | None = None) -> None:
+        self._stream = stream
+        self.quiet = quiet_requested(quiet)
+        self._console: Any = None
+        if not self.quiet and self._out().isatty():
+            try:
+                from rich.console import Console  # noqa: PLC0415  (rich is optional: the cli extra)
+            except ImportError:
+                pass
+            else:
+                self._console = Console(file=self._out(), highlight=False, soft_wrap=True)
+
+    def _out(self) -> TextIO:
+        return self._stream if self._stream is not None else sys.stderr
+
+    def _line(self, plain: str, styled: str | None = None) -> None:
+        if self.quiet:
+            return
+        try:
+            if self._console is not None:
+                self._console.print(styled if styled is not None else plain)
+            else:
+                out = self._out()
+                out.write(plain + "\n")
+                out.flush()
+        except (OSError, ValueError):  # a closed stderr must not stop the recipe
+            pass
+
+    def transport(self, transport: Any) -> None:
+        """The transport line (name and endpoints)."""
+        text = describe_transport(transport)
+        self._line(f"agents: transport {text}", f"[bold]agents:[/] transport [cyan]{_escape(text)}[/]")
+
+    def component(self, name: str, state: str, health: str, note: str = "") -> None:
+        """One component's row, as it comes up (or changes)."""
+        mark = "✓" if state == "active" and not health.endswith("failure") else "•"
+        tail = f"  {note}" if note else ""
+        plain = f"  {mark} {name:<{_WIDTH}} {state:<8} {health}{tail}"
+        colour = "green" if mark == "✓" else "yellow"
+        styled = (f"  [{colour}]{mark}[/] {_escape(name):<{_WIDTH}} {state:<8} {health}"
+                  f"{_escape(tail)}")
+        self._line(plain, styled)
+
+    def ui(self, url: str) -> None:
+        """The web UI's address."""
+        self._line(f"agents: web UI at {url}", f"[bold]agents:[/] web UI at [link={url}]{url}[/link]")
+
+    def running(self, count: int) -> None:
+        """Everything is up: how many components, and how to stop."""
+        text = f"{count} component(s) running; press Ctrl-C to stop"
+        self._line(f"agents: {text}", f"[bold]agents:[/] [green]{text}[/]")
+
+    def failed(self, name: str | None, stage: str, reason: BaseException | str) -> None:
+        """A failure while starting: which component (if one), at which stage, and why."""
+        why = str(reason)
+        if isinstance(reason, BaseException):
+            why = why or type(reason).__name__
+        who = f"{name:<{_WIDTH}} " if name else ""
+        plain = f"  ✗ {who}failed to {stage}: {why}"
+        self._line(plain, f"  [red]✗[/] {_escape(who)}failed to {stage}: [red]{_escape(why)}[/]")
+
+
+def _escape(text: str) -> str:
+    """``text`` with rich's markup brackets escaped."""
+    return text.replace("[", r"\[")
+
+
+def component_row(component: Any) -> tuple[str, str, str]:
+    """(name, state, health) of an in-process component, in the words the report uses."""
+    state = getattr(component.lifecycle_state, "value", str(component.lifecycle_state))
+    health = component.health_status.name.lower()
+    return component.component_name, str(state), health
