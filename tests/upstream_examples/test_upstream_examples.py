@@ -174,7 +174,13 @@ def test_local_model_fallback_on_zenoh(roboml: RoboMLTestServer, tmp_path: Path)
 
 # -- event-driven visual description (multiprocessing=True upstream) ------------------------------------
 
-_EVENT_BLOCKERS = "Detections.msg.labels.contains_any() and VisionConfig(enable_local_classifier=)"
+
+
+def _ssd_ports(ollama: OllamaTestServer) -> dict[str, Any]:
+    """The ports, and the shared COCO detector as the default local model (upstream's default is not offline)."""
+    from ..components.vision_recipe import SSD_MODEL  # noqa: PLC0415
+
+    return {**_ports(ollama), "AGENTS_VISION_MODEL": str(SSD_MODEL)}
 
 
 def _person_photo() -> Any:
@@ -184,13 +190,12 @@ def _person_photo() -> Any:
     return photo("astronaut.png")
 
 
-@_issue26(_EVENT_BLOCKERS)
 @pytest.mark.parametrize("recipe", [V060 / "event_driven_visual_description.py",
                                     V074 / "event_driven_visual_description.py"], ids=["0.6.0", "0.7.4"])
 def test_event_driven_visual_description_in_one_process(recipe: Path, ollama: OllamaTestServer,
                                                         monkeypatch: pytest.MonkeyPatch) -> None:
     picture = _person_photo()
-    with launched_here(recipe, _ports(ollama), monkeypatch) as launcher:
+    with launched_here(recipe, _ssd_ports(ollama), monkeypatch) as launcher:
         descriptions = _collect(launcher.transport, "/description", "String")
         assert ask_until(launcher.transport, Topic(name="/image_raw", msg_type="Image"), picture,
                          lambda: bool(descriptions), every=1.0)
@@ -198,12 +203,11 @@ def test_event_driven_visual_description_in_one_process(recipe: Path, ollama: Ol
 
 
 @pytest.mark.zenoh
-@_issue26(f"{_EVENT_BLOCKERS}; an Event trigger across processes")
 @pytest.mark.parametrize("recipe", [V060 / "event_driven_visual_description.py",
                                     V074 / "event_driven_visual_description.py"], ids=["0.6.0", "0.7.4"])
 def test_event_driven_visual_description_on_zenoh(recipe: Path, ollama: OllamaTestServer, tmp_path: Path) -> None:
     picture = _person_photo()
-    with launched_as_script(recipe, _ports(ollama), tmp_path) as (proc, asker):
+    with launched_as_script(recipe, _ssd_ports(ollama), tmp_path) as (proc, asker):
         descriptions = _collect(asker, "/description", "String")
         assert ask_until(asker, Topic(name="/image_raw", msg_type="Image"), picture,
                          lambda: bool(descriptions) or proc.proc.poll() is not None, timeout=90, every=1.0)

@@ -33,6 +33,7 @@ from __future__ import annotations
 import ast
 import json
 import logging
+import os
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -43,7 +44,8 @@ import numpy.typing as npt
 from ..errors import ConfigError, InferenceError
 from .model_files import resolve_model_file
 
-__all__ = ["COCO80_LABELS", "DEFAULT_VISION_FILE", "DEFAULT_VISION_REPO", "LocalVisionModel", "coco90_labels",
+__all__ = ["COCO80_LABELS", "DEFAULT_VISION_ENV_VAR", "DEFAULT_VISION_FILE", "DEFAULT_VISION_REPO",
+           "LocalVisionModel", "coco90_labels",
            "nms", "read_labels_file", "resize_rgb"]
 
 _logger = logging.getLogger("agents_core.engines.local_vision")
@@ -51,6 +53,9 @@ _logger = logging.getLogger("agents_core.engines.local_vision")
 #: The default detector: a D-FINE (the DEIM family) COCO model exported to ONNX, from the hub.
 DEFAULT_VISION_REPO = "onnx-community/dfine_n_coco-ONNX"
 DEFAULT_VISION_FILE = "onnx/model.onnx"
+#: A local ONNX detector to use instead of the hub default when no model path is given (an offline
+#: robot, or a recipe written for another default, such as upstream's ``enable_local_classifier``).
+DEFAULT_VISION_ENV_VAR = "AGENTS_VISION_MODEL"
 
 #: The 80 COCO class names in the order detectors trained on COCO number them (0-based).
 COCO80_LABELS: tuple[str, ...] = (
@@ -221,6 +226,9 @@ class LocalVisionModel:
     @staticmethod
     def _resolve(model_path: str | None) -> Path:
         if model_path is None:
+            local = os.environ.get(DEFAULT_VISION_ENV_VAR)
+            if local:
+                return resolve_model_file(local, "*.onnx", f"LocalVisionModel model from ${DEFAULT_VISION_ENV_VAR}")
             return resolve_model_file(DEFAULT_VISION_REPO, DEFAULT_VISION_FILE, "LocalVisionModel default model")
         return resolve_model_file(model_path, "*.onnx", "LocalVisionModel model")
 
