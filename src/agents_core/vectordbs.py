@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+import urllib.parse
 from typing import Any
 
 from attrs import define, field
@@ -64,6 +66,19 @@ class DB(BaseAttrs):
 _db_types.register("DB", DB, replace=True)
 
 
+def _ollama_from_environment() -> tuple[str, int]:
+    """``OLLAMA_HOST`` (``host``, ``host:port`` or ``http://host:port``) or Ollama's default address."""
+    value = os.environ.get("OLLAMA_HOST", "").strip()
+    if not value:
+        return "127.0.0.1", 11434
+    parsed = urllib.parse.urlsplit(value if "://" in value else f"http://{value}")
+    try:
+        port = parsed.port or 11434
+    except ValueError as exc:
+        raise ConfigError(f"OLLAMA_HOST={value!r} has no valid port: {exc}") from None
+    return parsed.hostname or "127.0.0.1", port
+
+
 @define(kw_only=True)
 class ChromaDB(DB):
     """A collection in a `Chroma <https://www.trychroma.com>`_ server, used through
@@ -71,7 +86,8 @@ class ChromaDB(DB):
 
     Chroma stores vectors but computes none over HTTP: the client's embedding client turns
     documents and queries into vectors. A client given none uses the embedding model named here,
-    as upstream: ``ChromaDB()`` embeds with Ollama's ``bge-large:latest`` on 127.0.0.1:11434.
+    as upstream: ``ChromaDB()`` embeds with Ollama's ``bge-large:latest`` on 127.0.0.1:11434, or
+    where the ``OLLAMA_HOST`` environment variable says (``host:port``, as Ollama's own CLI reads it).
     Names (tenant, database, collection) are checked by the server, whose rules may change
     between versions, so only emptiness is checked here.
 
@@ -103,8 +119,9 @@ class ChromaDB(DB):
     create_if_missing: bool = field(default=True, validator=_bool)
     embeddings: str | None = field(default="ollama", validator=_embeddings)
     checkpoint: str = field(default="bge-large:latest", validator=_non_empty_str)
-    ollama_host: str = field(default="127.0.0.1", validator=_non_empty_str)
-    ollama_port: int = field(default=11434, validator=base_validators.in_range(1, 65535))
+    ollama_host: str = field(factory=lambda: _ollama_from_environment()[0], validator=_non_empty_str)
+    ollama_port: int = field(factory=lambda: _ollama_from_environment()[1],
+                             validator=base_validators.in_range(1, 65535))
 
     def _get_init_params(self) -> dict[str, Any]:
         return {

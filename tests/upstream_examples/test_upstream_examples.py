@@ -29,7 +29,7 @@ from .harness import RECIPES, ask_until, launched_as_script, launched_here
 V060, V074 = RECIPES / "v0_6_0", RECIPES / "v0_7_4"
 
 #: Every model name the recipes ask the Ollama stand-in for.
-OLLAMA_MODELS = ["qwen2.5vl:latest", "qwen2.5vl:7b", "llama3.2:3b", "qwen3:0.6b"]
+OLLAMA_MODELS = ["qwen2.5vl:latest", "qwen2.5vl:7b", "llama3.2:3b", "qwen3:0.6b", "bge-large:latest"]
 
 
 def _issue26(difference: str) -> Any:
@@ -217,13 +217,13 @@ def test_event_driven_visual_description_on_zenoh(recipe: Path, ollama: OllamaTe
 
 # -- recipes on a Chroma server --------------------------------------------------------------------------
 
-_CHROMA_DEFAULTS = "ChromaDB() without name and embedding client (upstream's defaults)"
 
 
-@_issue26(f"{_CHROMA_DEFAULTS}; an LLM whose output is PoseStamped, fed by a pre-processor returning an array")
 @pytest.mark.parametrize("recipe", [V060 / "semantic_router.py", V074 / "semantic_router.py"], ids=["0.6.0", "0.7.4"])
 def test_semantic_router(recipe: Path, ollama: OllamaTestServer, chroma_port: int,  # noqa: F811
                          monkeypatch: pytest.MonkeyPatch) -> None:
+    # ChromaDB() embeds through Ollama where OLLAMA_HOST says (the stand-in), as Ollama's CLI reads it.
+    monkeypatch.setenv("OLLAMA_HOST", f"127.0.0.1:{ollama.port}")
     with launched_here(recipe, _ports(ollama, chroma=chroma_port), monkeypatch) as launcher:
         t = launcher.transport
         chat = _collect(t, "text_out_llm", "String")
@@ -232,23 +232,37 @@ def test_semantic_router(recipe: Path, ollama: OllamaTestServer, chroma_port: in
     assert "What is the capital of France?" in chat[0]
 
 
-@_issue26(f"{_CHROMA_DEFAULTS}; an LLM whose output is PoseStamped, fed by a pre-processor returning an array")
+def _fill_the_map_collection(port: int) -> None:
+    from agents_core.clients import ChromaClient  # noqa: PLC0415
+    from agents_core.vectordbs import ChromaDB  # noqa: PLC0415
+
+    client = ChromaClient(ChromaDB(), port=port)
+    client.initialize()
+    try:
+        client.add({"collection_name": "map", "ids": ["kitchen"], "documents": ["kitchen"],
+                    "metadatas": [{"coordinates": "1.0, 2.0"}]})
+    finally:
+        client.deinitialize()
+
+
 @pytest.mark.parametrize("name", ["go_to_x.py", "tool_calling.py"])
 def test_go_to_x_and_tool_calling_0_6_0(name: str, chroma_port: int,  # noqa: F811
                                         monkeypatch: pytest.MonkeyPatch) -> None:
     reply = '{"position": "1.0, 2.0"}'
     tool_calls = [{"name": "get_coordinates", "arguments": {"position": [1.0, 2.0, 0.0]}}]
-    with OllamaTestServer(models=OLLAMA_MODELS, reply=reply, tool_calls=tool_calls) as server, \
-            launched_here(V060 / name, _ports(server, chroma=chroma_port), monkeypatch) as launcher:
-        t = launcher.transport
-        goals = _collect(t, "goal_point", "PoseStamped")
-        t.create_publisher(Topic(name="goto_in", msg_type="String")).publish("Go to the kitchen")
-        assert wait_for(lambda: bool(goals), timeout=30)
-    position = goals[0].pose.position
-    assert (position.x, position.y, position.z) == (1.0, 2.0, 0.0)
+    with OllamaTestServer(models=OLLAMA_MODELS, reply=reply, tool_calls=tool_calls) as server:
+        monkeypatch.setenv("OLLAMA_HOST", f"127.0.0.1:{server.port}")  # ChromaDB()'s embeddings
+        _fill_the_map_collection(chroma_port)  # what upstream's semantic_map example leaves behind
+        with launched_here(V060 / name, _ports(server, chroma=chroma_port), monkeypatch) as launcher:
+            t = launcher.transport
+            goals = _collect(t, "goal_point", "PoseStamped")
+            t.create_publisher(Topic(name="goto_in", msg_type="String")).publish("Go to the kitchen")
+            assert wait_for(lambda: bool(goals), timeout=30)
+    assert list(goals[0].position) == [1.0, 2.0, 0.0]
 
 
-@_issue26(f"{_CHROMA_DEFAULTS}; MapLayer importable from agents_core.ros; a pre-processor returning None")
+@_issue26("MapEncoding here waits for a grid map at configure (MapConfig.require_map, 10 s) where upstream reads "
+          "it at each step; this test has no map source yet")
 def test_semantic_map_0_6_0(ollama: OllamaTestServer, roboml: RoboMLTestServer, chroma_port: int,  # noqa: F811
                             monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv("UPSTREAM_TRIGGER", "2.0")  # a tick every 0.5 s instead of every 15 s

@@ -267,6 +267,13 @@ class LLM(ModelComponent):
                                  type(exc).__name__, exc)
             return tool, f"error: {type(exc).__name__}: {exc}"
 
+    def _check_outputs_converted(self) -> None:
+        # A tool whose own return value is the answer (send_tool_response_to_model=False) may feed
+        # an output of any type: the value is validated against it when published.
+        if any(not tool.send_back for tool in self._tools.values()):
+            return
+        super()._check_outputs_converted()
+
     def _publish_tool_result(self, value: Any) -> None:
         """A tool's own return value on the outputs (``send_tool_response_to_model=False``), as upstream:
         an output with a pre-processor gets the value itself (to turn into its type, e.g. a list into a
