@@ -39,7 +39,7 @@ def run(ctx: typer.Context,
                                     "unless --mode says otherwise")] = None,
         mode: Annotated[str | None, typer.Option("--mode", help="Zenoh session mode: peer, client or router")] = None,
         ) -> None:
-    """Run a recipe file as ``__main__`` (extra arguments go to the recipe's ``sys.argv``)."""
+    """Run a recipe file as __main__ (extra arguments go to the recipe's sys.argv)."""
     if not recipe.is_file():
         raise fail(f"recipe {str(recipe)!r} is not a file")
     if transport is not None:
@@ -62,7 +62,7 @@ def run(ctx: typer.Context,
 @app.command("ui", context_settings={"allow_extra_args": True, "ignore_unknown_options": True,
                                      "help_option_names": []})
 def ui(ctx: typer.Context) -> None:
-    """Serve the web UI for a recipe running elsewhere (Zenoh or ROS 2); ``agentsctl ui --help`` lists options."""
+    """Serve the web UI for a recipe running elsewhere (Zenoh or ROS 2); 'agentsctl ui --help' lists options."""
     args = list(ctx.args)
     if "--transport" in args and args.index("--transport") + 1 < len(args):
         name = args[args.index("--transport") + 1].strip().lower()
