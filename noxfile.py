@@ -100,6 +100,22 @@ def install_check(session: nox.Session) -> None:
 
 
 @nox.session
+def build(session: nox.Session) -> None:
+    """The sdist and the wheel in ``dist/`` (``python -m build``), checked by ``twine check --strict``.
+
+    The version is pyproject.toml's (``agents_core.__version__`` reads it back); publishing is then
+    ``twine upload dist/*``.
+    """
+    session.install("build>=1.0", "twine>=5")
+    dist = Path("dist")
+    shutil.rmtree(dist, ignore_errors=True)  # twine would otherwise also check an older version's files
+    session.run("python", "-m", "build", "--outdir", str(dist))
+    built = sorted(str(p) for p in dist.iterdir() if p.suffix in (".whl", ".gz"))
+    session.run("twine", "check", "--strict", *built)
+    session.log(f"built {', '.join(built)}")
+
+
+@nox.session
 def lint(session: nox.Session) -> None:
     """Ruff: style, imports, likely bugs."""
     session.install("ruff>=0.5")
