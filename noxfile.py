@@ -204,7 +204,9 @@ def _installed(session: nox.Session, extras: str, also: list[str]) -> bool:
         return False
     text = str(output).strip()
     if text != "satisfied":
-        session.log(f"installing: {text.removeprefix('missing: ')}")
+        missing = text.removeprefix("missing: ").split(", ")
+        shown = ", ".join(missing[:4]) + (f" and {len(missing) - 4} more" if len(missing) > 4 else "")
+        session.log(f"installing what is missing: {shown}")
     return text == "satisfied"
 
 

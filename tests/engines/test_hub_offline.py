@@ -73,7 +73,7 @@ def test_speech_model_lookup_fails_at_once_too(unreachable_hub: str) -> None:
     from agents_core.engines.local_stt import _model_dir  # noqa: PLC0415
 
     start = time.monotonic()
-    with pytest.raises(ConfigError, match="the model hub cannot be used .* not in the local cache"):
+    with pytest.raises(ConfigError, match=r"the model hub cannot be used .* not in the local cache"):
         _model_dir("someone/whisper-not-cached", "SpeechToText 'ears': local model")
     assert time.monotonic() - start < model_files.HUB_CHECK_TIMEOUT_S + 2.0
 
