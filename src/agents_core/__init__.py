@@ -42,7 +42,10 @@ if TYPE_CHECKING:
     from .topics import FixedInput, QoSConfig, Topic
     from .transport import MemoryTransport, Transport, resolve_transport
 else:
-    _lazy_getattr, __dir__ = lazy_exports(__name__, _EXPORTS)
+    _lazy_getattr, _lazy_dir = lazy_exports(__name__, _EXPORTS)
+
+    def __dir__() -> list[str]:
+        return sorted({*_lazy_dir(), "__version__"})
 
     def __getattr__(name: str) -> Any:
         if name == "__version__":
