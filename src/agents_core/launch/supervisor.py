@@ -294,8 +294,8 @@ class Supervisor:
             if now >= child.respawn_at and not self._stopping.is_set():
                 child.respawn_at = None
                 child.restarts += 1
-                logger.info("respawning the process of %r (restart %d of %d)", child.name, child.restarts,
-                            self.max_retries)
+                logger.warning("respawning the process of %r (restart %d/%d)", child.name, child.restarts,
+                               self.max_retries)
                 self._spawn(child)
             return
         code = proc.poll()
@@ -313,10 +313,10 @@ class Supervisor:
         with child.state_changed:
             child.state = "crashed"
             child.state_changed.notify_all()
-        logger.error("the process of component %r (pid %d) exited with status %s", child.name, proc.pid, code)
         if child.restarts >= self.max_retries:
             child.gave_up = True
-            logger.error("giving up on component %r after %d restart(s)", child.name, child.restarts)
+            logger.error("giving up on component %r after %d restart(s) (%d/%d): its process (pid %d) exited with "
+                         "status %s", child.name, child.restarts, child.restarts, self.max_retries, proc.pid, code)
             if self._on_giveup is not None:
                 try:
                     self._on_giveup(child.name)
@@ -325,6 +325,9 @@ class Supervisor:
             return
         delay = min(self.backoff_s * 2 ** child.restarts, self.max_backoff_s) if child.restarts else 0.0
         child.respawn_at = now + delay
+        # One line says what happened and what comes next: "restart 2/3 in 1.0 s".
+        logger.error("the process of component %r (pid %d) exited with status %s; restart %d/%d in %.1f s",
+                     child.name, proc.pid, code, child.restarts + 1, self.max_retries, delay)
 
     # -- stopping -------------------------------------------------------------------------------
 

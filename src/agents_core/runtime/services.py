@@ -18,10 +18,14 @@ from ..transport.requests import check_timeout
 if TYPE_CHECKING:
     from .hooks import ComponentHooks
 
-__all__ = ["SERVICE_NAMES", "ComponentServices"]
+__all__ = ["EXECUTE_METHOD_KEYS", "SERVICE_NAMES", "ComponentServices"]
 
 #: The services of every component, each served on ``<component name>/<service>``.
 SERVICE_NAMES = ("execute_method", "set_param", "describe")
+
+#: The keys of an ``execute_method`` request: ``{"method": name, "args": [...], "kwargs": {...}, "timeout": s}``
+#: (only ``method`` is required; ``timeout`` defaults to 30 s).
+EXECUTE_METHOD_KEYS = ("method", "args", "kwargs", "timeout")
 
 #: Results sent back as they are; anything else is sent as its repr.
 _PLAIN_RESULT = (str, int, float, bool, type(None), list, dict)
@@ -48,8 +52,23 @@ class ComponentServices:
         return self._component.component_description()
 
     def execute_method(self, request: dict[str, Any]) -> dict[str, Any]:
-        """Run the ``@component_action`` named ``request["method"]`` with ``args`` / ``kwargs``, on the worker."""
+        """Run the ``@component_action`` named ``request["method"]`` with ``args`` / ``kwargs``, on the worker.
+
+        The request is ``{"method": name, "args": [...], "kwargs": {...}, "timeout": seconds}``
+        (:data:`EXECUTE_METHOD_KEYS`; only ``method`` is required). Another key, or no ``method``,
+        is refused with a message naming the expected keys (a misspelt ``"name"`` would otherwise
+        read as "no action None").
+        """
         component = self._component
+        expected = ", ".join(repr(k) for k in EXECUTE_METHOD_KEYS)
+        if not isinstance(request, dict):
+            raise ConfigError(f"execute_method on {component.component_name!r} needs a mapping with the keys "
+                              f"{expected}, got {type(request).__name__}")
+        unknown = sorted(str(k) for k in request if k not in EXECUTE_METHOD_KEYS)
+        if unknown or "method" not in request:
+            what = f"unknown key(s) {unknown}" if unknown else "no 'method' key"
+            raise ConfigError(f"execute_method on {component.component_name!r}: {what}; expected keys {expected} "
+                              f"(only 'method' is required), e.g. {{'method': 'set_word', 'args': ['hello']}}")
         method_name = request.get("method")
         actions = component.available_actions()
         if method_name not in actions:
