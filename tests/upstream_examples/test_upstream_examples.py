@@ -210,7 +210,7 @@ def test_event_driven_visual_description_on_zenoh(recipe: Path, ollama: OllamaTe
     with launched_as_script(recipe, _ssd_ports(ollama), tmp_path) as (proc, asker):
         descriptions = _collect(asker, "/description", "String")
         assert ask_until(asker, Topic(name="/image_raw", msg_type="Image"), picture,
-                         lambda: bool(descriptions) or proc.proc.poll() is not None, timeout=90, every=1.0)
+                         lambda: bool(descriptions) or proc.proc.poll() is not None, timeout=180, every=1.0)
         assert descriptions
     assert "say briefly what they look like" in descriptions[0]
 

@@ -190,8 +190,9 @@ class RecipeProcess:
                         f"{self.output()}")
 
     def output(self, limit: int = 3000) -> str:
-        """The last ``limit`` characters of the recipe's stdout and stderr."""
-        self._log.flush()
+        """The last ``limit`` characters of the recipe's stdout and stderr (also after :meth:`stop`)."""
+        if not self._log.closed:
+            self._log.flush()
         stdout = "\n".join(self.lines)[-limit:]
         return f"--- stdout ---\n{stdout}\n--- stderr ---\n{self.log_path.read_text(errors='replace')[-limit:]}"
 
