@@ -32,6 +32,8 @@ METRICS: dict[str, list[tuple[str, str, str, str]]] = {
     # Memory component (paced: one value per step) vs emem's add with the same embeddings; search via execute_method.
     "memory": [("stored_per_s", "obs/s", "higher", "writes_per_s"),
                ("semantic_search", "us", "lower", "search_median_us")],
+    # Cortex's own cost per step: the plan -> the first dispatched action, model time excluded (no raw side).
+    "cortex": [("overhead_p50", "ms", "lower", "latency_ms.p50"), ("overhead_p99", "ms", "lower", "latency_ms.p99")],
     # framework: the five-stage recipe with multiprocessing=True; raw: the same recipe in one process.
     # respawn: SIGKILL of a component process -> its new process active (multiprocessing only).
     "processes": [("start_to_active", "ms", "lower", "median_ms"),
