@@ -30,6 +30,7 @@ __all__ = [
     "Model",
     "OllamaModel",
     "RoboBrain2",
+    "SpeechT5",
     "TransformersLLM",
     "TransformersMLLM",
     "TransformersTTS",
@@ -368,6 +369,24 @@ class TransformersTTS(Model):
     def _get_init_params(self) -> dict[str, Any]:
         return _with_source({"checkpoint": self.checkpoint, "voice": self.voice,
                              "vocoder_checkpoint": self.vocoder_checkpoint}, self.source)
+
+
+#: SpeechT5's CMU ARCTIC speakers, the voices upstream's ``SpeechT5`` model offers.
+SPEECHT5_VOICES: Final[tuple[str, ...]] = ("awb", "bdl", "clb", "jmk", "ksp", "rms", "slt")
+
+
+@define(kw_only=True)
+class SpeechT5(TransformersTTS):
+    """Microsoft's SpeechT5 text-to-speech model, under upstream 0.6.0's name (RoboML serves it as a
+    :class:`TransformersTTS`, with the HiFi-GAN vocoder it needs).
+
+    :param checkpoint: hub id (default ``"microsoft/speecht5_tts"``).
+    :param voice: one of the CMU ARCTIC speakers ``"awb"``, ``"bdl"``, ``"clb"`` (default),
+        ``"jmk"``, ``"ksp"``, ``"rms"``, ``"slt"``.
+    """
+
+    checkpoint: str = field(default="microsoft/speecht5_tts", validator=_non_empty_str)
+    voice: str | None = field(default="clb", validator=base_validators.in_(SPEECHT5_VOICES))
 
 
 @define(kw_only=True)

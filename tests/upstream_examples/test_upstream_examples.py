@@ -93,11 +93,8 @@ def test_prompt_engineering(recipe: Path, ollama: OllamaTestServer, roboml: Robo
 # -- conversational agent with audio ------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("recipe", [
-    pytest.param(V060 / "conversational_agent_with_audio.py", id="0.6.0", marks=_issue26(
-        "agents_core.models has no SpeechT5 (0.6.0's text-to-speech model)")),
-    pytest.param(V074 / "conversational_agent_with_audio.py", id="0.7.4"),
-])
+# 0.6.0's variant (SpeechT5, VAD, playback on the device) is test_upstream_audio_0_6_0.py.
+@pytest.mark.parametrize("recipe", [pytest.param(V074 / "conversational_agent_with_audio.py", id="0.7.4")])
 def test_conversational_agent_with_audio(recipe: Path, ollama: OllamaTestServer, roboml: RoboMLTestServer,
                                          monkeypatch: pytest.MonkeyPatch) -> None:
     with launched_here(recipe, _ports(ollama, roboml), monkeypatch) as launcher:

@@ -32,6 +32,7 @@ from .registry import (
     decoder_for,
     derive_codec,
     encode_value,
+    plain_codec,
     register_codec,
     set_decode_limits,
 )
@@ -54,6 +55,7 @@ __all__ = [
     "describe_schemas",
     "encode_value",
     "pack",
+    "plain_codec",
     "register_codec",
     "schema_list",
     "schema_name",

@@ -4,7 +4,9 @@
 returns a msgpack-able document (numpy arrays anywhere in it travel out of band, see
 :mod:`agents_zenoh.codecs.framing`) and its ``decode`` turns such a document back into the value.
 A registered type without one gets a codec derived from its value class (:func:`derive_codec`)
-the first time it is asked for (:func:`codec_for`). :func:`encode_value`, :func:`decode_value`
+the first time it is asked for (:func:`codec_for`); a type with neither a value class nor a ROS
+message (upstream allows such types) travels as plain msgpack, JSON-like values only
+(:func:`plain_codec`). :func:`encode_value`, :func:`decode_value`
 and :func:`decoder_for` frame and unframe a value under its type's codec and decode limits
 (:func:`set_decode_limits` changes them).
 """
@@ -24,7 +26,7 @@ from agents_core.types import is_builtin_type
 
 from .derivation import Codec, list_codec, struct_codec, value_class_codec
 from .errors import CodecError
-from .framing import pack, unpack
+from .framing import NDARRAY_KEY, pack, unpack
 from .limits import DEFAULT_DECODE_LIMITS, STRUCT_LIMITS, DecodeLimits, limits_for
 from .ros_messages import ros_codec
 
@@ -36,6 +38,7 @@ __all__ = [
     "decoder_for",
     "derive_codec",
     "encode_value",
+    "plain_codec",
     "register_codec",
     "registered_codecs",
     "set_decode_limits",
@@ -76,8 +79,66 @@ def derive_codec(msg_type: type[SupportedType]) -> Codec | None:
     return None
 
 
+#: What a value of a type without a value class may be made of on Zenoh: JSON's kinds (a tuple
+#: travels as a list). Anything else has no defined wire form, so it is refused rather than guessed.
+_PLAIN_SCALARS = (str, int, float, bool, type(None))
+
+
+def _check_plain(type_name: str, value: Any, when: str) -> None:
+    """Raise :class:`CodecError` unless ``value`` is JSON-like (walked iteratively: depth is the peer's choice)."""
+    stack: list[tuple[Any, str]] = [(value, "value")]
+    while stack:
+        item, where = stack.pop()
+        if isinstance(item, _PLAIN_SCALARS):
+            continue
+        if isinstance(item, dict):
+            for key, sub in item.items():
+                if not isinstance(key, str):
+                    raise CodecError(f"{type_name} has no value_class, so it travels on Zenoh as plain msgpack with "
+                                     f"str keys only; {when} {where} has the key {key!r}")
+                if key == NDARRAY_KEY:
+                    raise CodecError(f"{type_name}: {when} {where} uses the key {NDARRAY_KEY!r}, which the wire "
+                                     "format reserves for numpy arrays")
+                stack.append((sub, f"{where}[{key!r}]"))
+        elif isinstance(item, list | tuple):
+            stack.extend((sub, f"{where}[{i}]") for i, sub in enumerate(item))
+        else:
+            raise CodecError(f"{type_name} has no value_class, so it travels on Zenoh as plain msgpack: JSON-like "
+                             f"values only (dict with str keys, list, tuple, str, int, float, bool, None); {when} "
+                             f"{where} is a {type(item).__name__}. Give the type a value_class (an attrs class) "
+                             "or register a codec with agents_zenoh.register_codec")
+
+
+def plain_codec(msg_type: type[SupportedType]) -> Codec:
+    """The codec of a type with neither a value class nor a ROS message: the value itself as msgpack.
+
+    Only JSON-like values travel (dicts with str keys, lists, tuples as lists, str, int, float,
+    bool, None); anything else is refused with a :class:`CodecError` naming the type, on publish
+    and on receipt (a peer may send any document). Decoded under :data:`DEFAULT_DECODE_LIMITS`.
+    """
+    name = msg_type.type_name()
+
+    def encode(value: Any) -> Any:
+        _check_plain(name, value, "the published")
+        return value
+
+    def decode(document: Any) -> Any:
+        _check_plain(name, document, "the received")
+        return document
+
+    return Codec(name, encode, decode, "JSON-like value (plain msgpack; the type has no value_class)",
+                 DEFAULT_DECODE_LIMITS)
+
+
+def _has_no_wire_form(msg_type: type[SupportedType]) -> bool:
+    return (msg_type.value_class is object and getattr(msg_type, "_ros_type", None) is None
+            and not is_builtin_type(msg_type))
+
+
 def _register_derived(msg_type: type[SupportedType]) -> Codec | None:
     codec = derive_codec(msg_type)
+    if codec is None and _has_no_wire_form(msg_type):
+        codec = plain_codec(msg_type)
     if codec is None:
         return None
     codec = attrs.evolve(codec, limits=limits_for(msg_type))

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import io
 import re
+import threading
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -36,7 +37,7 @@ from ... import supported_types as st
 from ...actions import component_action
 from ...clients.model_base import ModelClient
 from ...config import VisionConfig
-from ...errors import AlgorithmFailure, WiringError
+from ...errors import AlgorithmFailure, ConfigError, WiringError
 from ...messages import CompressedImageMsg, DetectionsMsg, Header, ImageMsg, TrackingsMsg
 from ...supported_types import (
     CompressedImage,
@@ -50,6 +51,7 @@ from ...supported_types import (
 from ...topics import Topic
 from ..component_base import TriggerType
 from ..model_component import ModelComponent
+from .recording import MAX_FPS, MAX_RECORDING_S, record_frames, recording_path, write_gif
 from .tracking import ObjectTracker
 
 __all__ = ["Vision", "draw_detections", "frame_to_rgb"]
@@ -192,6 +194,15 @@ class Vision(ModelComponent):
         #: Frames processed and frames refused since the component was created.
         self.frames_processed = 0
         self.frames_refused = 0
+        # Set at shutdown: background recordings end there and write what they have.
+        self._recordings_stop = threading.Event()
+        # Per camera: (arrivals, latest frame), for record_video. A callback's ``msg`` is pinned to
+        # the frame being detected while a step runs, so a recording sampling it would repeat that one.
+        self._arrivals_lock = threading.Lock()
+        self._arrivals: dict[str, tuple[int, Any]] = {}
+        callbacks = {**self.callbacks, **self.trig_callbacks}
+        for source in self._sources:
+            callbacks[source.name].on_callback_execute(self._arrival_hook(source.name))
 
     def _new_tracker(self) -> ObjectTracker:
         return ObjectTracker(max_age=self.config.tracking_max_age, iou_threshold=self.config.tracking_iou_threshold)
@@ -206,6 +217,21 @@ class Vision(ModelComponent):
             model_path=cfg.local_model_path, device=cfg.device_local_model, ncpu=cfg.ncpu_local_model,
             threshold=cfg.threshold, nms_iou=cfg.nms_threshold, labels=cfg.dataset_labels,
             labels_path=cfg.dataset_labels_file, input_height=cfg.input_height, input_width=cfg.input_width)
+
+    def _arrival_hook(self, name: str) -> Any:
+        def note(value: Any) -> None:
+            with self._arrivals_lock:
+                self._arrivals[name] = (self._arrivals.get(name, (0, None))[0] + 1, value)
+
+        return note
+
+    def _latest_arrival(self, name: str) -> tuple[int, Any]:
+        with self._arrivals_lock:
+            return self._arrivals.get(name, (0, None))
+
+    def custom_on_shutdown(self) -> None:
+        self._recordings_stop.set()
+        super().custom_on_shutdown()
 
     def _warmup(self, *args: Any, **kwargs: Any) -> None:
         self._call_inference({"images": [np.zeros((64, 64, 3), np.uint8)], **self.inference_params})
@@ -370,6 +396,65 @@ class Vision(ModelComponent):
         if save_path is not None:
             answer["path"] = _save_picture(frames[0][2], self._sources[frames[0][0]].name, save_path)
         return answer
+
+    @component_action(description={
+        "description": "Record a video from a camera for some seconds (saved as an animated GIF).",
+        "parameters": {"type": "object", "properties": {
+            "topic_name": {"type": "string", "description": "the camera topic (optional: the first camera)"},
+            "duration": {"type": "number", "description": "seconds to record (default 5)"},
+            "save_path": {"type": "string", "description": "the folder to save the video in (optional)"}},
+            "required": []},
+    })
+    def record_video(self, topic_name: str | None = None, duration: float = 5.0, save_path: str = "~/emos/videos",
+                     fps: int = 30, wait: bool = False) -> str:
+        """Record ``duration`` seconds of camera ``topic_name`` (None: the first camera) at up to ``fps``
+        frames per second into an animated GIF in ``save_path``; returns the file's path.
+
+        As upstream, the recording runs in a background thread and the call returns at once; the
+        file appears at the returned path, complete, when the recording ends (if no frame arrived
+        nothing is written and a warning says so). ``wait=True`` returns once the file is written
+        and raises :class:`~agents_core.errors.AlgorithmFailure` if no frame arrived. Detection goes
+        on while recording (upstream pauses it when the camera is the trigger). Needs Pillow.
+        """
+        index_of = {t.name: i for i, t in enumerate(self._sources)}
+        name = topic_name if topic_name is not None else self._sources[0].name
+        if name not in index_of:
+            raise WiringError(f"component {self.component_name!r}: {name!r} is not one of its cameras "
+                              f"{sorted(index_of)}")
+        if isinstance(duration, bool) or not isinstance(duration, int | float) or not 0 < duration <= MAX_RECORDING_S:
+            raise ConfigError(f"record_video: duration must be in (0, {MAX_RECORDING_S:.0f}] seconds, got {duration!r}")
+        if isinstance(fps, bool) or not isinstance(fps, int) or not 1 <= fps <= MAX_FPS:
+            raise ConfigError(f"record_video: fps must be an int in [1, {MAX_FPS}], got {fps!r}")
+        path = recording_path(save_path, name)
+        max_side = self.config.max_image_side
+
+        def record() -> str:
+            frames, cut = record_frames(lambda: self._latest_arrival(name),
+                                        lambda value: frame_to_rgb(value, max_side)[1],
+                                        float(duration), fps, stop=self._recordings_stop.is_set)
+            end = time.monotonic()
+            if cut:
+                self._logger.warning("recording of %r ended early: %s", name, cut)
+            if not frames:
+                raise AlgorithmFailure(f"component {self.component_name!r}: no frame arrived on {name!r} in "
+                                       f"{duration} s; nothing recorded")
+            write_gif(frames, path, fps, end)
+            self._logger.info("saved %d frames from %r to %s", len(frames), name, path)
+            return str(path)
+
+        if wait:
+            return record()
+
+        def record_in_background() -> None:
+            try:
+                record()
+            except Exception as exc:  # a background thread has no caller to raise to
+                self._logger.warning("record_video on %r: %s", name, exc)
+
+        threading.Thread(target=record_in_background, name=f"{self.component_name}-record-{name}",
+                         daemon=True).start()
+        self._logger.info("recording %r for %s s into %s", name, duration, path)
+        return str(path)
 
 
 def _save_picture(pixels: npt.NDArray[np.uint8], source: str, folder: str) -> str:
