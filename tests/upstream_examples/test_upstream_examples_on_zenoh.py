@@ -40,7 +40,8 @@ pytestmark = [pytest.mark.zenoh, pytest.mark.slow]
 
 @pytest.fixture
 def ollama() -> Iterator[OllamaTestServer]:
-    with OllamaTestServer(models=OLLAMA_MODELS) as server:
+    server = OllamaTestServer(models=OLLAMA_MODELS)
+    with server:
         yield server
 
 
@@ -120,7 +121,8 @@ def test_go_to_x_and_tool_calling_0_6_0_in_processes(name: str, chroma_port: int
                                                      tmp_path: Path) -> None:
     reply = '{"position": "1.0, 2.0"}'
     tool_calls = [{"name": "get_coordinates", "arguments": {"position": [1.0, 2.0, 0.0]}}]
-    with OllamaTestServer(models=OLLAMA_MODELS, reply=reply, tool_calls=tool_calls) as server:
+    server = OllamaTestServer(models=OLLAMA_MODELS, reply=reply, tool_calls=tool_calls)
+    with server:
         host = {"OLLAMA_HOST": f"127.0.0.1:{server.port}"}  # ChromaDB()'s embeddings
         with pytest.MonkeyPatch.context() as mp:  # the collection is filled from this process
             mp.setenv("OLLAMA_HOST", host["OLLAMA_HOST"])
