@@ -129,6 +129,10 @@ def encode_value(value: Any, where: str = "value") -> Any:
     if isinstance(value, dict) and all(isinstance(k, str) for k in value) and TAG not in value:
         return {k: encode_value(v, f"{where}[{k!r}]") for k, v in value.items()}
     codec = _by_class.find_for_class(type(value)) or _client_codec_for(value)
+    if codec is None and attrs.has(type(value)):
+        # Any attrs class (SemanticRouter's Route, a recipe's own data class), not only configs:
+        # rebuilt from its init fields, as a BaseAttrs is.
+        codec = _codecs.get("attrs")
     if codec is None and inspect.isroutine(value):
         return {TAG: "function", "v": _encode_function(value, where)}
     if codec is None and isinstance(value, Event):
