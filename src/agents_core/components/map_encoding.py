@@ -15,7 +15,9 @@ upsert: the newest value wins); the others accumulate entries with their time.
 
 Never at a guessed place: a value whose position is older than ``config.position_timeout`` (or
 missing), that arrives before any map, or whose position is outside the grid, is not written and
-is counted (:attr:`MapEncoding.stats`). When the database cannot be written, the step fails with the
+is counted (:attr:`MapEncoding.stats`). The component starts without a map, as upstream's
+(``MapConfig.map_wait_timeout`` / ``require_map`` make configure wait for one, or fail without it).
+When the database cannot be written, the step fails with the
 client's typed error (health ``COMPONENT_FAILURE``), the entries stay in a buffer of
 ``config.buffer_size`` and are retried by the next steps; a full buffer drops its oldest entry
 (counted).
@@ -318,7 +320,8 @@ class MapEncoding(Component):
             if self.config.require_map:
                 raise ComponentError(msg + " (publish it with durability='transient_local', or set "
                                      "MapConfig.require_map=False to start without it)")
-            self._logger.warning("%s; values are dropped (counted) until it arrives", msg)
+            # The default, as upstream (which reads the map at each step): start now, use the map when it comes.
+            self._logger.info("%s; values are dropped (counted as no_map) until it arrives", msg)
         try:
             self._flush()  # connects, and writes the pre-defined points
         except ModelClientError as exc:
