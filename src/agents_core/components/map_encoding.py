@@ -46,7 +46,7 @@ from attrs import define, field
 
 from ..actions import component_action
 from ..clients.db_base import DBClient
-from ..config import MapConfig
+from ..config import BaseAttrs, MapConfig
 from ..errors import ComponentError, ConfigError, ModelClientError, WiringError
 from ..messages import DetectionsMsg, OccupancyGridMsg, OdometryMsg, PoseMsg, StreamingStringMsg, TrackingsMsg
 from ..status import HealthStatus
@@ -89,7 +89,19 @@ def _xy(position: Any, what: str) -> tuple[float, float]:
 def _points(value: Any) -> list[tuple[Any, str]]:
     if isinstance(value, str | bytes) or not isinstance(value, Iterable):
         raise ConfigError(f"MapLayer.pre_defined must be a list of (position, text), got {value!r:.100}")
-    return list(value)
+    # Positions become tuples of floats (an array too, as upstream's recipes give), so a layer can be sent
+    # to a component process; a malformed point is left as it is for the validator to name.
+    return [_as_float_point(point) for point in value]
+
+
+def _as_float_point(point: Any) -> Any:
+    if not (isinstance(point, tuple | list) and len(point) == 2 and isinstance(point[0], Iterable)
+            and not isinstance(point[0], str | bytes)):
+        return point
+    try:
+        return (tuple(float(v) for v in point[0]), point[1])
+    except (TypeError, ValueError):
+        return point
 
 
 def _check_pre_defined(instance: Any, attribute: Any, value: Any) -> None:
@@ -100,7 +112,7 @@ def _check_pre_defined(instance: Any, attribute: Any, value: Any) -> None:
 
 
 @define(kw_only=True)
-class MapLayer:
+class MapLayer(BaseAttrs):  # BaseAttrs: a layer can be sent to the component's own process
     """One layer of a :class:`MapEncoding` map.
 
     :param subscribes_to: the topic whose values are stored (String, StreamingString: each finished
