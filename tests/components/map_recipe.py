@@ -34,7 +34,8 @@ def build(db_client: DBClient, collection: str) -> MapEncoding:
     """The recipe's component (the part that is the same on every transport)."""
     return MapEncoding(layers=[MapLayer(subscribes_to=SEEN, temporal_change=True)], position=ODOM, map_topic=MAP,
                        db_client=db_client, trigger=20.0,
-                       config=MapConfig(map_name=collection, distance_func="cosine", map_wait_timeout=20.0))
+                       config=MapConfig(map_name=collection, distance_func="cosine", map_wait_timeout=20.0,
+                                        require_map=True))
 
 
 def _grid() -> OccupancyGridMsg:

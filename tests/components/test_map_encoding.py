@@ -118,7 +118,8 @@ def seen(*labels: str) -> DetectionsMsg:
 
 
 def mapper(db: DBClient, layers: list[MapLayer] | None = None, **config: Any) -> MapEncoding:
-    config.setdefault("map_wait_timeout", 2.0)
+    config.setdefault("map_wait_timeout", 2.0)  # these tests start with the map there: wait for it, fail without
+    config.setdefault("require_map", True)
     return MapEncoding(layers=layers or [MapLayer(subscribes_to=SEEN, temporal_change=True),
                                          MapLayer(subscribes_to=HEARD)],
                        position=config.pop("position", ODOM), map_topic=MAP, db_client=db,
@@ -228,6 +229,26 @@ def test_no_map_fails_configure_clearly_or_waits_for_it_when_configured_so() -> 
         send(HEARD, "found")
         settle(m, 1)
     assert [d for d, _ in db.rows["map"].values()] == ["found"]
+
+
+def test_by_default_it_starts_at_once_without_a_map_and_drops_values_until_one_arrives() -> None:
+    # Upstream's MapEncoding reads the map at each step: configure does not wait for it.
+    db = MapDB()
+    m = MapEncoding(layers=[MapLayer(subscribes_to=HEARD)], position=ODOM, map_topic=MAP, db_client=db,
+                    config=MapConfig(), trigger=20.0)
+    assert (m.config.map_wait_timeout, m.config.require_map) == (0.0, False)
+    started = time.monotonic()
+    with running(m, publish_map=False) as (_, send):
+        assert time.monotonic() - started < 2.0  # no wait for the map (the old default waited 10 s)
+        send(ODOM, odom(0.0, 0.0))
+        assert wait_for(lambda: m._fix is not None)
+        send(HEARD, "before the map")
+        assert wait_for(lambda: m.stats["no_map"] == 1)
+        send(MAP, grid())
+        assert wait_for(lambda: m._grid is not None)
+        send(HEARD, "after the map")
+        settle(m, 1)
+    assert [d for d, _ in db.rows["map"].values()] == ["after the map"]
 
 
 def test_a_database_that_is_down_sets_health_buffers_boundedly_and_retries() -> None:

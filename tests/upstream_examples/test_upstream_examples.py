@@ -258,13 +258,45 @@ def test_go_to_x_and_tool_calling_0_6_0(name: str, chroma_port: int,  # noqa: F8
     assert list(goals[0].position) == [1.0, 2.0, 0.0]
 
 
-@_issue26("MapEncoding here waits for a grid map at configure (MapConfig.require_map, 10 s) where upstream reads "
-          "it at each step; this test has no map source yet")
+def _map_entries(port: int, layer: str) -> list[str]:
+    """The documents MapEncoding wrote into the Chroma collection ``map`` for ``layer``."""
+    from agents_core.clients import ChromaClient  # noqa: PLC0415
+    from agents_core.vectordbs import ChromaDB  # noqa: PLC0415
+
+    client = ChromaClient(ChromaDB(), port=port)
+    client.initialize()
+    try:
+        found = client.metadata_query({"collection_name": "map", "where": {"layer": layer}})
+    except Exception:  # the collection does not exist until the first write
+        return []
+    finally:
+        client.deinitialize()
+    return list(found.get("documents") or [])
+
+
 def test_semantic_map_0_6_0(ollama: OllamaTestServer, roboml: RoboMLTestServer, chroma_port: int,  # noqa: F811
                             monkeypatch: pytest.MonkeyPatch) -> None:
+    from agents_core.messages import Header, OccupancyGridMsg, OdometryMsg, PoseMsg  # noqa: PLC0415
+
     monkeypatch.setenv("UPSTREAM_TRIGGER", "2.0")  # a tick every 0.5 s instead of every 15 s
+    monkeypatch.setenv("OLLAMA_HOST", f"127.0.0.1:{ollama.port}")  # ChromaDB()'s embeddings
+    # The map arrives after the component started (upstream reads it at each step): no wait at configure.
+    grid = OccupancyGridMsg(data=np.zeros((40, 40), np.int8), resolution=0.5,
+                            origin=PoseMsg(position=[-10.0, -10.0, 0.0]), header=Header(frame_id="map"))
     with launched_here(V060 / "semantic_map.py", _ports(ollama, roboml, chroma_port), monkeypatch) as launcher:
         t = launcher.transport
-        grids = _collect(t, "map", "OccupancyGrid")
-        t.create_publisher(Topic(name="odom", msg_type="Odometry")).publish({})
-        assert ask_until(t, Topic(name="image_raw", msg_type="Image"), _image(), lambda: bool(grids), every=1.0)
+        feeds = [(t.create_publisher(Topic(name=name, msg_type=kind)), value) for name, kind, value in (
+            ("map", "OccupancyGrid", grid),
+            ("odom", "Odometry", OdometryMsg(pose=PoseMsg(position=[1.0, 2.0, 0.0]), header=Header(frame_id="map"))),
+            ("image_raw", "Image", _image()))]
+        rooms = _collect(t, "introspection_answer", "String")
+
+        def fed_and_mapped() -> bool:
+            # Position, map and camera keep coming, as on a robot (a value needs a position younger than 2 s).
+            for pub, value in feeds:
+                pub.publish(value)
+            return all(_map_entries(chroma_port, layer) for layer in ("detections", "introspection_answer"))
+
+        assert wait_for(fed_and_mapped, timeout=60, interval=0.5)
+    assert set(rooms) <= {"office", "bedroom", "kitchen"} and rooms, rooms  # the pre-processor kept one word
+    assert _map_entries(chroma_port, "introspection_answer")[0] in {"office", "bedroom", "kitchen"}

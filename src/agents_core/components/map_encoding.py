@@ -15,7 +15,9 @@ upsert: the newest value wins); the others accumulate entries with their time.
 
 Never at a guessed place: a value whose position is older than ``config.position_timeout`` (or
 missing), that arrives before any map, or whose position is outside the grid, is not written and
-is counted (:attr:`MapEncoding.stats`). When the database cannot be written, the step fails with the
+is counted (:attr:`MapEncoding.stats`). The component starts without a map, as upstream's
+(``MapConfig.map_wait_timeout`` / ``require_map`` make configure wait for one, or fail without it).
+When the database cannot be written, the step fails with the
 client's typed error (health ``COMPONENT_FAILURE``), the entries stay in a buffer of
 ``config.buffer_size`` and are retried by the next steps; a full buffer drops its oldest entry
 (counted).
@@ -44,7 +46,7 @@ from attrs import define, field
 
 from ..actions import component_action
 from ..clients.db_base import DBClient
-from ..config import MapConfig
+from ..config import BaseAttrs, MapConfig
 from ..errors import ComponentError, ConfigError, ModelClientError, WiringError
 from ..messages import DetectionsMsg, OccupancyGridMsg, OdometryMsg, PoseMsg, StreamingStringMsg, TrackingsMsg
 from ..status import HealthStatus
@@ -87,7 +89,19 @@ def _xy(position: Any, what: str) -> tuple[float, float]:
 def _points(value: Any) -> list[tuple[Any, str]]:
     if isinstance(value, str | bytes) or not isinstance(value, Iterable):
         raise ConfigError(f"MapLayer.pre_defined must be a list of (position, text), got {value!r:.100}")
-    return list(value)
+    # Positions become tuples of floats (an array too, as upstream's recipes give), so a layer can be sent
+    # to a component process; a malformed point is left as it is for the validator to name.
+    return [_as_float_point(point) for point in value]
+
+
+def _as_float_point(point: Any) -> Any:
+    if not (isinstance(point, tuple | list) and len(point) == 2 and isinstance(point[0], Iterable)
+            and not isinstance(point[0], str | bytes)):
+        return point
+    try:
+        return (tuple(float(v) for v in point[0]), point[1])
+    except (TypeError, ValueError):
+        return point
 
 
 def _check_pre_defined(instance: Any, attribute: Any, value: Any) -> None:
@@ -98,7 +112,7 @@ def _check_pre_defined(instance: Any, attribute: Any, value: Any) -> None:
 
 
 @define(kw_only=True)
-class MapLayer:
+class MapLayer(BaseAttrs):  # BaseAttrs: a layer can be sent to the component's own process
     """One layer of a :class:`MapEncoding` map.
 
     :param subscribes_to: the topic whose values are stored (String, StreamingString: each finished
@@ -318,7 +332,8 @@ class MapEncoding(Component):
             if self.config.require_map:
                 raise ComponentError(msg + " (publish it with durability='transient_local', or set "
                                      "MapConfig.require_map=False to start without it)")
-            self._logger.warning("%s; values are dropped (counted) until it arrives", msg)
+            # The default, as upstream (which reads the map at each step): start now, use the map when it comes.
+            self._logger.info("%s; values are dropped (counted as no_map) until it arrives", msg)
         try:
             self._flush()  # connects, and writes the pre-defined points
         except ModelClientError as exc:

@@ -22,7 +22,7 @@ from attrs import define, field
 
 from ..clients.db_base import DBClient
 from ..clients.model_base import ModelClient
-from ..config import SemanticRouterConfig
+from ..config import BaseAttrs, SemanticRouterConfig
 from ..errors import ConfigError, ProtocolError, WiringError
 from ..supported_types import String
 from ..topics import Topic
@@ -43,7 +43,7 @@ def _check_topic(instance: Any, attribute: Any, value: Any) -> None:
 
 
 @define(kw_only=True)
-class Route:
+class Route(BaseAttrs):  # BaseAttrs: a route can be sent to the router's own process
     """A destination for the router.
 
     :param routes_to: the String topic texts of this kind are published on.
