@@ -33,10 +33,6 @@ SOUND_STANDIN = Path(__file__).resolve().parent / "sound_device_standin"
 OLLAMA_MODELS = ["qwen2.5vl:latest", "llama3.2:3b", "bge-large:latest"]
 QUESTION = "What is the capital of France?"  # one of the chat route's own samples
 
-_NO_SPEECHT5 = pytest.mark.xfail(strict=True, reason=(
-    "issue 26: agents_core.models has no SpeechT5 (0.6.0's text-to-speech model), so the recipe's import fails "
-    "(and the RoboML stand-in serves no SpeechT5 class)"))
-
 
 @pytest.fixture
 def servers(chroma_port: int, monkeypatch: pytest.MonkeyPatch) -> Iterator[dict[str, Any]]:  # noqa: F811
@@ -98,7 +94,6 @@ def _feed_until(transport: Any, done: Any, *, question: bool, timeout: float) ->
             pub.close()
 
 
-@_NO_SPEECHT5
 def test_complete_agent_in_one_process(servers: dict[str, Any], monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setitem(sys.modules, "sounddevice", sound)  # TextToSpeech imports it at configure
     sound.played.clear()
@@ -117,7 +112,6 @@ def test_complete_agent_in_one_process(servers: dict[str, Any], monkeypatch: pyt
     assert _map_documents(chroma, "introspection_answer")[0] in {"office", "bedroom", "kitchen"}
 
 
-@_NO_SPEECHT5
 @pytest.mark.zenoh
 def test_complete_agent_multiprocessing_on_zenoh(servers: dict[str, Any], tmp_path: Path) -> None:
     # Every component process finds the sound card stand-in first on its path.
