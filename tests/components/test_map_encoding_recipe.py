@@ -9,6 +9,7 @@ process: one Zenoh session; on ROS 2 with a plain rclpy robot beside it) run the
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Callable
 from typing import Any
 
@@ -89,6 +90,10 @@ class _PlainRosRobot:
         from nav_msgs.msg import OccupancyGrid, Odometry  # noqa: PLC0415
         from rclpy.context import Context  # noqa: PLC0415
         from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: PLC0415
+
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", DeprecationWarning)  # lark (via rosidl) imports sre_parse
+            import rosidl_generator_py  # noqa: F401, PLC0415
 
         self._odometry_type = Odometry
         self._context = Context()
