@@ -33,6 +33,7 @@ from .test_upstream_examples import (
     _collect,
     _fill_the_map_collection,
     _image,
+    _map_entries,
     _ports,
 )
 
@@ -133,3 +134,30 @@ def test_go_to_x_and_tool_calling_0_6_0_in_processes(name: str, chroma_port: int
             assert _feed(asker, proc, Topic(name="goto_in", msg_type="String"), "Go to the kitchen", goals)
     assert _in_own_processes(proc, "go_to_x")
     assert list(goals[0].position) == [1.0, 2.0, 0.0]
+
+
+def test_semantic_map_0_6_0_in_processes(ollama: OllamaTestServer, roboml: RoboMLTestServer,
+                                         chroma_port: int, tmp_path: Path) -> None:  # noqa: F811
+    from agents_core.messages import Header, OccupancyGridMsg, OdometryMsg, PoseMsg  # noqa: PLC0415
+
+    grid = OccupancyGridMsg(data=np.zeros((40, 40), np.int8), resolution=0.5,
+                            origin=PoseMsg(position=[-10.0, -10.0, 0.0]), header=Header(frame_id="map"))
+    odom = OdometryMsg(pose=PoseMsg(position=[1.0, 2.0, 0.0]), header=Header(frame_id="map"))
+    # A tick every 0.5 s instead of every 15 s; ChromaDB() embeds through the stand-in in every process.
+    env = {"UPSTREAM_TRIGGER": "2.0", "OLLAMA_HOST": f"127.0.0.1:{ollama.port}"}
+    with launched_in_processes(V060 / "semantic_map.py", _ports(ollama, roboml, chroma_port), tmp_path,
+                               env=env) as (proc, asker):
+        feeds = [(asker.create_publisher(Topic(name=name, msg_type=kind)), value) for name, kind, value in (
+            ("map", "OccupancyGrid", grid), ("odom", "Odometry", odom), ("image_raw", "Image", _image()))]
+
+        def fed_and_mapped() -> bool:
+            # Position, map and camera keep coming, as on a robot (a value needs a recent position).
+            if proc.proc.poll() is not None:
+                return True
+            for pub, value in feeds:
+                pub.publish(value)
+            return all(_map_entries(chroma_port, layer) for layer in ("detections", "introspection_answer"))
+
+        assert wait_for(fed_and_mapped, timeout=HANG_GUARD, interval=0.5) and proc.proc.poll() is None
+    assert _in_own_processes(proc, "map_encoding")
+    assert _map_entries(chroma_port, "introspection_answer")[0] in {"office", "bedroom", "kitchen"}
