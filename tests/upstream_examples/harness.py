@@ -165,11 +165,14 @@ def launched_in_processes(recipe: Path, ports: Mapping[str, int | str], tmp_path
     """
     endpoint = f"tcp/127.0.0.1:{free_tcp_port()}"
     namespace = f"upstreammp{os.getpid()}x{free_tcp_port()}"
-    python_path = os.pathsep.join(p for p in (str(ROOT), os.environ.get("PYTHONPATH", "")) if p)
+    extra = dict(env or {})
+    # The caller's path entries (stand-ins) first, then the repository (the harness module), then ours.
+    python_path = os.pathsep.join(p for p in (extra.pop("PYTHONPATH", ""), str(ROOT),
+                                              os.environ.get("PYTHONPATH", "")) if p)
     child_env = recipe_environment(AGENTS_TRANSPORT="zenoh", AGENTS_ZENOH_MODE="peer",
                                    AGENTS_ZENOH_LISTEN=endpoint, AGENTS_ZENOH_NAMESPACE=namespace,
                                    PYTHONPATH=python_path, **{MULTIPROCESSING_ENV: "1"},
-                                   **{k: str(v) for k, v in ports.items()}, **dict(env or {}))
+                                   **{k: str(v) for k, v in ports.items()}, **extra)
     process = RecipeProcess("tests.upstream_examples.harness", [str(recipe)], tmp_path / "recipe.log",
                             cwd=recipe.parent, env=child_env)
     asker = resolve_transport("zenoh", mode="peer", listen=[], connect=[endpoint], multicast_scouting=False,

@@ -161,3 +161,40 @@ def test_semantic_map_0_6_0_in_processes(ollama: OllamaTestServer, roboml: RoboM
         assert wait_for(fed_and_mapped, timeout=HANG_GUARD, interval=0.5) and proc.proc.poll() is None
     assert _in_own_processes(proc, "map_encoding")
     assert _map_entries(chroma_port, "introspection_answer")[0] in {"office", "bedroom", "kitchen"}
+
+
+def test_conversational_agent_with_audio_0_6_0_in_processes(ollama: OllamaTestServer, roboml: RoboMLTestServer,
+                                                           tmp_path: Path) -> None:
+    import os  # noqa: PLC0415
+
+    from ..components.voice_recipe import VAD_FILE, clip, needs_stt, silence  # noqa: PLC0415
+
+    needs_stt()
+    # What `pip install --no-deps silero-vad` puts on the path, and a sound card (play_on_device=True),
+    # first on every component process's path.
+    package = tmp_path / "site" / "silero_vad"
+    (package / "data").mkdir(parents=True)
+    (package / "__init__.py").write_text("")
+    (package / "data" / "silero_vad.onnx").symlink_to(VAD_FILE)
+    standin = Path(__file__).resolve().parent / "sound_device_standin"
+    path = os.pathsep.join([str(tmp_path / "site"), str(standin)])
+    ports = {"UPSTREAM_OLLAMA_PORT": ollama.port, "UPSTREAM_ROBOML_PORT": roboml.port,
+             "UPSTREAM_ROBOML_RESP_PORT": roboml.resp_port}
+    speech = np.concatenate([silence(0.5), clip("pick_up_red_cube_16k.wav"), silence(1.0)])
+    with launched_in_processes(V060 / "conversational_agent_with_audio.py", ports, tmp_path,
+                               env={"PYTHONPATH": path}) as (proc, asker):
+        transcripts, replies = _collect(asker, "text0", "String"), _collect(asker, "text1", "String")
+        camera = asker.create_publisher(Topic(name="image_raw", msg_type="Image"))
+        microphone = asker.create_publisher(Topic(name="audio0", msg_type="Audio"))
+
+        def speak() -> bool:  # a frame and the utterance, again until the reply (discovery can drop the first)
+            if replies or proc.proc.poll() is not None:
+                return True
+            camera.publish(_image())
+            microphone.publish(AudioMsg(data=speech, sample_rate=16000))
+            return False
+
+        assert wait_for(speak, timeout=HANG_GUARD, interval=3.0) and replies, (transcripts, replies)
+    assert transcripts and "".join(replies).startswith("You said: " + transcripts[0][:10]), (transcripts, replies)
+    added = [c.payload for c in roboml.calls_of("add_node") if c.node == "speecht5"]
+    assert added and "TransformersTTS" in str(added[0]), added  # SpeechT5 loaded in the TTS component's process
