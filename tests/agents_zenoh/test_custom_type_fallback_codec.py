@@ -8,6 +8,8 @@ else is refused with an error naming the type, when published and when a peer se
 
 from __future__ import annotations
 
+import contextlib
+from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
@@ -15,11 +17,13 @@ import pytest
 
 pytest.importorskip("zenoh")
 
+from agents_core import supported_types
 from agents_core.supported_types import SupportedType, add_additional_datatypes
 from agents_core.testing.helpers import wait_for
 from agents_core.testing.pairs import zenoh_pair
 from agents_core.topics import Topic
 from agents_zenoh.codecs import DEFAULT_DECODE_LIMITS, CodecError, codec_for, decode_value, encode_value, pack
+from agents_zenoh.codecs import registry as codec_registry
 
 pytestmark = pytest.mark.zenoh
 
@@ -32,7 +36,16 @@ class PlainReadingChild(PlainReading):
     """A subtype shares its base's codec (same value class)."""
 
 
-add_additional_datatypes([PlainReading, PlainReadingChild])
+@pytest.fixture(autouse=True, scope="module")
+def _registered() -> Iterator[None]:
+    """Registered while this module runs, not at import: the conformance suite (collected in the same
+    run) parametrizes over the registered types, and these have no example value."""
+    add_additional_datatypes([PlainReading, PlainReadingChild])
+    yield
+    for name in ("PlainReading", "PlainReadingChild"):
+        supported_types._registry.unregister(name)
+        with contextlib.suppress(Exception):
+            codec_registry._codecs.unregister(name)
 
 VALUES: list[Any] = [
     {"sensor": "arm", "ok": True, "reading": [1, 2.5, None, {"nested": ["x", -3]}]},
