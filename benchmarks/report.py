@@ -184,11 +184,12 @@ def plot(figures: list[dict[str, Any]], records: list[dict[str, Any]], path: Pat
     colors = {"hop": "tab:blue", "throughput": "tab:orange", "startup": "tab:green", "model": "tab:purple",
               "imports": "tab:brown", "vision": "tab:red", "voice": "tab:olive",
               "map": "tab:cyan", "processes": "tab:pink", "ui": "tab:gray", "goals": "tab:olive",
-              "vla": "tab:brown", "cli": "tab:red"}
+              "vla": "tab:brown", "cli": "tab:red", "memory": "tab:purple", "cortex": "tab:green"}
     labels = [f["id"] for f in shown]
     values = [f["slowdown"] for f in shown]
     y = list(range(len(shown)))
-    left.barh(y, values, color=[colors[f["suite"]] for f in shown])
+    # A suite without a colour of its own (a new one) is drawn in black rather than failing the run.
+    left.barh(y, values, color=[colors.get(f["suite"], "black") for f in shown])
     left.set_yticks(y, labels, fontsize=8)
     left.invert_yaxis()
     left.set_xscale("log")
