@@ -37,6 +37,7 @@ from typing import Any
 
 from .components.llm import LLM
 from .config import LLMConfig
+from .install_hint import install_hint
 from .launch.launcher import Launcher
 from .messages import StreamingStringMsg
 from .topics import Topic
@@ -82,7 +83,7 @@ def _transport_choice(requested: str | None, endpoint: str) -> tuple[str, dict[s
         if importlib.util.find_spec("zenoh") is not None:
             return "zenoh", {"mode": "peer", "listen": [endpoint], "connect": []}
         if requested == "zenoh":
-            raise SystemExit("the zenoh extra is not installed: pip install 'agents-core[zenoh]'")
+            raise SystemExit(f"the zenoh extra is not installed: {install_hint('zenoh')}")
         print("(zenoh is not installed: using the in-memory transport)")
         return "memory", {}
     return requested, {}
@@ -190,7 +191,7 @@ def _vision_demo(argv: list[str]) -> int:
         from PIL import Image as PILImage  # noqa: PLC0415
     except ImportError:
         raise SystemExit("the vision demo reads and writes images with Pillow: "
-                         "pip install 'agents-core[local]'") from None
+                         f"{install_hint('local')}") from None
     folder, out = Path(args.images), Path(args.out)
     files = sorted(p for p in folder.iterdir() if p.suffix.lower() in (".png", ".jpg", ".jpeg")) \
         if folder.is_dir() else []

@@ -12,6 +12,7 @@ import typer
 
 from ..console import QUIET_ENV_VAR
 from ..errors import AgentsError, ConfigError
+from ..install_hint import install_hint
 from ..transport.registry import TRANSPORT_ENV_VAR
 from . import components, topics
 from .connection import fail, one_line_errors
@@ -80,7 +81,7 @@ def ui(ctx: typer.Context) -> None:
     try:
         from ..ui.attach import main as attach_main  # noqa: PLC0415 - needs the ui extra
     except ImportError as exc:
-        raise fail(f"the web UI needs the 'ui' extra ({exc}); pip install 'agents-core[ui]'") from None
+        raise fail(f"the web UI needs the 'ui' extra ({exc}); {install_hint('ui')}") from None
     try:
         code = attach_main(args)
     except (AgentsError, OSError) as exc:
@@ -99,7 +100,7 @@ def router(listen: Annotated[list[str], typer.Option("--listen", "-l", help="end
     try:
         from agents_zenoh.router import serve_router  # noqa: PLC0415 - needs the zenoh extra
     except ImportError as exc:
-        raise ConfigError(f"the router needs the 'zenoh' extra ({exc}); pip install 'agents-core[zenoh]'") from None
+        raise ConfigError(f"the router needs the 'zenoh' extra ({exc}); {install_hint('zenoh')}") from None
 
     def ready(session: object) -> None:
         zid = str(session.info.zid())  # type: ignore[attr-defined]

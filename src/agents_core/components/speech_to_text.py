@@ -44,6 +44,7 @@ from ..clients.model_base import ModelClient
 from ..config import SpeechToTextConfig
 from ..engines.audio import AudioInputError, StreamResampler, check_rate, to_mono_float
 from ..errors import AlgorithmFailure, ConfigError
+from ..install_hint import install_hint
 from ..messages import AudioMsg, StreamingStringMsg
 from ..supported_types import Audio, StreamingString, String, SupportedType
 from ..topics import Topic
@@ -147,7 +148,7 @@ class SpeechToText(ModelComponent):
             # Optional (the voice extra), and without type information.
             import sounddevice  # type: ignore[import-not-found,import-untyped,unused-ignore]  # noqa: PLC0415
         except (ImportError, OSError) as exc:  # OSError: the PortAudio library is missing
-            raise ConfigError("enable_microphone needs sounddevice and PortAudio: pip install 'agents-core[voice]' "
+            raise ConfigError(f"enable_microphone needs sounddevice and PortAudio: {install_hint('voice')} "
                               f"(or publish Audio chunks from a microphone node): {exc}") from exc
         try:
             info = sounddevice.query_devices(self.config.device_audio, kind="input")

@@ -39,6 +39,7 @@ from ..config import TextToSpeechConfig
 from ..engines.audio import AudioInputError, float_to_int16, read_wav, to_mono_float
 from ..engines.local_tts import split_sentences
 from ..errors import AlgorithmFailure, ConfigError, WiringError
+from ..install_hint import install_hint
 from ..messages import AudioMsg, StreamingStringMsg
 from ..supported_types import Audio, String, SupportedType
 from ..topics import Topic
@@ -56,7 +57,7 @@ class _Player:
             # Optional (the voice extra), and without type information.
             import sounddevice  # type: ignore[import-not-found,import-untyped,unused-ignore]  # noqa: PLC0415
         except (ImportError, OSError) as exc:  # OSError: the PortAudio library is missing
-            raise ConfigError("play_on_device needs sounddevice and PortAudio: pip install 'agents-core[voice]' "
+            raise ConfigError(f"play_on_device needs sounddevice and PortAudio: {install_hint('voice')} "
                               f"(or publish the Audio output only): {exc}") from exc
         try:
             sounddevice.query_devices(device, kind="output")

@@ -22,6 +22,7 @@ from typing import Any
 
 from ..clients.payloads import ChunkStream, checked_messages, image_to_data_uri, make_tool_call, message_text
 from ..errors import ConfigError, InferenceError
+from ..install_hint import install_hint
 from .model_files import default_llm_path, resolve_model_file
 
 __all__ = ["LocalLLM", "LocalVLM"]
@@ -40,7 +41,7 @@ def _import_llama_cpp() -> Any:
         import llama_cpp  # noqa: PLC0415  (optional dependency of the `local` extra)
     except ImportError as exc:
         raise ConfigError("the built-in local LLM/VLM needs llama-cpp-python: "
-                          "pip install 'agents-core[local]'") from exc
+                          f"{install_hint('local')}") from exc
     return llama_cpp
 
 

@@ -36,6 +36,7 @@ import numpy.typing as npt
 
 from ..console import say
 from ..errors import ConfigError, InferenceError
+from ..install_hint import install_hint
 from .audio import float_to_int16
 from .model_files import import_hub, looks_like_hub_id
 
@@ -58,7 +59,7 @@ def import_sherpa_onnx() -> Any:
     try:
         import sherpa_onnx  # noqa: PLC0415  (optional: the local extra)
     except ImportError as exc:
-        raise ConfigError("the built-in speech models need sherpa-onnx: pip install 'agents-core[local]'") from exc
+        raise ConfigError(f"the built-in speech models need sherpa-onnx: {install_hint('local')}") from exc
     return sherpa_onnx
 
 
@@ -270,7 +271,7 @@ class WakeWordDetector:
         try:
             from pymicro_wakeword import MicroWakeWord, MicroWakeWordFeatures, Model  # noqa: PLC0415
         except ImportError as exc:
-            raise ConfigError("the wake word needs pymicro-wakeword: pip install 'agents-core[local]'") from exc
+            raise ConfigError(f"the wake word needs pymicro-wakeword: {install_hint('local')}") from exc
         builtin = {m.value: m for m in Model}
         try:
             if model in builtin:

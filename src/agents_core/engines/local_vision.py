@@ -42,6 +42,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ..errors import ConfigError, InferenceError
+from ..install_hint import install_hint
 from .model_files import resolve_model_file
 
 __all__ = ["COCO80_LABELS", "DEFAULT_VISION_ENV_VAR", "DEFAULT_VISION_FILE", "DEFAULT_VISION_REPO",
@@ -167,7 +168,7 @@ def _import_onnxruntime() -> Any:
         import onnxruntime  # noqa: PLC0415  (optional dependency of the `local` extra)
     except ImportError as exc:
         raise ConfigError("the built-in local vision model needs onnxruntime: "
-                          "pip install 'agents-core[local]'") from exc
+                          f"{install_hint('local')}") from exc
     return onnxruntime
 
 

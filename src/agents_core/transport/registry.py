@@ -23,6 +23,7 @@ import os
 from typing import Any
 
 from ..errors import ConfigError, TransportNotAvailableError
+from ..install_hint import install_hint
 from .contract import Transport
 from .driver import DriverBase
 
@@ -66,7 +67,7 @@ def _load_alias(name: str) -> Any:
             raise
         raise TransportNotAvailableError(
             f"the {name!r} transport needs the '{extra}' extra ({exc}); install it with: "
-            f"pip install 'agents-core[{extra}]'"
+            f"{install_hint(extra)}"
         ) from exc
     return getattr(module, attr)
 

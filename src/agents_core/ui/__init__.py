@@ -14,6 +14,7 @@ Pillow). See ``docs/ui.md`` for the API.
 
 from __future__ import annotations
 
+from ..install_hint import install_hint
 from .recipe_view import LocalRecipe, RecipeView, RemoteRecipe
 from .settings import TOKEN_ENV, UISettings
 
@@ -26,6 +27,6 @@ def __getattr__(name: str) -> object:
         try:
             from .server import UIServer  # noqa: PLC0415
         except ImportError as exc:
-            raise ImportError(f"the web UI needs the ui extra: pip install 'agents-core[ui]' ({exc})") from exc
+            raise ImportError(f"the web UI needs the ui extra: {install_hint('ui')} ({exc})") from exc
         return UIServer
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

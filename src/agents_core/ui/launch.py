@@ -5,6 +5,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
+from ..install_hint import install_hint
 from .recipe_view import LocalRecipe
 from .settings import UISettings
 
@@ -22,7 +23,7 @@ def start_ui(components: Sequence[Component], transport: Transport, *, inputs: S
     try:
         from .server import UIServer  # noqa: PLC0415
     except ImportError as exc:
-        raise ImportError(f"enable_ui() needs the ui extra: pip install 'agents-core[ui]' ({exc})") from exc
+        raise ImportError(f"enable_ui() needs the ui extra: {install_hint('ui')} ({exc})") from exc
     view = LocalRecipe(components)
     return UIServer(view, transport, inputs=inputs, outputs=outputs, settings=settings,
                     known_topics=view.topics()).start()

@@ -27,6 +27,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ...errors import ClientConnectionError, ConfigError, InferenceError, InferenceTimeoutError, ProtocolError
+from ...install_hint import install_hint
 from ...models import LeRobotPolicy, Model
 from ..policy_base import ActionChunkError, PolicyClient, action_chunk_array
 from .restricted_pickle import PayloadLimits
@@ -45,7 +46,7 @@ def _grpc_and_wire() -> tuple[ModuleType, ModuleType]:
 
         from . import protocol as lerobot_protocol  # noqa: PLC0415
     except ImportError as exc:
-        raise ConfigError(f"LeRobotClient needs grpcio and protobuf: pip install 'agents-core[vla]' ({exc})") from exc
+        raise ConfigError(f"LeRobotClient needs grpcio and protobuf: {install_hint('vla')} ({exc})") from exc
     return grpc, lerobot_protocol
 
 #: Default largest message (either way) and largest actions payload, bytes.

@@ -22,6 +22,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ...errors import AlgorithmFailure
+from ...install_hint import install_hint
 
 __all__ = ["MAX_FPS", "MAX_RECORDING_BYTES", "MAX_RECORDING_S", "RecordedFrame", "record_frames",
            "recording_path", "write_gif"]
@@ -42,7 +43,7 @@ def _pillow() -> Any:
         from PIL import Image as PILImage  # noqa: PLC0415  (optional: only recording needs it)
     except ImportError as exc:
         raise AlgorithmFailure("recording a video needs Pillow: pip install pillow "
-                               "(or pip install 'agents-core[local]')") from exc
+                               f"(or {install_hint('local')})") from exc
     return PILImage
 
 
