@@ -144,7 +144,7 @@ def test_fallback_rate_is_said_to_be_no_polling_rate(caplog: pytest.LogCaptureFi
 def test_default_launcher_with_multiprocessing_runs_in_one_process_without_a_cross_process_transport(
         monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture) -> None:
     monkeypatch.delenv("AGENTS_TRANSPORT", raising=False)
-    monkeypatch.setattr(launcher_module, "_cross_process_transports", list)
+    monkeypatch.setattr(launcher_module, "cross_process_transports", list)
     component = Shout("in_e", "out_e", "e")
     launcher = Launcher()
     launcher.add_pkg(components=[component], multiprocessing=True)
@@ -156,7 +156,7 @@ def test_default_launcher_with_multiprocessing_runs_in_one_process_without_a_cro
 def test_default_launcher_with_multiprocessing_picks_zenoh_and_says_so(
         monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture) -> None:
     monkeypatch.delenv("AGENTS_TRANSPORT", raising=False)
-    monkeypatch.setattr(launcher_module, "_cross_process_transports", lambda: ["zenoh"])
+    monkeypatch.setattr(launcher_module, "cross_process_transports", lambda: ["zenoh"])
     launcher = Launcher()
     launcher.add_pkg(components=[Shout("in_f", "out_f", "f")], multiprocessing=True)
     with caplog.at_level(logging.INFO, logger="agents_core.launch.launcher"):

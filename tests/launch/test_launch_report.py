@@ -197,3 +197,47 @@ def test_python_recipe_py_says_what_it_does_and_how_it_stopped(tmp_path: Path) -
                      "agents: 1 component(s) running; press Ctrl-C to stop",
                      "agents: stopping (Ctrl-C again to hurry)",
                      "agents: stopped"]
+
+
+def test_a_change_after_start_gets_a_new_row(loud: None, capsys: pytest.CaptureFixture[str]) -> None:
+    """Deactivating a running component prints its new row within a few polls (the live status thread)."""
+    from agents_core.testing.helpers import wait_for  # noqa: PLC0415
+
+    launcher = Launcher(transport="memory")
+    talker, listener = _idle("talker"), _idle("listener")
+    launcher.add_pkg(components=[talker, listener])
+    with launcher:
+        capsys.readouterr()
+        listener.deactivate()
+        seen: list[str] = []
+        assert wait_for(lambda: bool(seen.extend(capsys.readouterr().err.splitlines()) or
+                                     any("listener" in x and "inactive" in x for x in seen)), timeout=10)
+    rows = [x for x in seen if x.startswith("  ")]
+    assert [x.split()[:3] for x in rows] == [["•", "listener", "inactive"]]  # talker did not change: no row
+
+
+def test_live_status_reports_only_changes_and_stops() -> None:
+    from agents_core.launch.live_status import LiveStatus  # noqa: PLC0415
+
+    stream = io.StringIO()
+    rows = [("a", "active", "healthy", ""), ("b", "active", "healthy", "")]
+    live = LiveStatus(LaunchReport(quiet=False, stream=stream), lambda: list(rows), interval=60.0)
+    live.start()
+    assert live.poll() == []
+    rows[1] = ("b", "active", "algorithm_failure", "")
+    assert live.poll() == [rows[1]]
+    assert live.poll() == []
+    live.stop()
+    assert stream.getvalue().split() == ["•", "b", "active", "algorithm_failure"]
+
+
+def test_child_rows_say_the_restart_count_and_giving_up() -> None:
+    from agents_core.launch.live_status import child_rows  # noqa: PLC0415
+
+    described = [{"name": "vision", "pid": 11, "state": "active", "restarts": 0, "gave_up": False},
+                 {"name": "llm", "pid": 12, "state": "active", "restarts": 2, "gave_up": False},
+                 {"name": "tts", "pid": 13, "state": "failed", "restarts": 3, "gave_up": True}]
+    assert child_rows(lambda: described, 3) == [
+        ("vision", "active", "-", "own process, pid 11"),
+        ("llm", "active", "-", "own process, pid 12, restart 2/3"),
+        ("tts", "failed", "-", "gave up after 3 restart(s)")]

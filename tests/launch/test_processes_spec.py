@@ -127,12 +127,12 @@ def test_action_on_a_component_process_must_be_a_component_action() -> None:
     component = _shout()
     launcher = Launcher(transport="memory")
     launcher.add_pkg(components=[component], events_actions={Event("e"): Action(component.get_logger)})
-    from agents_core.launch.launcher import _check_remote_action  # noqa: PLC0415
+    from agents_core.launch.preflight import check_remote_action  # noqa: PLC0415
 
     with pytest.raises(WiringError, match="mark the method @component_action"):
-        _check_remote_action(Event("e2"), Action(component.get_logger))
-    _check_remote_action(Event("e3"), Action(component.set_suffix, args=("x",)))  # allowed
-    _check_remote_action(Event("e4"), Action(component.deactivate))  # lifecycle: allowed
+        check_remote_action(Event("e2"), Action(component.get_logger))
+    check_remote_action(Event("e3"), Action(component.set_suffix, args=("x",)))  # allowed
+    check_remote_action(Event("e4"), Action(component.deactivate))  # lifecycle: allowed
 
 
 @pytest.mark.parametrize("suffix", [".yaml", ".toml"])

@@ -38,11 +38,9 @@ from __future__ import annotations
 
 import difflib
 import functools
-import importlib
 import logging
 import os
 import signal
-import sys
 import threading
 from collections.abc import Mapping, Sequence
 from types import FrameType
@@ -50,14 +48,23 @@ from typing import TYPE_CHECKING, Any
 
 from ..actions import Action
 from ..components.component_base import Component
-from ..config import load_config_file
 from ..console import say
 from ..errors import ComponentError, ConfigError, WiringError
 from ..events import Event, EventListener
+from ..install_hint import install_hint
 from ..runtime.worker import StepWorker
 from ..status import LifecycleState
 from ..transport.contract import Subscription, Transport
 from ..transport.registry import TRANSPORT_ENV_VAR, resolve_transport
+from .live_status import LiveStatus, Row, child_rows, component_rows
+from .preflight import (
+    LIFECYCLE_METHODS,
+    check_remote_action,
+    check_transferable,
+    cross_process_transports,
+    read_launch_file,
+    refuse_inside_component_process,
+)
 from .report import LaunchReport, component_row
 
 if TYPE_CHECKING:
@@ -94,7 +101,7 @@ class Launcher:
         self._config_file = str(config_file) if config_file is not None else None
         file_transport: dict[str, Any] = {}
         if self._config_file is not None:
-            file_transport, self._component_sections = _read_launch_file(self._config_file)
+            file_transport, self._component_sections = read_launch_file(self._config_file)
         file_name = file_transport.pop("name", None)
         if transport is None and file_name is not None and not os.environ.get(TRANSPORT_ENV_VAR, "").strip():
             transport = file_name
@@ -120,6 +127,7 @@ class Launcher:
         self._stopped_supervisor: Supervisor | None = None
         self._ui_options: dict[str, Any] | None = None
         self._ui: Any = None
+        self._live_status: LiveStatus | None = None
 
     # -- recipe -------------------------------------------------------------------------------
 
@@ -147,7 +155,7 @@ class Launcher:
                 raise WiringError(f"two components are named {c.component_name!r}; names must be unique")
             self.components.append(c)
         if self._multiprocessing:
-            _check_transferable(self.components)
+            check_transferable(self.components)
         for event, actions in (events_actions or {}).items():
             if not isinstance(event, Event):
                 raise WiringError(f"events_actions keys must be Event objects, got {type(event).__name__}")
@@ -236,7 +244,7 @@ class Launcher:
             raise ConfigError("the launcher is already started")
         if not self.components:
             raise ConfigError("nothing to launch: call add_pkg(components=[...]) first")
-        _refuse_inside_component_process()
+        refuse_inside_component_process()
         self._apply_component_sections()
         self._apply_fail_action()
         self._choose_default_transport()
@@ -247,7 +255,7 @@ class Launcher:
             if self._owns_transport:
                 transport.close()
             raise ConfigError(f"multiprocessing=True needs a transport whose capabilities say cross_process "
-                              f"({', '.join(_cross_process_transports()) or 'none installed'}); "
+                              f"({', '.join(cross_process_transports()) or 'none installed'}); "
                               f"{transport.name!r} lives in one process")
         self._started = True
         report = LaunchReport(self._quiet)
@@ -286,6 +294,8 @@ class Launcher:
             self.stop()
             raise
         report.running(len(self.components))
+        self._live_status = LiveStatus(report, self._status_rows)
+        self._live_status.start()
         logger.info("launched %d component(s) on %s", len(self.components), self._transport.name)
         return self
 
@@ -308,13 +318,13 @@ class Launcher:
         if not self._multiprocessing or self._transport_spec is not None \
                 or os.environ.get(TRANSPORT_ENV_VAR, "").strip():
             return
-        if "zenoh" in _cross_process_transports():
+        if "zenoh" in cross_process_transports():
             logger.info("multiprocessing=True and no transport named: running the component processes on "
                         "'zenoh' (name one with Launcher(transport=...) or %s)", TRANSPORT_ENV_VAR)
             self._transport_spec = "zenoh"
         else:
             logger.warning("multiprocessing=True needs a cross-process transport and none is installed "
-                           "(pip install 'agents_core[zenoh]'): running every component in this one process")
+                           "(%s): running every component in this one process", install_hint("zenoh"))
             self._multiprocessing = False
 
     def _apply_component_sections(self) -> None:
@@ -349,7 +359,7 @@ class Launcher:
             specs.append(spec)
         for event, actions in self.events_actions.items():
             for action in actions:
-                _check_remote_action(event, action)
+                check_remote_action(event, action)
         retries = self._process_fail_retries if self._process_fail_retries is not None else 0
         self._supervisor = Supervisor(specs, max_retries=retries, on_giveup=self._gave_up_on)
         for c in self.components:
@@ -388,7 +398,7 @@ class Launcher:
             return action(values)
         args, kwargs = action.resolve(values)
         name = action.name
-        if name in _LIFECYCLE_METHODS:
+        if name in LIFECYCLE_METHODS:
             if not self.transport.request_transition(owner.component_name, name, timeout=10.0):
                 raise ComponentError(f"component {owner.component_name!r} refused the transition {name!r}")
             return None
@@ -429,6 +439,9 @@ class Launcher:
         interrupt): its threads and shared-memory segments must not outlive the recipe.
         """
         try:
+            live, self._live_status = self._live_status, None
+            if live is not None:
+                live.stop()
             ui, self._ui = self._ui, None
             if ui is not None:
                 ui.stop()
@@ -460,6 +473,12 @@ class Launcher:
                 self._stopped_supervisor.remove_orphan_shm()
                 self._stopped_supervisor = None
             self._started = False
+
+    def _status_rows(self) -> list[Row]:
+        supervisor = self._supervisor
+        if supervisor is not None:
+            return child_rows(supervisor.describe, supervisor.max_retries)
+        return component_rows(self.components)
 
     def hurry(self) -> None:
         """Make a running or coming :meth:`stop` stop waiting for components' running steps."""
@@ -531,69 +550,3 @@ def _forward_trigger(supervisor: Supervisor, component_name: str, event: Event, 
     """The trigger event of a component in its own process fired here: fire its stand-in there."""
     if not supervisor.child(component_name).send("fire-trigger"):
         logger.debug("component %r is not running: trigger event %r dropped", component_name, event.name)
-
-
-def _check_transferable(components: Sequence[Component]) -> None:
-    """Refuse at add_pkg what cannot reach a component process (a lambda given to a setup call, ...)."""
-    from .spec import ComponentSpec  # noqa: PLC0415
-
-    for c in components:
-        ComponentSpec.from_component(c, "", {}, 0)
-
-
-_LIFECYCLE_METHODS = frozenset({"configure", "activate", "deactivate", "cleanup", "shutdown"})
-
-
-def _check_remote_action(event: Event, action: Action) -> None:
-    """Refuse, at start, an action on a component process that its services cannot run."""
-    owner = action.owner
-    if not isinstance(owner, Component) or action.name in _LIFECYCLE_METHODS:
-        return
-    if action.name not in owner.available_actions():
-        raise WiringError(f"event {event.name!r}: action {action.name!r} of component {owner.component_name!r} "
-                          "cannot run in the component's process: mark the method @component_action (it then "
-                          "runs through the component's execute_method service)")
-
-
-def _cross_process_transports() -> list[str]:
-    """The built-in transports installed here whose drivers declare cross_process (capabilities, not names)."""
-    from ..transport.registry import TRANSPORT_ALIASES  # noqa: PLC0415
-
-    names = []
-    for name, (target, _extra) in TRANSPORT_ALIASES.items():
-        module_name = target.partition(":")[0]
-        try:
-            module = importlib.import_module(module_name)
-        except Exception:  # an extra not installed: not offered
-            continue
-        for value in vars(module).values():
-            caps = getattr(value, "capabilities", None)
-            if isinstance(value, type) and getattr(caps, "cross_process", False) is True:
-                names.append(name)
-                break
-    return names
-
-
-def _refuse_inside_component_process() -> None:
-    """A component process imports the recipe for its classes: the recipe's launcher must not launch again."""
-    recipe_import = sys.modules.get("agents_core.launch.recipe_import")
-    if recipe_import is not None and recipe_import.importing_recipe():
-        raise recipe_import.RecipeImportStop
-
-
-def _read_launch_file(path: str) -> tuple[dict[str, Any], dict[str, dict[str, Any]]]:
-    """(transport section, component sections) of a launcher config file."""
-    data = load_config_file(path)
-    transport = data.pop("transport", {})
-    if not isinstance(transport, dict):
-        raise ConfigError(f"config file {path}: 'transport' must be a section (name and options)")
-    name = transport.get("name")
-    if name is not None and not isinstance(name, str):
-        raise ConfigError(f"config file {path}: transport.name must be a str such as 'zenoh'")
-    sections: dict[str, dict[str, Any]] = {}
-    for key, value in data.items():
-        if not isinstance(value, dict):
-            raise ConfigError(f"config file {path}: {key!r} must be a section of config fields for the "
-                              f"component of that name, got {type(value).__name__}")
-        sections[key] = value
-    return dict(transport), sections
