@@ -64,14 +64,3 @@ def test_call_runs_the_action_on_its_component_through_the_transport() -> None:
         with pytest.raises(Exception, match="no action 'nope'"):
             ComponentMethod("shouter", "nope").call(launcher.transport, {})
 
-
-def test_component_fallback_rate_is_checked_and_kept() -> None:
-    shout = Shout("in_t", "out_t", "shouter", suffix="?")
-    assert shout.fallback_rate is None
-    shout.fallback_rate = 1 / 10
-    assert shout.fallback_rate == pytest.approx(0.1)
-    for bad in (0, -1.0, True, "fast"):
-        with pytest.raises(ConfigError, match="fallback_rate"):
-            shout.fallback_rate = bad  # type: ignore[assignment]
-    assert shout.fallback_rate == pytest.approx(0.1)
-

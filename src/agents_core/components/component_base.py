@@ -292,22 +292,6 @@ class Component:
 
     on_any_fail = on_fail
 
-    @property
-    def fallback_rate(self) -> float | None:
-        """Upstream's rate (Hz) of polling for failures. Here a fallback runs as soon as the failure is
-        reported, with no polling: the value is checked and kept, and saying so is logged."""
-        return getattr(self, "_fallback_rate", None)
-
-    @fallback_rate.setter
-    def fallback_rate(self, rate: float | None) -> None:
-        if rate is not None and (isinstance(rate, bool) or not isinstance(rate, int | float) or not rate > 0):
-            raise ConfigError(f"component {self.component_name!r}: fallback_rate must be a rate in Hz > 0, "
-                              f"got {rate!r}")
-        self._fallback_rate = None if rate is None else float(rate)
-        if rate is not None:
-            self._logger.info("fallback_rate=%g Hz is not a polling rate here: each fallback runs as soon as the "
-                              "failure is reported", rate)
-
     def on_component_fail(self, action: Action | Sequence[Action], max_retries: int | None = None) -> None:
         """Run ``action`` when a step fails with a component failure (e.g. the model client is down)."""
         self.runtime.health.set_fallback(HealthStatus.COMPONENT_FAILURE.name, action, max_retries)
