@@ -22,6 +22,7 @@ import jinja2
 from ..actions import component_action
 from ..clients.db_base import DBClient
 from ..clients.model_base import ModelClient
+from ..component_method import ComponentMethod
 from ..config import LLMConfig
 from ..errors import AlgorithmFailure, ConfigError, WiringError
 from ..messages import DetectionsMsg, StreamingStringMsg
@@ -260,6 +261,8 @@ class LLM(ModelComponent):
         if tool is None:
             return None, f"error: there is no tool named {name!r}"
         try:
+            if isinstance(tool.func, ComponentMethod):  # another process's action (multiprocessing=True)
+                return tool, tool.func.call(self.runtime.transport, call["function"]["arguments"])
             return tool, tool.func(**call["function"]["arguments"])
         except Exception as exc:
             # The model gets to see what went wrong and may try again differently.

@@ -42,6 +42,8 @@ from typing import TYPE_CHECKING, Any
 
 import attrs
 
+from ..actions import ACTION_MARK
+from ..component_method import ComponentMethod
 from ..config import BaseAttrs
 from ..errors import ConfigError
 from ..events import Event
@@ -133,6 +135,9 @@ def encode_value(value: Any, where: str = "value") -> Any:
         # Any attrs class (SemanticRouter's Route, a recipe's own data class), not only configs:
         # rebuilt from its init fields, as a BaseAttrs is.
         codec = _codecs.get("attrs")
+    if codec is None and _is_component_action(value):
+        # Another component's action (an LLM's tool): the child reaches it through that component's services.
+        return {TAG: "component method", "v": [value.__self__.component_name, value.__name__]}
     if codec is None and inspect.isroutine(value):
         return {TAG: "function", "v": _encode_function(value, where)}
     if codec is None and isinstance(value, Event):
@@ -220,6 +225,12 @@ def _encode_function(func: Any, where: str) -> str:
     return f"{RECIPE_MODULE if module == '__main__' else module}:{qualname}"
 
 
+def _is_component_action(value: Any) -> bool:
+    """Whether ``value`` is a ``@component_action`` bound to a component."""
+    return (inspect.ismethod(value) and getattr(value.__func__, ACTION_MARK, None) is not None
+            and isinstance(getattr(value.__self__, "component_name", None), str))
+
+
 def _decode_function(path: str) -> Any:
     func = import_class(path)
     if not callable(func):
@@ -253,6 +264,8 @@ def _register_builtin_codecs() -> None:
                                     lambda d: tuple(decode_value(v) for v in d)))
     # Encoding through encode_value (which knows where the function is used); decoding by name.
     _codecs.register("function", ValueCodec("function", object, str, _decode_function))
+    _codecs.register("component method", ValueCodec("component method", object, list,
+                                                    lambda d: ComponentMethod(str(d[0]), str(d[1]))))
     register_value_codec(ValueCodec("launcher event", LauncherEvent, lambda e: e.name, LauncherEvent))
 
 
