@@ -23,7 +23,6 @@ from __future__ import annotations
 import os
 import threading
 import time
-from typing import Any
 
 import numpy as np
 from example_cli import make_launcher, parser, run
