@@ -15,7 +15,7 @@ first route is the default (a text is never dropped silently).
 from __future__ import annotations
 
 import re
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from typing import Any
 
 from attrs import define, field
@@ -37,6 +37,11 @@ def _check_samples(instance: Any, attribute: Any, value: Any) -> None:
         raise ConfigError(f"Route.samples must be a non-empty list of non-empty str, got {value!r}")
 
 
+def _as_list(value: Iterable[str]) -> list[str]:
+    # A typed stand-in for ``converter=list``: mypy cannot solve list's type variable in a converter.
+    return list(value)
+
+
 def _check_topic(instance: Any, attribute: Any, value: Any) -> None:
     if not isinstance(value, Topic) or not issubclass(value.msg_type, String):
         raise ConfigError(f"Route.routes_to must be a String Topic, got {value!r}")
@@ -51,7 +56,7 @@ class Route(BaseAttrs):  # BaseAttrs: a route can be sent to the router's own pr
     """
 
     routes_to: Topic = field(validator=_check_topic)
-    samples: list[str] = field(converter=list, validator=_check_samples)
+    samples: list[str] = field(converter=_as_list, validator=_check_samples)
 
     @property
     def name(self) -> str:
