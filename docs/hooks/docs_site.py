@@ -1,4 +1,4 @@
-"""MkDocs hooks of the documentation site (mkdocs.yml ``hooks``): pages that include a repository file, offline link rules.
+"""MkDocs hooks of the documentation site (mkdocs.yml ``hooks``): included repository files, offline link rules.
 
 - A page whose first line is ``<!-- include: PATH -->`` (PATH relative to the repository root) is
   replaced by that file, so the README stays the one copy of its prose (GitHub's landing page and the
