@@ -125,3 +125,13 @@ def test_unknown_parameter_warnings_are_dropped_only_for_generated_inits(tmp_pat
         for message in ("No matching parameter for 'x'", "Parameter 'x' does not appear in the function signature"):
             assert keep(_griffe_record(source, line, message)) is expected, (line, message)
     assert keep(_griffe_record(source, 6, "Failed to get 'name: description' pair from 'oops'"))
+
+
+def test_sphinx_roles_become_optional_references() -> None:
+    html = ("Alias of :attr:<code>component_name</code>; see :class:<code>~agents_core.topics.Topic</code> "
+            "and :func:<code>wait_for()</code>; :class:<code>not a name</code>")
+    out = hooks._roles_to_references(html)
+    assert '<autoref identifier="component_name" optional><code>component_name</code></autoref>' in out
+    assert '<autoref identifier="agents_core.topics.Topic" optional><code>Topic</code></autoref>' in out
+    assert '<autoref identifier="wait_for" optional><code>wait_for</code></autoref>' in out
+    assert "<code>not a name</code>" in out and ":class:" not in out

@@ -8,6 +8,9 @@
 - External links are never fetched (CI builds offline); their form is checked instead: ``https://``
   with a dotted host name, or ``http://`` only to a loopback address. MkDocs' own validation
   (``strict`` with ``validation.links``) checks every internal link and anchor.
+- Sphinx roles left in docstring text (``:class:`~pkg.Name```) become cross-references to the API
+  reference where it documents that name, and plain code otherwise (mkdocstrings parses the
+  ``:param:`` fields of Sphinx-style docstrings, not the roles in their prose).
 - The ``:param:`` lines of an attrs class (``@define``) document the fields of the ``__init__`` that
   attrs writes at import, and those of a class without an ``__init__`` of its own the arguments its
   base's ``__init__`` passes on through ``**kwargs``: griffe's static analysis sees neither, so its two
@@ -128,6 +131,28 @@ def _check_external_links(markdown: str, page: str) -> None:
         return line
 
     _outside_fences(markdown, check)
+
+
+_ROLE = re.compile(r":(?:py:)?(?:class|func|meth|attr|mod|data|exc|obj|const):"
+                   r"<code>(?P<tilde>~?)(?P<target>[^<]+)</code>")
+
+
+def _roles_to_references(html: str) -> str:
+    """``:role:<code>~a.b.C</code>`` (a Sphinx role as Markdown renders it) -> an optional autoref showing ``C``."""
+
+    def one(match: re.Match[str]) -> str:
+        target = match.group("target").strip().removesuffix("()")
+        shown = target.rsplit(".", 1)[-1] if match.group("tilde") else target
+        if not re.fullmatch(r"[A-Za-z_][\w.]*", target):
+            return f"<code>{match.group('target')}</code>"
+        return f'<autoref identifier="{target}" optional><code>{shown}</code></autoref>'
+
+    return _ROLE.sub(one, html)
+
+
+def on_page_content(html: str, page: Any, config: Any, files: Any) -> str:
+    """Turn the Sphinx roles of rendered docstrings into references (MkDocs' hook entry point)."""
+    return _roles_to_references(html)
 
 
 def on_page_markdown(markdown: str, page: Any, config: Any, files: Any) -> str:
