@@ -1,4 +1,4 @@
-"""Developer entry points: ``nox -s tests``, ``nox -s lint``, ``nox -s types``, ``nox -s demo``.
+"""Developer entry points: ``nox -s tests``, ``nox -s lint``, ``nox -s types``, ``nox -s demo``, ``nox -s docs``.
 
 Sessions install what they need into their own virtual environments, so a machine with only
 Python (and ``pip install nox``) can run every one of them.
@@ -15,7 +15,7 @@ from pathlib import Path
 import nox
 
 # tests_ros2 is a subset of tests, so a plain `nox` does not run it.
-nox.options.sessions = ["tests", "install_check", "lint", "types", "bench"]
+nox.options.sessions = ["tests", "install_check", "lint", "types", "docs", "bench"]
 nox.options.reuse_existing_virtualenvs = True
 
 # Sessions use the interpreter that runs nox, so a fresh machine needs no particular version.
@@ -118,10 +118,21 @@ def build(session: nox.Session) -> None:
 
 
 @nox.session
+def docs(session: nox.Session) -> None:
+    """The documentation site in ``site/`` (``mkdocs build --strict``): any warning, broken link or anchor fails.
+
+    Only the ``docs`` extra's packages are installed: the API reference reads ``src/`` statically, so
+    neither the project nor a middleware is needed, and no page fetches anything from the network.
+    """
+    session.install(*_requirements_of("docs"))
+    session.run("mkdocs", "build", "--strict", "--site-dir", "site", env={"NO_MKDOCS_2_WARNING": "1"})
+
+
+@nox.session
 def lint(session: nox.Session) -> None:
     """Ruff: style, imports, likely bugs."""
     session.install("ruff>=0.5")
-    session.run("ruff", "check", "src", "tests", "benchmarks", "examples", "noxfile.py")
+    session.run("ruff", "check", "src", "tests", "benchmarks", "examples", "noxfile.py", "docs/hooks")
 
 
 @nox.session
@@ -184,6 +195,13 @@ def _requirements(extras: str) -> list[str]:
     for extra in extras.split(","):
         wanted += [r for r in project["optional-dependencies"][extra] if not r.startswith("agents-core")]
     return wanted
+
+
+def _requirements_of(extra: str) -> list[str]:
+    """The requirement strings of one extra of pyproject.toml, without the project's own dependencies."""
+    project = _pyproject()["project"]
+    assert isinstance(project, dict)
+    return list(project["optional-dependencies"][extra])
 
 
 def _installed(session: nox.Session, extras: str, also: list[str]) -> bool:
