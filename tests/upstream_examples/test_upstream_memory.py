@@ -1,0 +1,131 @@
+"""Upstream 0.7.4's Memory recipes (go_to_x, semantic_map, tool_calling) with a fake robot and local model servers.
+
+Each recipe under ``recipes/v0_7_4/`` is upstream's file with the module renamed and its servers
+swapped for local ones (``memory_servers.py``): a RoboML whose detector is the real COCO SSD, and an
+Ollama whose embeddings follow the words and whose model turns "go to X" into a tool call. A fake
+robot (``fake_robot.py``) stands in a kitchen (the coffee photo) and by a sofa (the cat photo); the
+test checks that the memory stored what was seen at the place it was seen, that asking for a place
+makes the LLM call the memory's ``locate`` (or the recipe's own tool), and that the goal point it
+publishes is that place, where the robot then drives. Every recipe runs on memory in this process;
+go_to_x also runs as a script on Zenoh and on ROS 2.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import os
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from agents_core.ros import Topic
+from agents_core.testing.pairs import missing_requirement, private_ros_environment
+from agents_core.testing.recipes import RecipeProcess, recipe_environment
+from agents_core.transport.registry import resolve_transport
+
+from ..components.vision_recipe import needs_ssd
+from ..conftest import wait_for
+from .fake_robot import FakeRobot, Place, photo
+from .harness import RECIPES, ROOT, launched_as_script, launched_here
+from .memory_servers import CocoRoboMLServer, GoToOllamaServer
+
+pytest.importorskip("emem", reason="the memory extra is not installed (pip install 'agents-core[memory]')")
+
+V074 = RECIPES / "v0_7_4"
+#: Every model the recipes ask the Ollama stand-in for.
+MODELS = ["nomic-embed-text-v2-moe:latest", "qwen3.5:latest", "qwen2.5vl:latest"]
+#: How many frames of a place's object the robot waits for there (locate averages its 10 best matches).
+FRAMES_PER_PLACE = 12
+
+
+@contextlib.contextmanager
+def servers(place_argument: str = "concept") -> Iterator[tuple[GoToOllamaServer, CocoRoboMLServer]]:
+    """The Ollama and RoboML stand-ins (skips without the COCO SSD)."""
+    model = needs_ssd()
+    with GoToOllamaServer(MODELS, place_argument=place_argument) as ollama, CocoRoboMLServer(model) as roboml:
+        yield ollama, roboml
+
+
+def ports(ollama: GoToOllamaServer, roboml: CocoRoboMLServer, db: Path) -> dict[str, Any]:
+    return {"UPSTREAM_OLLAMA_PORT": ollama.port, "UPSTREAM_ROBOML_RESP_PORT": roboml.resp_port,
+            "UPSTREAM_MEMORY_DB": str(db)}
+
+
+def house() -> tuple[Place, Place]:
+    """The kitchen (a cup of coffee on a table) and the sofa (a cat)."""
+    return Place("kitchen", 4.0, 1.0, photo("coffee.png")), Place("sofa", -2.0, 3.0, photo("chelsea.png"))
+
+
+def labels_seen(transport: Any) -> list[list[str]]:
+    """The labels of every Detections published from now on, one list per frame."""
+    seen: list[list[str]] = []
+    transport.create_subscription(Topic(name="detections", msg_type="Detections"),
+                                  lambda d: seen.append(list(d.labels)))
+    return seen
+
+
+def frames_of(seen: list[list[str]], label: str, since: int) -> Callable[[], bool]:
+    return lambda: sum(label in labels for labels in seen[since:]) >= FRAMES_PER_PLACE
+
+
+def tour(robot: FakeRobot, seen: list[list[str]], kitchen: Place, sofa: Place) -> None:
+    """The robot sees the cup in the kitchen, then the cat by the sofa (where it stays)."""
+    for place, label in ((kitchen, "cup"), (sofa, "cat")):
+        assert robot.visit(place, frames_of(seen, label, len(seen)), timeout=90), \
+            f"fewer than {FRAMES_PER_PLACE} frames with a {label} at the {place.name}: {seen[-5:]}"
+
+
+def near(goal: tuple[float, float, float], place: Place, tolerance: float = 0.3) -> bool:
+    return math.hypot(goal[0] - place.x, goal[1] - place.y) <= tolerance
+
+
+def go_to(transport: Any, robot: FakeRobot, where: str, place: Place) -> None:
+    """Ask for ``where``; the goal point published is ``place`` and the robot drives there."""
+    before = len(robot.goals)
+    pub = transport.create_publisher(Topic(name="goto_in", msg_type="String"))
+    try:
+        # Across processes the first request can precede discovery: ask again (bounded) until a goal comes.
+        assert wait_for(lambda: len(robot.goals) > before or (pub.publish(f"Go to the {where}"), False)[1],
+                        timeout=60, interval=5.0), f"no goal point for {where!r}"
+    finally:
+        pub.close()
+    goal = robot.goals[before]
+    assert near(goal, place), f"goal {goal} for {where!r} is not at the {place.name} ({place.x}, {place.y})"
+    assert wait_for(lambda: robot.arrived_at(goal[0], goal[1]), timeout=20), robot.position
+
+
+def component(launcher: Any, name: str) -> Any:
+    return next(c for c in launcher.components if c.component_name == name)
+
+
+def stored_near(memory: Any, place: Place) -> str:
+    """What the memory answers for the 0.5 m around ``place`` (everything buffered is written first)."""
+    return str(memory.spatial_query(x=place.x, y=place.y, radius=0.5, n_results=50))
+
+
+def check_memory(memory: Any, kitchen: Place, sofa: Place) -> None:
+    at_kitchen, at_sofa = stored_near(memory, kitchen), stored_near(memory, sofa)
+    assert "cup" in at_kitchen and "cat" not in at_kitchen, at_kitchen
+    assert "cat" in at_sofa and "cup" not in at_sofa, at_sofa
+
+
+# -- on memory, in this process ---------------------------------------------------------------------
+
+
+def test_go_to_x_on_memory(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    kitchen, sofa = house()
+    with servers() as (ollama, roboml), \
+            launched_here(V074 / "go_to_x.py", ports(ollama, roboml, tmp_path / "go_to_x.db"), monkeypatch) as launcher:
+        t = launcher.transport
+        seen = labels_seen(t)
+        with FakeRobot(t) as robot:
+            tour(robot, seen, kitchen, sofa)
+            check_memory(component(launcher, "memory"), kitchen, sofa)
+            go_to(t, robot, "kitchen table", kitchen)  # "table": the kitchen's detections say "dining table"
+            go_to(t, robot, "cat", sofa)
+    chats = [r.json for r in ollama.requests_to("/api/chat")]
+    offered = {tool["function"]["name"] for body in chats for tool in body.get("tools") or []}
+    assert offered == {"locate"}, offered  # register_tools_on(tools=["locate"]) offered that one tool only
