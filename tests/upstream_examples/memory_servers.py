@@ -8,7 +8,9 @@ Both are real servers on 127.0.0.1 speaking the real protocols (they subclass th
   dimensions, unit length), so "cup" is near "cup, dining table" and far from "cat", as a real
   embedding model would have it; and when a chat request offers tools and its last user message
   says "go to (the) X", it answers with one call of the first offered tool with ``X`` as the
-  argument the test named (``concept`` for Memory's ``locate``). Any other chat is the base answer.
+  argument the test named (``concept`` for Memory's ``locate``). A chat with an image is answered with
+  the room the test said that photo shows ("This looks like a kitchen."), told apart by the photo's
+  width; any other chat is the base answer.
 - :class:`CocoRoboMLServer` answers a ``VisionModel`` node's inference with the COCO SSD's
   detections (labels such as ``cat``, ``cup``), so what the memory stores depends on the photo the
   camera showed.
@@ -18,8 +20,10 @@ from __future__ import annotations
 
 import base64
 import hashlib
+import io
 import math
 import re
+import threading
 from functools import cached_property
 from typing import Any
 
@@ -50,11 +54,14 @@ class GoToOllamaServer(OllamaTestServer):
 
     :param place_argument: the tool argument that gets the place's name (``"concept"`` for Memory's
         ``locate``, ``"place"`` for a recipe's own tool).
+    :param rooms: photo width (pixels) -> the room a vision-language model sees in that photo.
     """
 
-    def __init__(self, models: list[str], place_argument: str = "concept") -> None:
+    def __init__(self, models: list[str], place_argument: str = "concept", rooms: dict[int, str] | None = None) -> None:
         super().__init__(models=models)
         self.place_argument = place_argument
+        self.rooms = dict(rooms or {})
+        self._chat_lock = threading.Lock()
 
     def _embed(self, handler: ProtocolHandler, body: dict[str, Any], fault: Fault | None) -> None:
         if self._model_of(handler, body) is None:
@@ -67,9 +74,23 @@ class GoToOllamaServer(OllamaTestServer):
         handler.send_json(200, {"model": body.get("model"), "embeddings": [word_embedding(t) for t in texts]})
 
     def _chat(self, handler: ProtocolHandler, body: dict[str, Any], fault: Fault | None) -> None:
-        # The tool call is chosen per request (the place named in it), then the base server answers it.
-        self.tool_calls = self._plan(body)
-        super()._chat(handler, body, fault)
+        # The answer is chosen per request, then the base server sends it; one chat at a time, as the
+        # base server reads the answer from these attributes.
+        with self._chat_lock:
+            self.tool_calls = self._plan(body)
+            self.reply = self._room(body)
+            super()._chat(handler, body, fault)
+
+    def _room(self, body: dict[str, Any]) -> str | None:
+        images = [image for m in body.get("messages") or [] if isinstance(m, dict) for image in m.get("images") or []]
+        if not images or not self.rooms:
+            return None
+        from PIL import Image  # noqa: PLC0415  (only the VLM recipes send images)
+
+        with Image.open(io.BytesIO(base64.b64decode(images[-1]))) as img:
+            width = img.size[0]
+        room = self.rooms.get(width)
+        return f"This looks like a {room}." if room else "I cannot tell which room this is."
 
     def _plan(self, body: dict[str, Any]) -> list[dict[str, Any]] | None:
         tools = body.get("tools") or []

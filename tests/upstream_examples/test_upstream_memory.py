@@ -129,3 +129,44 @@ def test_go_to_x_on_memory(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> N
     chats = [r.json for r in ollama.requests_to("/api/chat")]
     offered = {tool["function"]["name"] for body in chats for tool in body.get("tools") or []}
     assert offered == {"locate"}, offered  # register_tools_on(tools=["locate"]) offered that one tool only
+
+
+def test_tool_calling_on_memory(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    kitchen, sofa = house()
+    db = tmp_path / "tool_calling.db"
+    with servers(place_argument="place") as (ollama, roboml), \
+            launched_here(V074 / "tool_calling.py", ports(ollama, roboml, db), monkeypatch) as launcher:
+        t = launcher.transport
+        seen = labels_seen(t)
+        with FakeRobot(t) as robot:
+            tour(robot, seen, kitchen, sofa)
+            check_memory(component(launcher, "memory"), kitchen, sofa)
+            go_to(t, robot, "cup", kitchen)
+            go_to(t, robot, "cat", sofa)
+    calls = [call["function"] for r in ollama.requests_to("/api/chat")
+             for call in (r.json.get("tools") or [])]
+    assert {c["name"] for c in calls} == {"find_location_coordinates"}, calls
+
+
+def test_semantic_map_on_memory(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    kitchen, sofa = house()
+    monkeypatch.setenv("UPSTREAM_TRIGGER", "2.0")  # the VLM and the memory every 0.5 s instead of every 15 s
+    rooms = {kitchen.image.shape[1]: "kitchen", sofa.image.shape[1]: "bedroom"}  # type: ignore[union-attr]
+    with servers() as (ollama, roboml):
+        ollama.rooms = rooms
+        with launched_here(V074 / "semantic_map.py", ports(ollama, roboml, tmp_path / "semantic_map.db"),
+                           monkeypatch) as launcher:
+            memory = component(launcher, "memory")
+            with FakeRobot(launcher.transport) as robot:
+                for place, things in ((kitchen, ("cup", "kitchen")), (sofa, ("cat", "bedroom"))):
+                    assert robot.visit(place, lambda p=place, w=things: all(x in stored_near(memory, p) for x in w),
+                                       timeout=90), (place.name, stored_near(memory, place))
+            at_kitchen, at_sofa = stored_near(memory, kitchen), stored_near(memory, sofa)
+            # Each object only where the robot saw it (the camera is off while it moves). The room may also be
+            # stored once where the robot arrived: the VLM answers about the last photo it has, as upstream's does.
+            assert "cat" not in at_kitchen and "bedroom" not in at_kitchen, at_kitchen
+            assert "cup" not in at_sofa, at_sofa
+            # And the memory finds each room by meaning where the robot was in it.
+            for room, place in (("kitchen", kitchen), ("bedroom", sofa)):
+                best = memory.semantic_search(query=room, layer="introspection_answer", n_results=1)
+                assert f"({place.x:.1f},{place.y:.1f})" in best and room in best, best
