@@ -67,7 +67,7 @@ class FakeRobot:
     :param speed: driving speed towards a goal point (m/s).
     """
 
-    def __init__(self, transport: Any, *, rate: float = 10.0, camera_rate: float = 4.0, speed: float = 5.0,
+    def __init__(self, transport: Any, *, rate: float = 10.0, camera_rate: float = 8.0, speed: float = 5.0,
                  odom: str = "odom", camera: str = "image_raw", goal: str = "goal_point") -> None:
         self.rate, self.camera_rate, self.speed = rate, camera_rate, speed
         self._lock = threading.Lock()
