@@ -122,7 +122,7 @@ class FakeRobot:
         finally:
             self.camera_off()
 
-    def camera_off(self, settle: float = 0.6) -> None:
+    def camera_off(self, settle: float = 1.0) -> None:
         """Stop the camera, then wait ``settle`` s for the frames in flight to be processed."""
         with self._lock:
             self._image = None

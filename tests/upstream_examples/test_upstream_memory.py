@@ -40,8 +40,9 @@ pytestmark = pytest.mark.local_models
 V074 = RECIPES / "v0_7_4"
 #: Every model the recipes ask the Ollama stand-in for.
 MODELS = ["nomic-embed-text-v2-moe:latest", "qwen3.5:latest", "qwen2.5vl:latest"]
-#: How many frames of a place's object the robot waits for there (locate averages its 10 best matches).
-FRAMES_PER_PLACE = 12
+#: How many frames of a place's object the robot waits for there: locate averages its 10 best matches, and a
+#: frame may be merged with the next into one snapshot.
+FRAMES_PER_PLACE = 16
 
 
 @contextlib.contextmanager
