@@ -72,7 +72,7 @@ class RecorderStatistics:
     files: list[Path]
 
 
-_Item = tuple[str, type[SupportedType], Any, int]
+_Item = tuple[str, type[SupportedType], Encoding, Any, int]
 
 
 class Recorder:
@@ -106,7 +106,6 @@ class Recorder:
         self._writer = McapSeriesWriter(path, limits or RecordingLimits(), chunk_size=chunk_size)
         self._queue: DrainQueue[_Item] = DrainQueue(self._write, depth=queue_depth, policy="drop_newest",
                                                     name="recorder-writer")
-        self._encodings: dict[str, Encoding] = {}
         self._subscriptions: dict[str, Subscription] = {}
         self._lock = threading.Lock()
         self._stop = threading.Event()
@@ -176,12 +175,12 @@ class Recorder:
             logger.warning("recorder: not recording %r: %s", name, exc)
             return
 
-        def offer(value: Any, _name: str = name, _type: type[SupportedType] = msg_type) -> None:
-            self._queue.put((_name, _type, value, time.time_ns()))
+        def offer(value: Any, _name: str = name, _type: type[SupportedType] = msg_type,
+                  _encoding: Encoding = encoding) -> None:
+            self._queue.put((_name, _type, _encoding, value, time.time_ns()))
 
         subscription = self._transport.create_subscription(topic, offer, inline=True)
         with self._lock:
-            self._encodings[msg_type.type_name()] = encoding
             self._subscriptions[name] = subscription
 
     def _discover_once(self) -> None:
@@ -215,8 +214,7 @@ class Recorder:
     # -- writing (the queue's thread) ----------------------------------------------------------------
 
     def _write(self, item: _Item) -> None:
-        name, msg_type, value, log_time = item
-        encoding = self._encodings[msg_type.type_name()]
+        name, msg_type, encoding, value, log_time = item
         try:
             data = encoding.encode(value)
         except Exception as exc:  # one value that does not encode must not end the recording
