@@ -10,6 +10,7 @@ is counted in :attr:`ReadSummary.decode_errors` and skipped.
 
 from __future__ import annotations
 
+import struct
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any, BinaryIO
@@ -123,7 +124,8 @@ def read_recording(path: str | Path, *, summary: ReadSummary | None = None, topi
                     summary.messages += 1
                     yield RecordedMessage(entry[0], entry[1], value, record.log_time, record.publish_time,
                                           record.data)
-        except exceptions.EndOfFile:
+        except (exceptions.EndOfFile, struct.error):
+            # A short read happens only at the end of the file: a record cut in the middle.
             summary.truncated = True
         except (exceptions.McapError, ValueError, KeyError, IndexError, OverflowError, MemoryError) as exc:
             if isinstance(exc, RecordingError):
