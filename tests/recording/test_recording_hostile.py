@@ -112,7 +112,7 @@ def test_a_truncated_file_plays_up_to_its_cut(tmp_path: Path) -> None:
     cut.write_bytes(whole[: len(whole) // 3])
     memory = resolve_transport("memory")
     got: list[int] = []
-    memory.create_subscription(TICKS, got.append)
+    memory.create_subscription(TICKS, got.append, inline=True)  # no delivery queue that could drop
     with Player(memory, cut, rate=None) as player:
         stats = player.play()
     assert stats.read.truncated and 0 < stats.published < 50
