@@ -52,7 +52,7 @@ class RecorderStatistics:
 
     :param received: values the subscriptions handed over.
     :param written: values written to a file.
-    :param dropped: values the full queue gave up (the writer fell behind).
+    :param dropped: values the full queue gave up (the writer fell behind: ``queue_depth`` or ``queue_bytes``).
     :param oversize: values larger than ``max_message_bytes``, skipped.
     :param over_limit: values that came after ``max_total_bytes`` / ``max_duration_s``.
     :param errors: values that could not be encoded.
@@ -72,7 +72,19 @@ class RecorderStatistics:
     files: list[Path]
 
 
-_Item = tuple[str, type[SupportedType], Encoding, Any, int]
+_Item = tuple[str, type[SupportedType], Encoding, Any, int, int]
+
+
+def approximate_bytes(value: Any) -> int:
+    """A cheap estimate of what holding ``value`` costs: its arrays' bytes, its text, or a small constant."""
+    size = 256
+    for part in (value, getattr(value, "data", None), getattr(getattr(value, "image", None), "data", None)):
+        nbytes = getattr(part, "nbytes", None)
+        if isinstance(nbytes, int):
+            size += nbytes
+        elif isinstance(part, (str, bytes)):
+            size += len(part)
+    return size
 
 
 class Recorder:
@@ -84,6 +96,7 @@ class Recorder:
     :param include_status: also record each discovered component's ``<name>/status``.
     :param limits: size and duration limits (:class:`~agents_core.recording.writer.RecordingLimits`).
     :param queue_depth: values waiting for the writer before new ones are dropped.
+    :param queue_bytes: the bytes those values may hold (arrays and text, estimated) before new ones are dropped.
     :param encoding: ``cdr`` (ROS 2 CDR where the type has a ROS form) or ``msgpack``.
     :param flush_interval_s: how often the open chunk is closed and flushed.
     :param discover_every_s: how often discovery looks for new topics and components.
@@ -93,6 +106,7 @@ class Recorder:
 
     def __init__(self, transport: Transport, path: str | Path, *, topics: Sequence[Topic | str] | None = None,
                  include_status: bool = True, limits: RecordingLimits | None = None, queue_depth: int = 10_000,
+                 queue_bytes: int = 256 * 2**20,
                  encoding: Preference = "cdr", flush_interval_s: float = 1.0, discover_every_s: float = 2.0,
                  chunk_size: int = 1024 * 1024) -> None:
         if flush_interval_s <= 0 or discover_every_s <= 0:
@@ -107,6 +121,10 @@ class Recorder:
         self._queue: DrainQueue[_Item] = DrainQueue(self._write, depth=queue_depth, policy="drop_newest",
                                                     name="recorder-writer")
         self._subscriptions: dict[str, Subscription] = {}
+        self._queue_bytes_limit = queue_bytes
+        self._queued_bytes = 0
+        self._dropped_for_bytes = 0
+        self._bytes_lock = threading.Lock()
         self._lock = threading.Lock()
         self._stop = threading.Event()
         self._errors = 0
@@ -157,7 +175,10 @@ class Recorder:
         with self._lock:
             topics = sorted(self._subscriptions)
         w = self._writer
-        return RecorderStatistics(received=q.offered, written=w.written, dropped=q.dropped, oversize=w.oversize,
+        with self._bytes_lock:
+            dropped = q.dropped + self._dropped_for_bytes
+        return RecorderStatistics(received=q.offered + self._dropped_for_bytes, written=w.written, dropped=dropped,
+                                  oversize=w.oversize,
                                   over_limit=w.over_limit, errors=self._errors + q.errors, queued=q.queued,
                                   topics=topics, files=list(w.files))
 
@@ -177,7 +198,15 @@ class Recorder:
 
         def offer(value: Any, _name: str = name, _type: type[SupportedType] = msg_type,
                   _encoding: Encoding = encoding) -> None:
-            self._queue.put((_name, _type, _encoding, value, time.time_ns()))
+            size = approximate_bytes(value)
+            with self._bytes_lock:
+                if self._queued_bytes + size > self._queue_bytes_limit:
+                    self._dropped_for_bytes += 1
+                    return
+                self._queued_bytes += size
+            if not self._queue.put((_name, _type, _encoding, value, time.time_ns(), size)):
+                with self._bytes_lock:
+                    self._queued_bytes -= size
 
         subscription = self._transport.create_subscription(topic, offer, inline=True)
         with self._lock:
@@ -214,13 +243,16 @@ class Recorder:
     # -- writing (the queue's thread) ----------------------------------------------------------------
 
     def _write(self, item: _Item) -> None:
-        name, msg_type, encoding, value, log_time = item
+        name, msg_type, encoding, value, log_time, size = item
         try:
             data = encoding.encode(value)
         except Exception as exc:  # one value that does not encode must not end the recording
             self._errors += 1
             logger.warning("recorder: a value on %r did not encode: %s", name, exc)
             return
+        finally:
+            with self._bytes_lock:
+                self._queued_bytes -= size
         header = getattr(value, "header", None)
         stamp = getattr(header, "stamp_ns", 0)
         publish_time = stamp if isinstance(stamp, int) and 0 < stamp < 2**63 else log_time
