@@ -3,7 +3,7 @@
 - **Overhead**: the throughput of a hop (``EchoRelay`` on the memory transport, in this process: a
   value in, the same value out, a window of 8 in flight) without a recorder (``raw``) and with a
   :class:`~agents_core.recording.Recorder` writing every topic of the hop and the relay's status
-  into MCAP (``framework``), for the 64-byte String and the 640×480×3 Image. The two modes alternate
+  into MCAP (``framework``), for the 64-byte String and the 640x480x3 Image. The two modes alternate
   round by round; the ratio framework / raw is the throughput kept (target ≥ 0.95). Memory is the
   hardest case: the recorder shares the recipe's process, its GIL and (here) two cores.
 - **Playback**: 300 Strings recorded at 100 Hz, played back at the recorded pace by

@@ -23,9 +23,9 @@ from types import FrameType
 from typing import Any
 
 from . import cli_hz, cortex, goals, hop, imports, model, processes, report, startup, ui, vision, vla, voice
-from . import recording as recording_suite
 from . import map as map_suite  # the module name is the suite name; "map" alone would hide the builtin
 from . import memory as memory_suite
+from . import recording as recording_suite
 from .common import IMAGE_SHAPE, REPO, STRING_BYTES, Children, available
 from .throughput import WINDOW
 

@@ -26,11 +26,11 @@ from agents_core.transport.registry import resolve_transport
 from ..conftest import wait_for
 
 pytest.importorskip("mcap.writer", reason="pip install 'agents-core[record]'")
-from mcap import exceptions as mcap_exceptions  # noqa: E402
-from mcap import records as mcap_records  # noqa: E402
-from mcap.stream_reader import StreamReader  # noqa: E402
+from mcap import exceptions as mcap_exceptions
+from mcap import records as mcap_records
+from mcap.stream_reader import StreamReader
 
-from agents_core.recording import (  # noqa: E402
+from agents_core.recording import (
     Player,
     ReadSummary,
     Recorder,

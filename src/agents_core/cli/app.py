@@ -1,4 +1,5 @@
-"""The ``agentsctl`` command tree: ``run``, ``topics``, ``components``, ``call``, ``ui``, ``router``, ``record``, ``play``."""
+"""The ``agentsctl`` command tree: ``run``, ``topics``, ``components``, ``call``, ``ui``, ``router``, ``record``,
+``play``."""
 
 from __future__ import annotations
 

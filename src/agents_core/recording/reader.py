@@ -13,7 +13,7 @@ from __future__ import annotations
 import struct
 from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Any, BinaryIO
+from typing import Any
 
 from attrs import define, field
 
@@ -98,32 +98,9 @@ def read_recording(path: str | Path, *, summary: ReadSummary | None = None, topi
                               record_size_limit=max_record_bytes)
         try:
             for record in flat(reader):
-                if isinstance(record, records.Schema):
-                    schemas[record.id] = record
-                elif isinstance(record, records.Channel):
-                    topic = record.topic.lstrip("/")
-                    if topics is not None and topic not in topics:
-                        channels[record.id] = None
-                        continue
-                    try:
-                        msg_type, decode = _channel_decoder(record, schemas.get(record.schema_id))
-                    except (ConfigError, LookupError) as exc:
-                        summary.skipped_channels[topic] = str(exc)
-                        channels[record.id] = None
-                        continue
-                    channels[record.id] = (topic, msg_type, decode)
-                elif isinstance(record, records.Message):
-                    entry = channels.get(record.channel_id)
-                    if entry is None:
-                        continue
-                    try:
-                        value = entry[2](record.data)
-                    except Exception:  # an untrusted payload: counted, never fatal
-                        summary.decode_errors += 1
-                        continue
-                    summary.messages += 1
-                    yield RecordedMessage(entry[0], entry[1], value, record.log_time, record.publish_time,
-                                          record.data)
+                message = _handle(record, records, schemas, channels, topics, summary)
+                if message is not None:
+                    yield message
         except (exceptions.EndOfFile, struct.error):
             # A short read happens only at the end of the file: a record cut in the middle.
             summary.truncated = True
@@ -132,3 +109,33 @@ def read_recording(path: str | Path, *, summary: ReadSummary | None = None, topi
                 raise
             raise RecordingError(f"{path}: not a readable MCAP recording ({type(exc).__name__}: {exc})") from None
 
+
+def _handle(record: Any, records: Any, schemas: dict[int, Any],
+            channels: dict[int, tuple[str, type[SupportedType], Callable[[bytes], Any]] | None],
+            topics: set[str] | None, summary: ReadSummary) -> RecordedMessage | None:
+    """Keep a schema or channel record; decode a message record of a kept channel (None otherwise)."""
+    if isinstance(record, records.Schema):
+        schemas[record.id] = record
+    elif isinstance(record, records.Channel):
+        topic = record.topic.lstrip("/")
+        channels[record.id] = None
+        if topics is not None and topic not in topics:
+            return None
+        try:
+            msg_type, decode = _channel_decoder(record, schemas.get(record.schema_id))
+        except (ConfigError, LookupError) as exc:
+            summary.skipped_channels[topic] = str(exc)
+            return None
+        channels[record.id] = (topic, msg_type, decode)
+    elif isinstance(record, records.Message):
+        entry = channels.get(record.channel_id)
+        if entry is None:
+            return None
+        try:
+            value = entry[2](record.data)
+        except Exception:  # an untrusted payload: counted, never fatal
+            summary.decode_errors += 1
+            return None
+        summary.messages += 1
+        return RecordedMessage(entry[0], entry[1], value, record.log_time, record.publish_time, record.data)
+    return None

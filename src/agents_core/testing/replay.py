@@ -109,19 +109,7 @@ def replay_recording(recording: str | Path, components: Sequence[Any] | Callable
     :param components: the recipe's components, or a function that builds them or one (called once).
     :param remap: recorded input topic -> the topic the recipe reads now (a renamed input).
     """
-    wanted_in = {t.lstrip("/") for t in inputs}
-    wanted_out = {t.lstrip("/") for t in outputs}
-    recorded_inputs: list[RecordedMessage] = []
-    expected: dict[tuple[str, int | None], list[Any]] = {}
-    out_types: dict[str, Any] = {}
-    for message in read_recording(recording, topics=wanted_in | wanted_out):
-        if message.topic in wanted_in:
-            recorded_inputs.append(message)
-        if message.topic in wanted_out:
-            out_types[message.topic] = message.msg_type
-            expected.setdefault((message.topic, _stamp(message.value)), []).append(message.value)
-    if not recorded_inputs:
-        raise ConfigError(f"{recording}: no recorded message on the inputs {sorted(wanted_in)}")
+    recorded_inputs, expected, out_types = _read_expected(recording, inputs, outputs)
     replayed: dict[tuple[str, int | None], list[Any]] = {}
     arrived = threading.Condition()
 
@@ -136,7 +124,7 @@ def replay_recording(recording: str | Path, components: Sequence[Any] | Callable
         return len(replayed.get(key, ())) >= len(expected.get(key, ()))
 
     launcher = Launcher("memory")
-    built = components() if callable(components) else components
+    built: Any = components() if callable(components) else components
     launcher.add_pkg(components=list(built) if isinstance(built, (list, tuple)) else [built])
     report = ReplayReport(inputs=len(recorded_inputs), strict=strict)
     rename = {k.lstrip("/"): v.lstrip("/") for k, v in (remap or {}).items()}
@@ -166,6 +154,34 @@ def replay_recording(recording: str | Path, components: Sequence[Any] | Callable
                 publisher.close()
     with arrived:
         got = {k: list(v) for k, v in replayed.items()}
+    _compare_into(report, expected, got, compare)
+    return report
+
+
+_Keyed = dict[tuple[str, int | None], list[Any]]
+
+
+def _read_expected(recording: str | Path, inputs: Sequence[str], outputs: Sequence[str],
+                   ) -> tuple[list[RecordedMessage], _Keyed, dict[str, Any]]:
+    """(the recorded inputs in order, the recorded outputs by (topic, stamp), each output topic's type)."""
+    wanted_in = {t.lstrip("/") for t in inputs}
+    wanted_out = {t.lstrip("/") for t in outputs}
+    recorded_inputs: list[RecordedMessage] = []
+    expected: _Keyed = {}
+    out_types: dict[str, Any] = {}
+    for message in read_recording(recording, topics=wanted_in | wanted_out):
+        if message.topic in wanted_in:
+            recorded_inputs.append(message)
+        if message.topic in wanted_out:
+            out_types[message.topic] = message.msg_type
+            expected.setdefault((message.topic, _stamp(message.value)), []).append(message.value)
+    if not recorded_inputs:
+        raise ConfigError(f"{recording}: no recorded message on the inputs {sorted(wanted_in)}")
+    return recorded_inputs, expected, out_types
+
+
+def _compare_into(report: ReplayReport, expected: _Keyed, got: _Keyed,
+                  compare: Compare | Mapping[str, Compare]) -> None:
     for key, olds in expected.items():
         news = got.get(key, [])
         same = _comparer(compare, key[0])
@@ -176,4 +192,3 @@ def replay_recording(recording: str | Path, components: Sequence[Any] | Callable
         report.missing += [key] * max(0, len(olds) - len(news))
     for key, news in got.items():
         report.extra += [key] * max(0, len(news) - len(expected.get(key, ())))
-    return report
