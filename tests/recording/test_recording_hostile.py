@@ -169,3 +169,21 @@ def test_size_limits_split_files_and_stop_the_recording(tmp_path: Path) -> None:
     for f in files:
         _, cut = _flushed_messages(f)
         assert not cut  # every file of a stopped recorder is finished
+
+
+@pytest.mark.zenoh
+def test_agentsctl_play_publishes_a_recording_on_zenoh_with_a_remap(tmp_path: Path) -> None:
+    pytest.importorskip("zenoh", reason="pip install 'agents-core[zenoh]'")
+    path = _recording(tmp_path, count=30)
+    endpoint = f"tcp/127.0.0.1:{free_tcp_port()}"
+    got: list[int] = []
+    with resolve_transport("zenoh", mode="peer", listen=[endpoint], connect=[], multicast_scouting=False) as here:
+        here.create_subscription(Topic("counter", "Int64"), got.append, inline=True)
+        done = subprocess.run([sys.executable, "-m", "agents_core.cli", "play", str(path), "-t", "zenoh",
+                               "--connect", endpoint, "-r", "0", "--remap", "ticks:=counter", "--wait", "2",
+                               "--json"], cwd=REPO, env=recipe_environment(), capture_output=True, timeout=60,
+                              check=False)
+        assert done.returncode == 0, done.stderr.decode()[-2000:]
+        assert wait_for(lambda: len(got) == 30, timeout=10), got
+    assert got == list(range(30))
+    assert b'"published": 30' in done.stdout
