@@ -76,7 +76,7 @@ def tests(session: nox.Session) -> None:
     Markers select subsets: ``nox -s tests -- -m zenoh``, ``-- -m "not ros2"``, ``-- -m conformance``.
     """
     # voice-gpl (espeak-ng, GPL-3.0) only in this test environment, never in the core install.
-    _install_with_local_models(session, "dev,zenoh,ros2,local,voice,voice-gpl,roboml,vla,servers,cli,ui,memory")
+    _install_with_local_models(session, "dev,zenoh,ros2,local,voice,voice-gpl,roboml,vla,servers,cli,ui,memory,record")
     _install_ros2_interfaces(session)
     _install_browser(session)
     _private_ros_discovery(session)
@@ -256,7 +256,7 @@ def demo(session: nox.Session) -> None:
 def bench(session: nox.Session) -> None:
     """Benchmarks: the framework against the raw middleware in one run (``-- --quick`` for CI; benchmarks/README.md)."""
     # servers: the map suite writes into a local Chroma server.
-    _install_with_local_models(session, "zenoh,ros2,local,voice,voice-gpl,vla,servers,memory")
+    _install_with_local_models(session, "zenoh,ros2,local,voice,voice-gpl,vla,servers,memory,record")
     session.install("matplotlib")
     _install_ros2_interfaces(session)
     session.run("python", "-m", "benchmarks.run", *session.posargs)

@@ -47,6 +47,8 @@ METRICS: dict[str, list[tuple[str, str, str, str]]] = {
     "vla": [("latency_p50", "ms", "lower", "latency_ms.p50"), ("latency_p99", "ms", "lower", "latency_ms.p99")],
     # the rate `agentsctl topics hz` reports vs a raw zenoh subscriber counting the same publisher.
     "cli": [("hz_rate", "Hz", "higher", "rate_hz")],
+    # a relay hop's throughput with a Recorder writing MCAP (framework) vs without one (raw); playback lateness.
+    "recording": [("msgs_per_s", "msg/s", "higher", "msgs_per_s"), ("playback_p99", "ms", "lower", "lateness_ms.p99")],
 }
 
 #: Above this slowdown (framework cost / raw cost) a latency figure needs a profile note.

@@ -25,6 +25,7 @@ from typing import Any
 from . import cli_hz, cortex, goals, hop, imports, model, processes, report, startup, ui, vision, vla, voice
 from . import map as map_suite  # the module name is the suite name; "map" alone would hide the builtin
 from . import memory as memory_suite
+from . import recording as recording_suite
 from .common import IMAGE_SHAPE, REPO, STRING_BYTES, Children, available
 from .throughput import WINDOW
 
@@ -48,7 +49,7 @@ SETTINGS: dict[str, dict[str, Any]] = {
 }
 
 SUITES = ("hop", "startup", "model", "imports", "vision", "voice", "map", "processes", "ui", "goals", "vla",
-          "cortex", "cli", "memory")
+          "cortex", "cli", "memory", "recording")
 
 
 def transport_unavailable(name: str) -> str | None:
@@ -115,6 +116,7 @@ def run_suites(transports: list[str], suites: list[str], settings: dict[str, Any
         ("cortex", None, lambda: cortex.run_suite(settings, c, p)),
         ("cli", "zenoh", lambda: cli_hz.run_suite(settings, p)),
         ("memory", "memory", lambda: memory_suite.run_suite(settings, p)),
+        ("recording", "memory", lambda: recording_suite.run_suite(settings, p)),
     ]
     records: list[dict[str, Any]] = []
     skipped: list[dict[str, str]] = []

@@ -1,4 +1,5 @@
-"""The ``agentsctl`` command tree: ``run``, ``topics``, ``components``, ``call``, ``ui``, ``router``."""
+"""The ``agentsctl`` command tree: ``run``, ``topics``, ``components``, ``call``, ``ui``, ``router``, ``record``,
+``play``."""
 
 from __future__ import annotations
 
@@ -14,7 +15,7 @@ from ..console import QUIET_ENV_VAR
 from ..errors import AgentsError, ConfigError
 from ..install_hint import install_hint
 from ..transport.registry import TRANSPORT_ENV_VAR
-from . import components, topics
+from . import components, recording, topics
 from .connection import fail, one_line_errors
 from .output import print_json, say
 
@@ -29,6 +30,8 @@ app = typer.Typer(name="agentsctl", no_args_is_help=True, add_completion=False, 
 app.add_typer(topics.app, name="topics")
 app.add_typer(components.app, name="components")
 app.command("call")(components.call)
+app.command("record")(recording.record)
+app.command("play")(recording.play)
 
 
 @app.command("run", context_settings={"allow_extra_args": True, "ignore_unknown_options": True})
