@@ -158,3 +158,90 @@ def test_cortex_agent_in_one_process(cortex_servers: tuple[ScriptedOllamaServer,
         assert answers and "tracking the object" in str(answers[-1])
     # The recipe's own function ran, once.
     assert capsys.readouterr().out.count("LED toggled ON") == 1
+
+
+# -- memory_with_cortex.py ------------------------------------------------------------------------------
+
+MEMORY_WITH_CORTEX = V074 / "memory_with_cortex.py"
+BATTERY = 42.0
+
+
+def _answer_with_tool_result(prefix: str) -> Any:
+    """A planner answer that reports the last tool result it was given (as a model summarising it would)."""
+    def answer(body: dict[str, Any]) -> dict[str, Any]:
+        results = [m.get("content", "") for m in body["messages"] if m.get("role") == "tool"]
+        return text(prefix + (results[-1] if results else "nothing"))
+    return answer
+
+
+def _memory_script() -> dict[str, Any]:
+    """A body query and a perception query (answered while planning), then an action task in an episode."""
+    return {"plan": [calls(("memory.body_status", {})), _answer_with_tool_result("Body: "),
+                     calls(("memory.locate", {"concept": "person"})), _answer_with_tool_result("Seen: "),
+                     calls(("memory.start_episode", {"name": "describe the room"}),
+                           ("captioner.describe", {}),
+                           ("memory.store_specific_memory", {"content": "<output from step 2>"}),
+                           ("memory.end_episode", {})),
+                     text("I described the room and remembered it.")],
+            "confirm": [text("EXECUTE"), text("EXECUTE"),
+                        calls(("memory.store_specific_memory", {"content": "the room has an astronaut"}),
+                              answer="EXECUTE"),
+                        text("EXECUTE")]}
+
+
+def _robot(transport: Any) -> Camera:
+    """The camera, odometry at (1, 2) and the battery level."""
+    odom = OdometryMsg(pose=PoseMsg(position=[1.0, 2.0, 0.0]), header=Header(frame_id="map"))
+    return Camera(transport, [(Topic(name="/odom", msg_type="Odometry"), odom),
+                              (Topic(name="/battery_level", msg_type="Float32"), BATTERY)])
+
+
+@pytest.fixture
+def memory_env(tmp_path: Path) -> Iterator[tuple[ScriptedOllamaServer, dict[str, Any]]]:
+    from ..components.vision_recipe import SSD_MODEL, needs_ssd  # noqa: PLC0415
+
+    needs_ssd()
+    with ScriptedOllamaServer(**_memory_script(), models=OLLAMA_MODELS,
+                              reply="An office with an astronaut in it.") as ollama:
+        yield ollama, {"UPSTREAM_OLLAMA_PORT": ollama.port, "AGENTS_VISION_MODEL": str(SSD_MODEL),
+                       "UPSTREAM_MEMORY_DB": str(tmp_path / "memory.db")}
+
+
+def _check_memory_tasks(transport: Any, ollama: ScriptedOllamaServer) -> dict[str, Any]:
+    """Send the three tasks; returns their results by name."""
+    results: dict[str, Any] = {}
+    for name, task in (("body", "What is your current battery level?"),
+                       ("seen", "Where did you last see a person?"),
+                       ("act", "Describe the room and remember what you see.")):
+        status, result, feedback = _send_task(transport, task)
+        assert status == GoalStatus.SUCCEEDED, (name, result, feedback)
+        results[name] = (result, feedback)
+    body, seen, act = (results[k][0] for k in ("body", "seen", "act"))
+    # Memory's tools answered while planning, with what the robot really reported.
+    assert body["steps"] == 0 and body["message"].startswith("Body: ") and "42" in body["message"], body
+    assert seen["steps"] == 0 and seen["message"].startswith("Seen: ") and "1.0" in seen["message"], seen
+    tools = {t["function"]["name"] for t in ollama.planning_requests[0]["tools"]}
+    assert {"memory.body_status", "memory.locate", "memory.semantic_search", "memory.start_episode",
+            "captioner.describe", "vision.take_picture", "tts.say"} <= tools, tools
+    # The action task ran its four steps; the note holds the confirmed description, inside the episode.
+    assert act["steps"] == 4, act
+    assert any("plan: memory.start_episode, captioner.describe, memory.store_specific_memory, memory.end_episode"
+               in f for f in results["act"][1]), results["act"][1]
+    return results
+
+
+def test_memory_with_cortex_in_one_process(memory_env: tuple[ScriptedOllamaServer, dict[str, Any]],
+                                           speaker: list[tuple[int, int]],
+                                           monkeypatch: pytest.MonkeyPatch) -> None:
+    ollama, ports = memory_env
+    with launched_here(MEMORY_WITH_CORTEX, ports, monkeypatch, timeout=120) as launcher:
+        t = launcher.transport
+        memory = next(c for c in launcher.components if c.component_name == "memory")
+        with _robot(t):
+            assert wait_for(lambda: memory.stats.get("stored", 0) >= 3, timeout=60), memory.stats
+            _check_memory_tasks(t, ollama)
+            # The note went into the memory and is found again by meaning.
+            assert "the room has an astronaut" in memory.semantic_search(query="the room has an astronaut")
+            assert "describe the room" in memory.episode_summary(task_name="describe the room")
+            # Cortex's answers were spoken (its output is the TTS input).
+            assert wait_for(lambda: len(speaker) >= 3, timeout=60), speaker
