@@ -28,7 +28,7 @@ from agents_core.transport.goals import GoalStatus
 from ..conftest import wait_for
 from ..servers.roboml_server import RoboMLTestServer
 from ..servers.scripted_ollama_server import ScriptedOllamaServer, calls, text
-from .harness import RECIPES, launched_here
+from .harness import RECIPES, launched_here, launched_in_processes
 from .sound_device_standin import sounddevice as sound
 
 V074 = RECIPES / "v0_7_4"
@@ -130,6 +130,8 @@ def _check_cortex_agent_plan(ollama: ScriptedOllamaServer, status: GoalStatus, r
     assert any("plan: vision.track, vlm.describe, tts.say, toggle_led" in f for f in feedback), feedback
     tools = {t["function"]["name"] for t in ollama.planning_requests[0]["tools"]}
     assert {"vision.track", "vision.take_picture", "vlm.describe", "tts.say", "toggle_led"} <= tools, tools
+    led = next(t for t in ollama.planning_requests[0]["tools"] if t["function"]["name"] == "toggle_led")
+    assert led["function"]["description"] == "Toggle the robot's LED on or off."  # the recipe's, not the docstring
     # Each step's outcome went back to the planner: the VLM's description among them.
     assert DESCRIPTION in str(ollama.planning_requests[-1]["messages"])
     # The VLM was asked with the camera's image (a chat request without tools, with images).
@@ -245,3 +247,24 @@ def test_memory_with_cortex_in_one_process(memory_env: tuple[ScriptedOllamaServe
             assert "describe the room" in memory.episode_summary(task_name="describe the room")
             # Cortex's answers were spoken (its output is the TTS input).
             assert wait_for(lambda: len(speaker) >= 3, timeout=60), speaker
+
+
+@pytest.mark.zenoh
+@pytest.mark.slow
+def test_cortex_agent_in_processes_on_zenoh(cortex_servers: tuple[ScriptedOllamaServer, RoboMLTestServer],
+                                            tmp_path: Path) -> None:
+    """One process per component: Cortex dispatches to the others through their ``execute_method`` services."""
+    ollama, roboml = cortex_servers
+    with launched_in_processes(CORTEX_AGENT, _ports(ollama, roboml), tmp_path,
+                               env={"PYTHONPATH": str(SOUND_STANDIN)}) as (proc, asker):
+        trackings = _collect(asker, "trackings", "Trackings")
+        detections = _collect(asker, "detections", "Detections")
+        answers = _collect(asker, "cortex_output", "StreamingString")
+        with Camera(asker):
+            assert wait_for(lambda: bool(detections) or proc.proc.poll() is not None, timeout=60), proc.output()
+            status, result, feedback = _send_task(asker, "track the object and tell me what you see", timeout=120)
+            _check_cortex_agent_plan(ollama, status, result, feedback)
+            assert wait_for(lambda: any("object" in list(m.labels) for m in trackings[-3:]), timeout=30)
+        assert wait_for(lambda: bool(answers), timeout=10)
+        # The recipe's function ran in Cortex's process, once.
+        assert wait_for(lambda: proc.output().count("LED toggled ON") == 1, timeout=10), proc.output()

@@ -48,6 +48,7 @@ from .executor import Executor
 from .monitor import HealthWatch
 from .planner import PLANNING_PROMPT, Planner
 from .tools import INSPECT, Tool, ToolBox, goal_schema
+from .transfer import ACTION_CODEC  # noqa: F401  (registers how its actions cross to a component process)
 
 if TYPE_CHECKING:
     from ...transport.goals import GoalHandle
