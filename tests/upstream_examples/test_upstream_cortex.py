@@ -13,9 +13,11 @@ task's result: in this process on memory, in one process per component on Zenoh,
 
 from __future__ import annotations
 
+import contextlib
+import os
 import sys
 import threading
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -23,12 +25,16 @@ import pytest
 
 from agents_core.messages import Header, OdometryMsg, PoseMsg
 from agents_core.ros import Topic
+from agents_core.testing.pairs import missing_requirement, private_ros_environment
+from agents_core.testing.recipes import RecipeProcess, recipe_environment
+from agents_core.transport.contract import Transport
+from agents_core.transport.registry import resolve_transport
 from agents_core.transport.goals import GoalStatus
 
 from ..conftest import wait_for
 from ..servers.roboml_server import RoboMLTestServer
 from ..servers.scripted_ollama_server import ScriptedOllamaServer, calls, text
-from .harness import RECIPES, launched_here, launched_in_processes
+from .harness import ROOT, RECIPES, launched_here, launched_in_processes
 from .sound_device_standin import sounddevice as sound
 
 V074 = RECIPES / "v0_7_4"
@@ -267,4 +273,51 @@ def test_cortex_agent_in_processes_on_zenoh(cortex_servers: tuple[ScriptedOllama
             assert wait_for(lambda: any("object" in list(m.labels) for m in trackings[-3:]), timeout=30)
         assert wait_for(lambda: bool(answers), timeout=10)
         # The recipe's function ran in Cortex's process, once.
+        assert wait_for(lambda: proc.output().count("LED toggled ON") == 1, timeout=10), proc.output()
+
+
+@contextlib.contextmanager
+def launched_on_ros2(recipe: Path, ports: Mapping[str, int], tmp_path: Path,
+                     env: Mapping[str, str]) -> Iterator[tuple[RecipeProcess, Transport]]:
+    """Run ``python recipe`` (as the harness does, its ``multiprocessing`` as written) on ROS 2; yield it and an asker.
+
+    The domain is the session's ``ROS_DOMAIN_ID`` (else one of this process's own), discovery on this host.
+    """
+    reason = missing_requirement("ros2")
+    if reason is not None:
+        pytest.skip(reason)
+    domain = os.environ.get("ROS_DOMAIN_ID") or str(private_ros_environment())
+    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    python_path = os.pathsep.join(p for p in (env.get("PYTHONPATH", ""), str(ROOT), os.environ.get("PYTHONPATH", ""))
+                                  if p)
+    child_env = recipe_environment(AGENTS_TRANSPORT="ros2", ROS_DOMAIN_ID=domain, PYTHONPATH=python_path,
+                                   **{k: str(v) for k, v in ports.items()})
+    process = RecipeProcess("tests.upstream_examples.harness", [str(recipe)], tmp_path / "recipe.log",
+                            cwd=recipe.parent, env=child_env)
+    asker = resolve_transport("ros2", domain_id=int(domain))
+    try:
+        process.wait_ready(180.0)
+        yield process, asker
+    except BaseException:
+        asker.close()
+        process.stop()
+        raise AssertionError(f"recipe {recipe.name} on ros2:\n{process.output()}") from None
+    asker.close()
+    process.stop()
+
+
+@pytest.mark.ros2
+@pytest.mark.slow
+def test_cortex_agent_on_ros2(cortex_servers: tuple[ScriptedOllamaServer, RoboMLTestServer], tmp_path: Path) -> None:
+    """As upstream runs it: on ROS 2, one process per component (the recipe's own ``multiprocessing=True``)."""
+    ollama, roboml = cortex_servers
+    with launched_on_ros2(CORTEX_AGENT, _ports(ollama, roboml), tmp_path,
+                          env={"PYTHONPATH": str(SOUND_STANDIN)}) as (proc, asker):
+        trackings = _collect(asker, "trackings", "Trackings")
+        detections = _collect(asker, "detections", "Detections")
+        with Camera(asker):
+            assert wait_for(lambda: bool(detections) or proc.proc.poll() is not None, timeout=60), proc.output()
+            status, result, feedback = _send_task(asker, "track the object and tell me what you see", timeout=120)
+            _check_cortex_agent_plan(ollama, status, result, feedback)
+            assert wait_for(lambda: any("object" in list(m.labels) for m in trackings[-3:]), timeout=30)
         assert wait_for(lambda: proc.output().count("LED toggled ON") == 1, timeout=10), proc.output()
