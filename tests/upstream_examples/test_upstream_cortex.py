@@ -28,13 +28,13 @@ from agents_core.ros import Topic
 from agents_core.testing.pairs import missing_requirement, private_ros_environment
 from agents_core.testing.recipes import RecipeProcess, recipe_environment
 from agents_core.transport.contract import Transport
-from agents_core.transport.registry import resolve_transport
 from agents_core.transport.goals import GoalStatus
+from agents_core.transport.registry import resolve_transport
 
 from ..conftest import wait_for
 from ..servers.roboml_server import RoboMLTestServer
 from ..servers.scripted_ollama_server import ScriptedOllamaServer, calls, text
-from .harness import ROOT, RECIPES, launched_here, launched_in_processes
+from .harness import RECIPES, ROOT, launched_here, launched_in_processes
 from .sound_device_standin import sounddevice as sound
 
 V074 = RECIPES / "v0_7_4"
@@ -321,3 +321,29 @@ def test_cortex_agent_on_ros2(cortex_servers: tuple[ScriptedOllamaServer, RoboML
             _check_cortex_agent_plan(ollama, status, result, feedback)
             assert wait_for(lambda: any("object" in list(m.labels) for m in trackings[-3:]), timeout=30)
         assert wait_for(lambda: proc.output().count("LED toggled ON") == 1, timeout=10), proc.output()
+
+
+@pytest.mark.zenoh
+@pytest.mark.slow
+def test_memory_with_cortex_in_processes_on_zenoh(memory_env: tuple[ScriptedOllamaServer, dict[str, Any]],
+                                                  tmp_path: Path) -> None:
+    """Memory's tools, found and called by Cortex in another process (planning research and plan steps)."""
+    ollama, ports = memory_env
+    with launched_in_processes(MEMORY_WITH_CORTEX, ports, tmp_path,
+                               env={"PYTHONPATH": str(SOUND_STANDIN)}) as (proc, asker):
+        stored = _collect(asker, "scene_description", "String")
+        with _robot(asker):
+            assert wait_for(lambda: len(stored) >= 3 or proc.proc.poll() is not None, timeout=60), proc.output()
+            # Memory keeps what it is given once it has a position: wait until the battery is remembered.
+            assert wait_for(lambda: "42" in _body_status(asker), timeout=60), proc.output()
+            _check_memory_tasks(asker, ollama)
+
+
+def _body_status(transport: Any) -> str:
+    """Memory's ``body_status`` through its ``execute_method`` service, as Cortex calls it."""
+    try:
+        reply = transport.request("memory/execute_method", {"method": "body_status", "args": [], "kwargs": {}},
+                                  timeout=5.0)
+        return str(reply.get("result"))
+    except Exception as exc:  # not up yet: asked again
+        return f"error: {exc}"
