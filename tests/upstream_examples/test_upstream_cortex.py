@@ -347,3 +347,50 @@ def _body_status(transport: Any) -> str:
         return str(reply.get("result"))
     except Exception as exc:  # not up yet: asked again
         return f"error: {exc}"
+
+
+# -- the API the recipes needed ---------------------------------------------------------------------------
+
+
+def test_text_on_the_ui_task_topic_becomes_a_task(monkeypatch: pytest.MonkeyPatch,
+                                                  speaker: list[tuple[int, int]]) -> None:
+    """``cortex.ui_main_action_input``: what the UI's text box publishes runs as a task (answer on the output)."""
+    with ScriptedOllamaServer(plan=[lambda body: text("Asked: " + body["messages"][-1]["content"][-40:])],
+                              models=OLLAMA_MODELS) as ollama, RoboMLTestServer() as roboml, \
+            launched_here(CORTEX_AGENT, _ports(ollama, roboml), monkeypatch, timeout=120) as launcher:
+        cortex = next(c for c in launcher.components if c.component_name == "cortex")
+        assert cortex.ui_main_action_input.name == "cortex/task"
+        answers = _collect(launcher.transport, "cortex_output", "StreamingString")
+        pub = launcher.transport.create_publisher(cortex.ui_main_action_input)
+        pub.publish("   ")  # blank: no task
+        pub.publish("who are you " + "x" * 10_000)
+        assert wait_for(lambda: bool(answers), timeout=30)
+        assert cortex.tasks["succeeded"] == 1
+    # One planning request, with the task cut to its bound.
+    assert len(ollama.planning_requests) == 1
+    asked = ollama.planning_requests[0]["messages"][-1]["content"]
+    assert "who are you" in asked and "x" * 4000 not in asked[asked.index("who are you") + 4000:]
+    assert str(answers[0].data).startswith("Asked: ")
+
+
+def _module_function() -> None:
+    """A plan step that does nothing."""
+
+
+class _Robot:
+    def beep(self) -> None:
+        """Beep."""
+
+
+def test_cortex_actions_cross_to_a_process_only_as_functions() -> None:
+    from agents_core.components.cortex.transfer import ACTION_CODEC  # noqa: PLC0415  (registers it)
+    from agents_core.errors import ConfigError  # noqa: PLC0415
+    from agents_core.launch.spec import decode_value, encode_value  # noqa: PLC0415
+    from agents_core.ros import Action  # noqa: PLC0415
+
+    action = Action(method=_module_function, kwargs={"n": 2}, description="Do nothing, twice.")
+    back = decode_value(encode_value(action))
+    assert back.method is _module_function and back.kwargs == {"n": 2} and back.description == "Do nothing, twice."
+    with pytest.raises(ConfigError, match="bound to a _Robot"):
+        encode_value(Action(method=_Robot().beep))
+    assert ACTION_CODEC.name == "action"
