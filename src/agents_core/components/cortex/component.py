@@ -12,6 +12,10 @@ action-server component whose action type is known, its goals (``"<component>.se
 ``inspect_component`` lets the planner read a component's description. So a Cortex needs no
 import of the components it drives, and drives them in this process or in others alike.
 
+Tasks also arrive as text on the String topic ``<component_name>/task``
+(:attr:`Cortex.ui_main_action_input`, the web UI's text box): each message is sent to the
+action server as a goal, as any client would send it.
+
 Cortex watches the status topic of every component it found (:mod:`.monitor`); a task is
 aborted when a component it depends on fails. A cancel stops the task between steps and
 cancels the goals it started.
@@ -33,6 +37,7 @@ from ...runtime.run_type import ComponentRunType
 from ...status import LifecycleState
 from ...supported_types import StreamingString, String
 from ...topics import Topic
+from ...transport.contract import Subscription
 from ...transport.goals import ACTION_TYPES, action_type
 from ...transport.graph import describe_component
 from ..model_component import ModelComponent
@@ -43,11 +48,15 @@ from .executor import Executor
 from .monitor import HealthWatch
 from .planner import PLANNING_PROMPT, Planner
 from .tools import INSPECT, Tool, ToolBox, goal_schema
+from .transfer import ACTION_CODEC  # noqa: F401  (registers how its actions cross to a component process)
 
 if TYPE_CHECKING:
     from ...transport.goals import GoalHandle
 
 __all__ = ["Cortex"]
+
+#: The longest task text taken from the task topic (longer text is cut).
+MAX_TASK_CHARS = 4000
 
 
 def _first_paragraph(text: str | None) -> str:
@@ -95,6 +104,7 @@ class Cortex(ModelComponent):
         self._planner = Planner(self._tools, self._call_inference, self._research, self._logger)
         self._task_lock = threading.Lock()
         self._running: GoalHandle | None = None
+        self._task_inbox: Subscription | None = None
         #: Tasks finished, by outcome.
         self.tasks = {"succeeded": 0, "aborted": 0, "canceled": 0}
 
@@ -207,6 +217,32 @@ class Cortex(ModelComponent):
         """The latest state and health of every component Cortex watches."""
         return self._watch.status()
 
+    @property
+    def ui_main_action_input(self) -> Topic:
+        """The String topic whose messages become tasks: upstream's UI input for the main action server.
+
+        ``launcher.enable_ui(inputs=[cortex.ui_main_action_input])`` gives the web UI a text box;
+        each text published there is sent to this Cortex as a ``VisionLanguageAction`` goal.
+        """
+        return Topic(name=f"{self.component_name}/task", msg_type="String")
+
+    def _on_task_text(self, msg: Any) -> None:
+        task = str(getattr(msg, "data", msg)).strip()[:MAX_TASK_CHARS]
+        if not task:
+            return
+
+        def send() -> None:
+            # Off the subscription's thread: sending waits (bounded) for the server to accept.
+            try:
+                goal = self.transport.send_goal(self.component_name, self._action_type, {"task": task}, timeout=5.0)
+            except Exception as exc:
+                self._logger.warning("task %r from %s not sent: %s", task, self.ui_main_action_input.name, exc)
+                return
+            if not goal.accepted:
+                self._logger.warning("task %r from %s was rejected", task, self.ui_main_action_input.name)
+
+        threading.Thread(target=send, name=f"{self.component_name}-task-text", daemon=True).start()
+
     # -- lifecycle ----------------------------------------------------------------------------------
 
     def custom_on_activate(self) -> None:
@@ -214,8 +250,13 @@ class Cortex(ModelComponent):
         self._dispatcher = Dispatcher(self.transport, self.config.dispatch_timeout, self.config.goal_accept_timeout)
         self._executor = Executor(self._tools, self._dispatcher, self._watch, self._call_inference, self.config,
                                   self._logger)
+        self._task_inbox = self.transport.create_subscription(self.ui_main_action_input, self._on_task_text,
+                                                              owner=self.component_name)
 
     def custom_on_deactivate(self) -> None:
+        if self._task_inbox is not None:
+            self._task_inbox.close()
+            self._task_inbox = None
         with self._task_lock:
             running = self._running
         if running is not None:

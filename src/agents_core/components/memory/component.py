@@ -47,7 +47,7 @@ from ..component_base import Component, TriggerType
 from .config import MemoryConfig
 from .engine import ClientEmbedder, ClientSummarizer, MemoryStoreError, open_engine, require_emem
 from .layers import MemLayer, position_of
-from .tools import TOOL_NAMES, check_arguments, tool_description
+from .tools import TOOL_NAMES, action_description, check_arguments, tool_description
 
 if TYPE_CHECKING:
     from ..llm import LLM
@@ -515,52 +515,52 @@ class Memory(Component):
             except (sqlite3.Error, OSError, RuntimeError) as exc:
                 raise MemoryStoreError(f"{name}: the memory database failed: {type(exc).__name__}: {exc}") from exc
 
-    @component_action(description=tool_description("semantic_search"))
+    @component_action(description=action_description("semantic_search"))
     def semantic_search(self, **kwargs: Any) -> str:
         """Observations nearest in meaning to ``query``."""
         return self._tool("semantic_search", kwargs)
 
-    @component_action(description=tool_description("spatial_query"))
+    @component_action(description=action_description("spatial_query"))
     def spatial_query(self, **kwargs: Any) -> str:
         """Observations within ``radius`` of ``x``, ``y``."""
         return self._tool("spatial_query", kwargs)
 
-    @component_action(description=tool_description("temporal_query"))
+    @component_action(description=action_description("temporal_query"))
     def temporal_query(self, **kwargs: Any) -> str:
         """Observations in a time window."""
         return self._tool("temporal_query", kwargs)
 
-    @component_action(description=tool_description("episode_summary"))
+    @component_action(description=action_description("episode_summary"))
     def episode_summary(self, **kwargs: Any) -> str:
         """Summaries of recorded episodes."""
         return self._tool("episode_summary", kwargs)
 
-    @component_action(description=tool_description("get_current_context"))
+    @component_action(description=action_description("get_current_context"))
     def get_current_context(self, **kwargs: Any) -> str:
         """Where the robot is and what is around it."""
         return self._tool("get_current_context", kwargs)
 
-    @component_action(description=tool_description("search_gists"))
+    @component_action(description=action_description("search_gists"))
     def search_gists(self, **kwargs: Any) -> str:
         """Consolidated summaries nearest in meaning to ``query``."""
         return self._tool("search_gists", kwargs)
 
-    @component_action(description=tool_description("entity_query"))
+    @component_action(description=action_description("entity_query"))
     def entity_query(self, **kwargs: Any) -> str:
         """Known entities by name, kind or place."""
         return self._tool("entity_query", kwargs)
 
-    @component_action(description=tool_description("locate"))
+    @component_action(description=action_description("locate"))
     def locate(self, **kwargs: Any) -> str:
         """Where ``concept`` was observed: centre and spread."""
         return self._tool("locate", kwargs)
 
-    @component_action(description=tool_description("recall"))
+    @component_action(description=action_description("recall"))
     def recall(self, **kwargs: Any) -> str:
         """Everything remembered about ``query`` and around it."""
         return self._tool("recall", kwargs)
 
-    @component_action(description=tool_description("body_status"))
+    @component_action(description=action_description("body_status"))
     def body_status(self, **kwargs: Any) -> str:
         """The latest reading of each internal-state layer."""
         return self._tool("body_status", kwargs)

@@ -13,7 +13,7 @@ from typing import Any
 
 from ...errors import ComponentError
 
-__all__ = ["TOOL_NAMES", "check_arguments", "tool_description"]
+__all__ = ["TOOL_NAMES", "action_description", "check_arguments", "tool_description"]
 
 _TIME = "a relative time ('-10m', '-1h', '-2d') or a Unix timestamp"
 
@@ -107,6 +107,15 @@ def tool_description(name: str) -> dict[str, Any]:
     text, properties, required = _TOOLS[name]
     return {"type": "function", "function": {"name": name, "description": text, "parameters": {
         "type": "object", "properties": properties, "required": list(required)}}}
+
+
+def action_description(name: str) -> dict[str, Any]:
+    """:func:`tool_description` with the phase Cortex uses tool ``name`` in (upstream's ``ActionPhase``).
+
+    The retrieval tools answer at once and change nothing: a planner calls them while it plans
+    (``"planning"``); ``body_status`` also fits as a plan step (``"both"``).
+    """
+    return {**tool_description(name), "phase": "both" if name == "body_status" else "planning"}
 
 
 _CHECKS = {"string": lambda v: isinstance(v, str),
