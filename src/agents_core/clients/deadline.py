@@ -314,11 +314,18 @@ class BoundedHTTP:
 
     def __init__(self, base_url: str, *, headers: Mapping[str, str] | None = None,
                  connect_timeout: float = DEFAULT_CONNECT_TIMEOUT) -> None:
-        self.client = httpx.Client(base_url=base_url, headers=dict(headers or {}), timeout=connect_timeout)
+        # The transport is ours so that close() can close its pool again once the requests that
+        # were in flight at close() have ended: httpx returns their connections to the pool after
+        # the client closed it, and nothing would close them (a leaked socket, a ResourceWarning).
+        self._transport = httpx.HTTPTransport()
+        self.client = httpx.Client(base_url=base_url, headers=dict(headers or {}), timeout=connect_timeout,
+                                   transport=self._transport)
         self.connect_timeout = connect_timeout
         self._lock = threading.Lock()
         self._sockets: weakref.WeakValueDictionary[int, socket.socket] = weakref.WeakValueDictionary()
         self._claimed: dict[int, int] = {}
+        self._in_flight = 0
+        self._closing = False
 
     # -- socket bookkeeping ---------------------------------------------------------------------
 
@@ -350,12 +357,14 @@ class BoundedHTTP:
         watch.check()
         watch.set_abort(exchange.abort)
         extensions = {"trace": exchange.trace}
+        self._begin()
         try:
             request = self.client.build_request(method, url, timeout=watch.httpx_timeout(self.connect_timeout),
                                                 extensions=extensions, **kwargs)
             response = self.client.send(request, stream=True)
         except Exception as exc:
             exchange.release()
+            self._end()
             if _timed_out(watch, exc):
                 raise watch.error() from exc
             raise
@@ -363,11 +372,17 @@ class BoundedHTTP:
         # Released with the response: the connection goes back to the pool.
         original_close = response.close
 
+        ended = False
+
         def close() -> None:
+            nonlocal ended
             try:
                 original_close()
             finally:
                 exchange.release()
+                if not ended:
+                    ended = True
+                    self._end()
 
         response.close = close  # type: ignore[method-assign]
         return response
@@ -404,9 +419,26 @@ class BoundedHTTP:
             response.close()
         return response
 
+    def _begin(self) -> None:
+        with self._lock:
+            self._in_flight += 1
+
+    def _end(self) -> None:
+        with self._lock:
+            self._in_flight -= 1
+            last = self._closing and self._in_flight == 0
+        if last:
+            self._transport.close()  # the connections those requests gave back after close()
+
     def close(self) -> None:
-        """Close the connection pool."""
+        """Close the connection pool; requests in flight are cut, and their connections closed when they end."""
+        with self._lock:
+            self._closing = True
+            busy = self._in_flight > 0
+            in_use = list(self._sockets.values()) if busy else []
         self.client.close()
+        for sock in in_use:
+            shutdown_socket(sock)
 
     @property
     def is_closed(self) -> bool:
