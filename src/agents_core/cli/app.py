@@ -1,4 +1,4 @@
-"""The ``agentsctl`` command tree: ``run``, ``topics``, ``components``, ``call``, ``ui``, ``router``."""
+"""The ``agentsctl`` command tree: ``run``, ``topics``, ``components``, ``call``, ``ui``, ``router``, ``foxglove``."""
 
 from __future__ import annotations
 
@@ -16,6 +16,7 @@ from ..install_hint import install_hint
 from ..transport.registry import TRANSPORT_ENV_VAR
 from . import components, topics
 from .connection import fail, one_line_errors
+from .foxglove import foxglove
 from .output import print_json, say
 
 __all__ = ["app"]
@@ -29,6 +30,7 @@ app = typer.Typer(name="agentsctl", no_args_is_help=True, add_completion=False, 
 app.add_typer(topics.app, name="topics")
 app.add_typer(components.app, name="components")
 app.command("call")(components.call)
+app.command("foxglove")(foxglove)
 
 
 @app.command("run", context_settings={"allow_extra_args": True, "ignore_unknown_options": True})
