@@ -7,7 +7,7 @@ import pytest
 pytest.importorskip("typer")
 pytest.importorskip("foxglove")
 
-from ..cli.helpers import cli  # noqa: E402
+from ..cli.helpers import cli
 
 
 def test_off_loopback_is_refused_before_anything_opens() -> None:

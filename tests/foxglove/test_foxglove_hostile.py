@@ -11,15 +11,15 @@ import pytest
 pytest.importorskip("foxglove")
 pytest.importorskip("google.protobuf")
 
-import websockets  # noqa: E402
+import websockets
 
-from agents_core import Launcher, Topic  # noqa: E402
-from agents_core.errors import ConfigError  # noqa: E402
-from agents_core.foxglove import FoxgloveBridge, FoxgloveSettings  # noqa: E402
-from agents_core.transport.memory import MemoryTransport  # noqa: E402
+from agents_core import Launcher, Topic
+from agents_core.errors import ConfigError
+from agents_core.foxglove import FoxgloveBridge, FoxgloveSettings
+from agents_core.transport.memory import MemoryTransport
 
-from ..recipe_parts import Relay  # noqa: E402
-from .ws_client import SUBPROTOCOLS, FoxgloveClient  # noqa: E402
+from ..recipe_parts import Relay
+from .ws_client import SUBPROTOCOLS, FoxgloveClient
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -31,7 +31,7 @@ async def _hostile(url: str) -> None:
                     json.dumps({"op": "unsubscribe", "subscriptionIds": [424242]}), json.dumps({"op": "nope"}),
                     json.dumps([1, 2, 3]), b"\x02\x00\x00\x00garbage"):
             await ws.send(bad)
-    with pytest.raises((websockets.ConnectionClosed, OSError)):  # noqa: PT012 - the huge frame ends this client
+    with pytest.raises((websockets.ConnectionClosed, OSError)):
         async with websockets.connect(url, subprotocols=SUBPROTOCOLS, max_size=None) as ws:
             await ws.recv()
             await ws.send(b"\x01" + os.urandom(64 * 1024 * 1024))

@@ -14,11 +14,11 @@ import pytest
 pytest.importorskip("foxglove")
 pytest.importorskip("google.protobuf")
 
-from agents_core import Launcher, Topic  # noqa: E402
-from agents_core.components import Component  # noqa: E402
-from agents_core.messages import DetectionsMsg, Header, ImageMsg  # noqa: E402
+from agents_core import Launcher, Topic
+from agents_core.components import Component
+from agents_core.messages import DetectionsMsg, Header, ImageMsg
 
-from .ws_client import FoxgloveClient  # noqa: E402
+from .ws_client import FoxgloveClient
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -104,7 +104,7 @@ def test_a_memory_recipe_shows_its_image_and_detections_in_foxglove() -> None:
 @pytest.mark.zenoh
 def test_a_zenoh_recipe_shows_its_image_and_detections_in_foxglove() -> None:
     pytest.importorskip("zenoh")
-    from agents_zenoh.transport import ZenohTransport
+    from agents_zenoh.transport import ZenohTransport  # noqa: PLC0415 - only with the zenoh extra
 
     transport = ZenohTransport(mode="peer", listen=["tcp/127.0.0.1:0"], connect=[], multicast_scouting=False)
     try:

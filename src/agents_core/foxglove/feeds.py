@@ -213,13 +213,13 @@ class TopicFeed:
         parent = _frame_id(value, "odom")
         self._main.log(fm.PoseInFrame(timestamp=_timestamp(stamp), frame_id=parent, pose=_pose(value.pose)),
                        log_time=stamp)
-        pose = _pose(value.pose)
+        qx, qy, qz, qw = (float(v) for v in value.pose.orientation)
         self._extra.log(fm.FrameTransform(timestamp=_timestamp(stamp), parent_frame_id=parent,
                                           child_frame_id=value.child_frame_id or "base_link",
                                           translation=fm.Vector3(x=float(value.pose.position[0]),
                                                                  y=float(value.pose.position[1]),
                                                                  z=float(value.pose.position[2])),
-                                          rotation=pose.orientation), log_time=stamp)
+                                          rotation=fm.Quaternion(x=qx, y=qy, z=qz, w=qw)), log_time=stamp)
 
     def _show_poses(self, value: PathMsg | PoseArrayMsg) -> None:
         stamp = _stamp_ns(value)
