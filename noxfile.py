@@ -76,7 +76,8 @@ def tests(session: nox.Session) -> None:
     Markers select subsets: ``nox -s tests -- -m zenoh``, ``-- -m "not ros2"``, ``-- -m conformance``.
     """
     # voice-gpl (espeak-ng, GPL-3.0) only in this test environment, never in the core install.
-    _install_with_local_models(session, "dev,zenoh,ros2,local,voice,voice-gpl,roboml,vla,servers,cli,ui,memory,record")
+    _install_with_local_models(session, "dev,zenoh,ros2,local,voice,voice-gpl,roboml,vla,servers,cli,ui,memory,"
+                                        "record,foxglove")
     _install_ros2_interfaces(session)
     _install_browser(session)
     _private_ros_discovery(session)

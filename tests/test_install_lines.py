@@ -50,6 +50,7 @@ LINES: dict[str, tuple[str, object]] = {
     "pip install -r interfaces/build-requirements.txt": ("skip", _ROS_REASON),
     "pip install -e '.[ui]'": ("run", None),
     "pip install -e '.[record]'": ("run", None),
+    "pip install -e '.[foxglove]'": ("run", None),
 }
 
 #: Lines run in the wheel's environment (from a scratch directory); all others in the checkout's.

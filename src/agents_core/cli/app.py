@@ -1,5 +1,5 @@
 """The ``agentsctl`` command tree: ``run``, ``topics``, ``components``, ``call``, ``ui``, ``router``, ``record``,
-``play``."""
+``play``, ``foxglove``."""
 
 from __future__ import annotations
 
@@ -17,6 +17,7 @@ from ..install_hint import install_hint
 from ..transport.registry import TRANSPORT_ENV_VAR
 from . import components, recording, topics
 from .connection import fail, one_line_errors
+from .foxglove import foxglove
 from .output import print_json, say
 
 __all__ = ["app"]
@@ -32,6 +33,7 @@ app.add_typer(components.app, name="components")
 app.command("call")(components.call)
 app.command("record")(recording.record)
 app.command("play")(recording.play)
+app.command("foxglove")(foxglove)
 
 
 @app.command("run", context_settings={"allow_extra_args": True, "ignore_unknown_options": True})

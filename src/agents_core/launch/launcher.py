@@ -127,6 +127,8 @@ class Launcher:
         self._stopped_supervisor: Supervisor | None = None
         self._ui_options: dict[str, Any] | None = None
         self._ui: Any = None
+        self._foxglove_options: dict[str, Any] | None = None
+        self._foxglove: Any = None
         self._live_status: LiveStatus | None = None
 
     # -- recipe -------------------------------------------------------------------------------
@@ -183,6 +185,23 @@ class Launcher:
     def ui(self) -> Any:
         """The running :class:`agents_core.ui.UIServer` (its ``url``, ``port``), or None."""
         return self._ui
+
+    def enable_foxglove(self, topics: Sequence[Any] | None = None, port: int = 8765, **settings: Any) -> None:
+        """Serve the recipe's topics to Foxglove (``agents_core.foxglove``, the ``foxglove`` extra) while it runs.
+
+        ``topics``: those to serve (None: every input and output); the status topics always. Other
+        keywords are :class:`agents_core.foxglove.FoxgloveSettings` fields; it binds 127.0.0.1.
+        """
+        from ..foxglove.settings import FoxgloveSettings  # noqa: PLC0415  (Foxglove is optional)
+
+        if self._started:
+            raise ConfigError("enable_foxglove() must be called before the launcher starts")
+        self._foxglove_options = {"topics": topics, "settings": FoxgloveSettings(port=port, **settings)}
+
+    @property
+    def foxglove(self) -> Any:
+        """The running :class:`agents_core.foxglove.FoxgloveBridge` (its ``url``, ``port``), or None."""
+        return self._foxglove
 
     def on_process_fail(self, max_retries: int = 3, on_giveup: Action | None = None) -> None:
         """Respawn a crashed component process up to ``max_retries`` times (multiprocessing runs).
@@ -283,12 +302,10 @@ class Launcher:
                     failing = (c.component_name, "activate")
                     c.activate()
                     report.component(*component_row(c))
-            if self._ui_options is not None:
-                from ..ui.launch import start_ui  # noqa: PLC0415  (the UI is optional)
-
-                failing = (None, "start the web UI")
-                self._ui = start_ui(self.components, self._transport, **self._ui_options)
-                report.ui(str(self._ui.url))
+            failing = (None, "start the web UI")
+            self._start_ui(report)
+            failing = (None, "start the Foxglove server")
+            self._start_foxglove(report)
         except BaseException as exc:
             report.failed(*failing, exc)
             self.stop()
@@ -298,6 +315,20 @@ class Launcher:
         self._live_status.start()
         logger.info("launched %d component(s) on %s", len(self.components), self._transport.name)
         return self
+
+    def _start_ui(self, report: LaunchReport) -> None:
+        if self._ui_options is not None:
+            from ..ui.launch import start_ui  # noqa: PLC0415  (the UI is optional)
+
+            self._ui = start_ui(self.components, self.transport, **self._ui_options)
+            report.ui(str(self._ui.url))
+
+    def _start_foxglove(self, report: LaunchReport) -> None:
+        if self._foxglove_options is not None:
+            from ..foxglove.launch import start_foxglove  # noqa: PLC0415  (Foxglove is optional)
+
+            self._foxglove = start_foxglove(self.components, self.transport, **self._foxglove_options)
+            report.foxglove(self._foxglove.url)
 
     def _apply_fail_action(self) -> None:
         if self._fallback_rate is not None:
@@ -445,6 +476,9 @@ class Launcher:
             ui, self._ui = self._ui, None
             if ui is not None:
                 ui.stop()
+            foxglove, self._foxglove = self._foxglove, None
+            if foxglove is not None:
+                foxglove.stop()
             for sub in self._event_subscriptions:
                 sub.close()
             self._event_subscriptions.clear()

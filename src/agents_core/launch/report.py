@@ -136,6 +136,10 @@ class LaunchReport:
         """The web UI's address."""
         self._line(f"agents: web UI at {url}", f"[bold]agents:[/] web UI at [link={url}]{url}[/link]")
 
+    def foxglove(self, url: str) -> None:
+        """The Foxglove WebSocket server's address."""
+        self._line(f"agents: Foxglove at {url}")
+
     def running(self, count: int) -> None:
         """Everything is up: how many components, and how to stop."""
         text = f"{count} component(s) running; press Ctrl-C to stop"
