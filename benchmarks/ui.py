@@ -29,7 +29,9 @@ from typing import Any
 
 from .common import available, emit, image_pixels, percentile
 
-PAYLOADS = ("string", "image")
+#: payload -> (value, the client's frames, the server's image_format)
+PAYLOADS = {"string": ("string", "json", "jpeg"), "image": ("image", "binary", "jpeg"),
+            "image_json": ("image", "json", "jpeg"), "image_raw": ("image", "binary", "raw")}
 
 
 def _value(payload: str, seq: int) -> Any:
@@ -40,7 +42,8 @@ def _value(payload: str, seq: int) -> Any:
     return pixels
 
 
-def _latencies(payload: str, count: int, warmup: int, frames: str = "json") -> dict[str, list[float]]:
+def _latencies(payload: str, count: int, warmup: int, frames: str = "json",
+               image_format: str = "jpeg") -> dict[str, list[float]]:
     """Interleaved: each round publishes once on the UI's topic (timed to the WebSocket client) and once
     on a second topic that only a raw subscription reads (timed to its callback), alternating which
     goes first. Separate topics keep the UI's encode off the raw side's delivery path."""
@@ -56,7 +59,7 @@ def _latencies(payload: str, count: int, warmup: int, frames: str = "json") -> d
     transport = MemoryTransport()
     got = threading.Event()
     raw_sub = transport.create_subscription(raw_topic, lambda _: got.set())
-    server = UIServer(LocalRecipe([]), transport, inputs=[], outputs=[shown], settings=UISettings(port=0)).start()
+    server = UIServer(LocalRecipe([]), transport, inputs=[], outputs=[shown], settings=UISettings(port=0, image_format=image_format)).start()
     publisher, raw_publisher = transport.create_publisher(shown), transport.create_publisher(raw_topic)
     out: dict[str, list[float]] = {"framework": [], "raw": []}
     query = "topics=bench" + ("&frames=binary" if frames == "binary" else "")
@@ -95,8 +98,9 @@ def _latencies(payload: str, count: int, warmup: int, frames: str = "json") -> d
 def measure(count: int, warmup: int, progress: Callable[[str], None]) -> list[dict[str, Any]]:
     """The records of every payload, framework and raw."""
     records = []
-    for payload in PAYLOADS:
-        samples = _latencies(payload, count if payload == "string" else max(5, count // 4), warmup)
+    for payload, (value, frames, image_format) in PAYLOADS.items():
+        samples = _latencies(value, count if payload == "string" else max(5, count // 4), warmup, frames,
+                             image_format)
         for mode, values in samples.items():
             records.append({"suite": "ui", "transport": "memory", "mode": mode, "payload": payload,
                             "n": len(values), "latency_ms": {"p50": percentile(values, 50),
