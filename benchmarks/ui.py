@@ -59,7 +59,8 @@ def _latencies(payload: str, count: int, warmup: int, frames: str = "json",
     transport = MemoryTransport()
     got = threading.Event()
     raw_sub = transport.create_subscription(raw_topic, lambda _: got.set())
-    server = UIServer(LocalRecipe([]), transport, inputs=[], outputs=[shown], settings=UISettings(port=0, image_format=image_format)).start()
+    server = UIServer(LocalRecipe([]), transport, inputs=[], outputs=[shown],
+                      settings=UISettings(port=0, image_format=image_format)).start()
     publisher, raw_publisher = transport.create_publisher(shown), transport.create_publisher(raw_topic)
     out: dict[str, list[float]] = {"framework": [], "raw": []}
     query = "topics=bench" + ("&frames=binary" if frames == "binary" else "")

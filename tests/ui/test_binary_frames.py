@@ -72,8 +72,8 @@ def test_a_binary_client_gets_images_as_binary_frames_and_text_as_json() -> None
                          max_size=None) as ws:
                 assert wait_for(lambda: ui.state.hub.client_count == 1, timeout=5)
                 ramp = np.linspace(0, 255, 64, dtype=np.uint8)  # smooth: JPEG keeps it close
-                pixels = np.stack([np.tile(ramp, (48, 1)), np.tile(ramp[::-1], (48, 1)), np.full((48, 64), 90, np.uint8)],
-                                  axis=2)
+                pixels = np.stack([np.tile(ramp, (48, 1)), np.tile(ramp[::-1], (48, 1)),
+                                   np.full((48, 64), 90, np.uint8)], axis=2)
                 launcher.transport.create_publisher(PICTURE).publish(pixels)
                 frame = unpack(_next_binary(ws))
                 launcher.transport.create_publisher(WORDS).publish("hi")
@@ -132,7 +132,7 @@ def test_a_binary_client_that_never_reads_keeps_only_the_latest_frame() -> None:
         try:
             stalled = _stalled_binary_client(ui.port)
             assert wait_for(lambda: ui.state.hub.client_count == 1, timeout=5)
-            (client,) = ui.state.hub._clients  # noqa: SLF001  (the server's own view of that client)
+            (client,) = ui.state.hub.clients  # the server's own view of that client
             publisher = launcher.transport.create_publisher(PICTURE)
             noise = np.random.default_rng(5).integers(0, 255, (480, 640, 3), dtype=np.uint8)  # big JPEGs
             backlog = []

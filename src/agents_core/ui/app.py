@@ -185,7 +185,8 @@ async def _json_body(request: Request) -> dict[str, Any]:
 
 
 def _topic_entry(topic: Topic, topic_id: int | None = None) -> dict[str, Any]:
-    entry = {"name": topic.name, "msg_type": topic.msg_type.type_name(), "widget": input_widget(topic.msg_type)}
+    entry: dict[str, Any] = {"name": topic.name, "msg_type": topic.msg_type.type_name(),
+                             "widget": input_widget(topic.msg_type)}
     if topic_id is not None:  # outputs: the topic_id of their binary frames
         entry["id"] = topic_id
     return entry

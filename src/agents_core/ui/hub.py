@@ -274,6 +274,11 @@ class OutputHub:
                 self._json_clients -= 1
 
     @property
+    def clients(self) -> list[OutputClient]:
+        """The connected clients (a copy; read it on the event loop, or for diagnostics)."""
+        return list(self._clients)
+
+    @property
     def client_count(self) -> int:
         return len(self._clients)
 
