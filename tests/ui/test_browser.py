@@ -201,7 +201,22 @@ def test_a_60_hz_camera_is_drawn_at_30_fps_or_more(page: Page, tmp_path: Path) -
     launcher = Launcher("memory")
     launcher.add_pkg(components=[shouter()])
     launcher.enable_ui(inputs=[WORDS], outputs=[camera], port=0)
-    frames = [np.random.default_rng(i).integers(0, 255, (480, 640, 3), dtype=np.uint8) for i in range(4)]
+    from PIL import Image as PILImage  # noqa: PLC0415
+
+    from ..components.vision_recipe import SHARED_IMAGES  # noqa: PLC0415
+
+    # Camera-like frames (photos, 640x480), each with a moving noise band so no two are alike.
+    photos = [np.asarray(PILImage.open(SHARED_IMAGES / name).convert("RGB").resize((640, 480)))
+              for name in ("coffee.png", "chelsea.png", "astronaut.png", "motorcycle_left.png")
+              if (SHARED_IMAGES / name).is_file()]
+    if not photos:
+        pytest.skip(f"no photos in {SHARED_IMAGES}")
+    rng = np.random.default_rng(0)
+    frames = []
+    for i in range(8):
+        frame = photos[i % len(photos)].copy()
+        frame[i * 40:(i * 40) + 40] = rng.integers(0, 255, (40, 640, 3), dtype=np.uint8)
+        frames.append(frame)
     stop = threading.Event()
     with launcher:
         publisher = launcher.transport.create_publisher(camera)
