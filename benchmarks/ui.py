@@ -1,12 +1,15 @@
 """Web UI: latency from a topic value to a WebSocket client of the UI, against a raw subscription.
 
 In one process on the memory transport: a value is published on a topic, and the time until it
-arrives is measured, one value at a time, two ways:
+arrives is measured, one value at a time, two ways, on separate publishes interleaved in one run (each
+round times one of each, alternating which goes first):
 
 - ``framework``: through the UI (``agents_core.ui``, a real uvicorn server on 127.0.0.1): the
   hub's subscription encodes the frame (JSON; a JPEG for an image), the event loop fans it out,
   and a WebSocket client (the ``websockets`` library) receives and parses it;
-- ``raw``: a plain transport subscription's callback receives the value.
+- ``raw``: a plain transport subscription's callback receives the value, on a second topic that the UI
+  does not show (on the same topic the UI's own encode could run first on the delivery path and
+  inflate the raw side).
 
 Payloads: ``string`` (a short String) and ``image`` (a 640x480 rgb8 Image, sent to the client as
 JPEG). The ratio shows what serving a browser costs over reading the topic in-process.
@@ -26,7 +29,9 @@ from typing import Any
 
 from .common import available, emit, image_pixels, percentile
 
-PAYLOADS = ("string", "image")
+#: payload -> (value, the client's frames, the server's image_format)
+PAYLOADS = {"string": ("string", "json", "jpeg"), "image": ("image", "binary", "jpeg"),
+            "image_json": ("image", "json", "jpeg"), "image_raw": ("image", "binary", "raw")}
 
 
 def _value(payload: str, seq: int) -> Any:
@@ -37,7 +42,11 @@ def _value(payload: str, seq: int) -> Any:
     return pixels
 
 
-def _latencies(payload: str, count: int, warmup: int) -> dict[str, list[float]]:
+def _latencies(payload: str, count: int, warmup: int, frames: str = "json",
+               image_format: str = "jpeg") -> dict[str, list[float]]:
+    """Interleaved: each round publishes once on the UI's topic (timed to the WebSocket client) and once
+    on a second topic that only a raw subscription reads (timed to its callback), alternating which
+    goes first. Separate topics keep the UI's encode off the raw side's delivery path."""
     from websockets.sync.client import connect  # noqa: PLC0415
 
     from agents_core import Topic  # noqa: PLC0415
@@ -45,29 +54,41 @@ def _latencies(payload: str, count: int, warmup: int) -> dict[str, list[float]]:
     from agents_core.ui import LocalRecipe, UISettings  # noqa: PLC0415
     from agents_core.ui.server import UIServer  # noqa: PLC0415
 
-    topic = Topic("bench", "String" if payload == "string" else "Image")
+    type_name = "String" if payload == "string" else "Image"
+    shown, raw_topic = Topic("bench", type_name), Topic("bench_raw", type_name)
     transport = MemoryTransport()
     got = threading.Event()
-    raw_sub = transport.create_subscription(topic, lambda _: got.set())
-    server = UIServer(LocalRecipe([]), transport, inputs=[], outputs=[topic], settings=UISettings(port=0)).start()
-    publisher = transport.create_publisher(topic)
+    raw_sub = transport.create_subscription(raw_topic, lambda _: got.set())
+    server = UIServer(LocalRecipe([]), transport, inputs=[], outputs=[shown],
+                      settings=UISettings(port=0, image_format=image_format)).start()
+    publisher, raw_publisher = transport.create_publisher(shown), transport.create_publisher(raw_topic)
     out: dict[str, list[float]] = {"framework": [], "raw": []}
+    query = "topics=bench" + ("&frames=binary" if frames == "binary" else "")
     try:
-        with connect(f"ws://127.0.0.1:{server.port}/api/outputs?topics=bench", max_size=None,
-                     open_timeout=10) as ws:
-            for seq in range(warmup + count):
-                value = _value(payload, seq)
-                got.clear()
+        with connect(f"ws://127.0.0.1:{server.port}/api/outputs?{query}", max_size=None, open_timeout=10) as ws:
+
+            def through_ui(value: Any) -> float:
                 start = time.perf_counter()
                 publisher.publish(value)
+                message = ws.recv(timeout=10)
+                if isinstance(message, str):
+                    json.loads(message)
+                return time.perf_counter() - start
+
+            def raw(value: Any) -> float:
+                got.clear()
+                start = time.perf_counter()
+                raw_publisher.publish(value)
                 if not got.wait(10):
                     raise RuntimeError("the raw subscription got nothing in 10 s")
-                raw = time.perf_counter() - start
-                json.loads(ws.recv(timeout=10))
-                through_ui = time.perf_counter() - start
+                return time.perf_counter() - start
+
+            for seq in range(warmup + count):
+                first, second = (through_ui, raw) if seq % 2 else (raw, through_ui)
+                times = {f: f(_value(payload, seq)) for f in (first, second)}
                 if seq >= warmup:
-                    out["raw"].append(raw * 1000)
-                    out["framework"].append(through_ui * 1000)
+                    out["raw"].append(times[raw] * 1000)
+                    out["framework"].append(times[through_ui] * 1000)
     finally:
         server.stop()
         raw_sub.close()
@@ -78,8 +99,9 @@ def _latencies(payload: str, count: int, warmup: int) -> dict[str, list[float]]:
 def measure(count: int, warmup: int, progress: Callable[[str], None]) -> list[dict[str, Any]]:
     """The records of every payload, framework and raw."""
     records = []
-    for payload in PAYLOADS:
-        samples = _latencies(payload, count if payload == "string" else max(5, count // 4), warmup)
+    for payload, (value, frames, image_format) in PAYLOADS.items():
+        samples = _latencies(value, count if payload == "string" else max(5, count // 4), warmup, frames,
+                             image_format)
         for mode, values in samples.items():
             records.append({"suite": "ui", "transport": "memory", "mode": mode, "payload": payload,
                             "n": len(values), "latency_ms": {"p50": percentile(values, 50),

@@ -188,3 +188,62 @@ def test_the_ui_attached_over_zenoh_to_a_recipe_in_another_process(page: Page, t
         for stream in (recipe.stdout, recipe.stderr):
             if stream is not None:
                 stream.close()
+
+
+def test_a_60_hz_camera_is_drawn_at_30_fps_or_more(page: Page, tmp_path: Path) -> None:
+    """Issue 29, item 3: binary frames, drawn once per display refresh, keep up with a 640x480 camera."""
+    import threading  # noqa: PLC0415
+    import time  # noqa: PLC0415
+
+    import numpy as np  # noqa: PLC0415
+
+    camera = Topic("camera", "Image")
+    launcher = Launcher("memory")
+    launcher.add_pkg(components=[shouter()])
+    launcher.enable_ui(inputs=[WORDS], outputs=[camera], port=0)
+    from PIL import Image as PILImage  # noqa: PLC0415
+
+    from ..components.vision_recipe import SHARED_IMAGES  # noqa: PLC0415
+
+    # Camera-like frames (photos, 640x480), each with a moving noise band so no two are alike.
+    photos = [np.asarray(PILImage.open(SHARED_IMAGES / name).convert("RGB").resize((640, 480)))
+              for name in ("coffee.png", "chelsea.png", "astronaut.png", "motorcycle_left.png")
+              if (SHARED_IMAGES / name).is_file()]
+    if not photos:
+        pytest.skip(f"no photos in {SHARED_IMAGES}")
+    rng = np.random.default_rng(0)
+    frames = []
+    for i in range(8):
+        frame = photos[i % len(photos)].copy()
+        frame[i * 40:(i * 40) + 40] = rng.integers(0, 255, (40, 640, 3), dtype=np.uint8)
+        frames.append(frame)
+    stop = threading.Event()
+    with launcher:
+        publisher = launcher.transport.create_publisher(camera)
+
+        def publish_at_60_hz() -> None:
+            next_at, seq = time.perf_counter(), 0
+            while not stop.is_set() and seq < 60 * 30:  # bounded: 30 s at most
+                publisher.publish(frames[seq % len(frames)])
+                seq += 1
+                next_at += 1 / 60
+                time.sleep(max(0.0, next_at - time.perf_counter()))
+
+        _open(page, launcher.ui.url)
+        camera_thread = threading.Thread(target=publish_at_60_hz, daemon=True)
+        camera_thread.start()
+        try:
+            page.wait_for_function("window.uiStats.drawn > 10", timeout=TIMEOUT_MS)
+            before = page.evaluate("[window.uiStats.drawn, performance.now()]")
+            page.wait_for_timeout(3000)
+            after = page.evaluate("[window.uiStats.drawn, performance.now(), window.uiStats.bad]")
+            _shot(page, tmp_path, "camera_60hz")
+        finally:
+            stop.set()
+            camera_thread.join(timeout=10)
+        health = launcher.ui.state.hub
+        dropped = health.dropped_frames
+    fps = (after[0] - before[0]) / ((after[1] - before[1]) / 1000)
+    print(f"browser drew {fps:.1f} fps of a 60 Hz 640x480 camera; server dropped {dropped} frames (latest-wins)")
+    assert after[2] == 0, "the page refused frames it should have drawn"
+    assert fps >= 30, f"the page drew {fps:.1f} frames per second of a 60 Hz camera"

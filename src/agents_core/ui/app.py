@@ -6,7 +6,7 @@
                                                               inputs, outputs, actions) and the
                                                               inputs / outputs the UI shows
 ``POST /api/inputs/<topic>``                                  publish (see :mod:`.inputs`)
-``WS   /api/outputs[?topics=a,b]``                            frames (see :mod:`.frames`)
+``WS   /api/outputs[?topics=a,b][&frames=binary]``          frames (see :mod:`.frames`, :mod:`.binary_frames`)
 ``POST /api/components/<name>/transition``                    ``{"transition": "deactivate"}``
 ``POST /api/components/<name>/actions/<action>``              ``{"args": [...], "kwargs": {...}}``,
                                                               ``@component_action`` methods only
@@ -184,8 +184,12 @@ async def _json_body(request: Request) -> dict[str, Any]:
 # -- endpoints --------------------------------------------------------------------------------
 
 
-def _topic_entry(topic: Topic) -> dict[str, Any]:
-    return {"name": topic.name, "msg_type": topic.msg_type.type_name(), "widget": input_widget(topic.msg_type)}
+def _topic_entry(topic: Topic, topic_id: int | None = None) -> dict[str, Any]:
+    entry: dict[str, Any] = {"name": topic.name, "msg_type": topic.msg_type.type_name(),
+                             "widget": input_widget(topic.msg_type)}
+    if topic_id is not None:  # outputs: the topic_id of their binary frames
+        entry["id"] = topic_id
+    return entry
 
 
 def _routes(state: UIState) -> list[Any]:  # noqa: PLR0915  (one closure per endpoint, over one state)
@@ -195,6 +199,7 @@ def _routes(state: UIState) -> list[Any]:  # noqa: PLR0915  (one closure per end
         hub = state.hub
         return JSONResponse({"ok": True, "transport": state.transport.name, "components": len(hub.components),
                              "clients": hub.client_count, "frames_sent": hub.frames_sent,
+                             "dropped_frames": hub.dropped_frames,
                              "dropped_clients": hub.dropped_clients, "encode_errors": hub.encode_errors,
                              "refused_clients": hub.refused_clients, "refused_bodies": dict(state.refused_bodies)})
 
@@ -216,7 +221,8 @@ def _routes(state: UIState) -> list[Any]:  # noqa: PLR0915  (one closure per end
         components = await run_in_threadpool(_describe_all)
         return JSONResponse({"transport": state.transport.name, "components": components,
                              "inputs": [_topic_entry(t) for t in state.inputs.values()],
-                             "outputs": [_topic_entry(t) for t in state.outputs.values()],
+                             "outputs": [_topic_entry(t, state.hub.topic_ids[t.name])
+                                         for t in state.outputs.values()],
                              "max_upload_bytes": settings.max_upload_bytes})
 
     async def publish_input(request: Request) -> Response:
@@ -374,23 +380,31 @@ def _outputs_socket(state: UIState) -> Callable[[WebSocket], Awaitable[None]]:
         wanted = websocket.query_params.get("topics")
         topics = [t for t in wanted.split(",") if t] if wanted else None
         unknown = sorted(set(topics or []) - set(state.outputs))
+        form = websocket.query_params.get("frames", "json")
         await websocket.accept()
         if unknown:
             await websocket.close(code=1008, reason=f"not outputs of this UI: {unknown}"[:120])
+            return
+        if form not in ("json", "binary"):
+            await websocket.close(code=1008, reason="frames must be 'json' or 'binary'")
             return
         if state.hub.client_count >= state.settings.max_clients:
             state.hub.refused_clients += 1
             await websocket.close(code=1013, reason=f"too many clients ({state.settings.max_clients}); try later")
             return
-        client = state.hub.connect(topics)
+        client = state.hub.connect(topics, binary=form == "binary")
         try:
             # Two tasks, the first to end stops both: pump sends frames until the client is dropped,
-            # listen notices a client that goes away (what it sends is ignored).
+            # listen notices a client that goes away (what it sends is ignored; the server's
+            # ws_max_size bounds it).
             async with anyio.create_task_group() as group:
 
                 async def pump() -> None:
-                    while (text := await client.queue.get()) is not None:
-                        await websocket.send_text(text)
+                    while (frame := await client.next_frame()) is not None:
+                        if isinstance(frame, bytes):
+                            await websocket.send_bytes(frame)
+                        else:
+                            await websocket.send_text(frame)
                     group.cancel_scope.cancel()
 
                 async def listen() -> None:

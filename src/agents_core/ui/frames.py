@@ -26,7 +26,8 @@ An image with a side past JPEG's limit (:data:`MAX_JPEG_SIDE`) is sent downscale
 carrying the original ``width`` / ``height`` and a ``note``.
 
 Encoding runs once per value, on the subscription's delivery thread, whatever the number of
-connected clients.
+connected clients. Clients that ask for binary frames get images as binary WebSocket frames
+instead (:mod:`.binary_frames`).
 """
 
 from __future__ import annotations
@@ -50,8 +51,8 @@ from ..messages import (
     TrackingsMsg,
 )
 
-__all__ = ["MAX_AUDIO_CHANNELS", "MAX_JPEG_SIDE", "MAX_LIST_ITEMS", "FrameRefused", "encode_audio_wav",
-           "encode_image", "error_frame", "frame_for", "jsonable"]
+__all__ = ["MAX_AUDIO_CHANNELS", "MAX_JPEG_SIDE", "MAX_LIST_ITEMS", "RGB8_MIME", "FrameRefused", "encode_audio_wav",
+           "encode_image", "error_frame", "frame_for", "image_bytes", "jsonable"]
 
 #: The longest array / list a ``value`` frame carries (a LaserScan or a map would be megabytes).
 MAX_LIST_ITEMS = 4096
@@ -73,20 +74,25 @@ def _b64(data: bytes) -> str:
     return base64.b64encode(data).decode("ascii")
 
 
-def encode_image(image: ImageMsg | CompressedImageMsg, image_format: str = "jpeg") -> dict[str, Any]:
-    """An ``image`` frame's fields for ``image``: compressed images as they are, raw ones as JPEG or PNG.
+#: The ``mime`` of raw pixels (``image_format="raw"``, binary frames only): rgb8, rows top-down.
+RGB8_MIME = "application/x-rgb8"
 
-    Depth and 16-bit images are scaled to 8 bits for display (the frame is for eyes, not for maths).
+
+def image_bytes(image: ImageMsg | CompressedImageMsg,
+                image_format: str = "jpeg") -> tuple[str, bytes, int | None, int | None, str | None]:
+    """``image`` ready to send: ``(mime, data, width, height, note)``.
+
+    Compressed images are passed as they are (``width`` / ``height`` None); raw ones are encoded as
+    JPEG or PNG, or (``image_format="raw"``) sent as their rgb8 pixels. Depth and 16-bit images are
+    scaled to 8 bits for display (the frame is for eyes, not for maths). ``note`` says when the image
+    was downscaled (a side past JPEG's limit).
     """
     if isinstance(image, CompressedImageMsg):
         fmt = image.format.lower()
-        mime = _MIME.get(fmt, f"image/{fmt}")
-        return {"mime": mime, "data": _b64(image.data), "width": None, "height": None}
-    from PIL import Image as PILImage  # noqa: PLC0415  (Pillow is the ui extra's; imported when an image comes)
-
+        return _MIME.get(fmt, f"image/{fmt}"), bytes(image.data), None, None, None
     pixels = image.to_rgb()
     note = None
-    if image_format != "png" and max(pixels.shape[:2]) > MAX_JPEG_SIDE:
+    if image_format == "jpeg" and max(pixels.shape[:2]) > MAX_JPEG_SIDE:
         step = -(-max(pixels.shape[:2]) // MAX_JPEG_SIDE)  # ceil: every side within the limit
         pixels = pixels[::step, ::step]
         note = (f"downscaled 1:{step} to {pixels.shape[1]}x{pixels.shape[0]} for display "
@@ -95,16 +101,29 @@ def encode_image(image: ImageMsg | CompressedImageMsg, image_format: str = "jpeg
         finite = pixels[np.isfinite(pixels)] if pixels.dtype.kind == "f" else pixels
         top = float(finite.max()) if finite.size else 1.0
         pixels = np.clip(np.nan_to_num(pixels.astype(np.float32)) * (255.0 / (top or 1.0)), 0, 255).astype(np.uint8)
+    if image_format == "raw":
+        if pixels.ndim == 2 or pixels.shape[2] == 1:
+            pixels = np.repeat(pixels.reshape(pixels.shape[0], pixels.shape[1], 1), 3, axis=2)
+        return RGB8_MIME, np.ascontiguousarray(pixels[:, :, :3]).tobytes(), image.width, image.height, None
     if pixels.ndim == 3 and pixels.shape[2] == 1:
         pixels = pixels[:, :, 0]
+    from PIL import Image as PILImage  # noqa: PLC0415  (Pillow is the ui extra's; imported when an image comes)
+
+    # Pillow's wheels bundle libjpeg-turbo: measured as fast as simplejpeg here (benchmarks/README.md).
     picture = PILImage.fromarray(np.ascontiguousarray(pixels))
     out = io.BytesIO()
     if image_format == "png":
         picture.save(out, format="PNG", compress_level=1)
     else:
         picture.save(out, format="JPEG", quality=85)
-    fields: dict[str, Any] = {"mime": "image/png" if image_format == "png" else "image/jpeg",
-                              "data": _b64(out.getvalue()), "width": image.width, "height": image.height}
+    return ("image/png" if image_format == "png" else "image/jpeg"), out.getvalue(), image.width, image.height, note
+
+
+def encode_image(image: ImageMsg | CompressedImageMsg, image_format: str = "jpeg") -> dict[str, Any]:
+    """An ``image`` frame's fields for ``image``: compressed images as they are, raw ones as JPEG or PNG
+    (``image_format="raw"`` is for binary frames: a JSON frame carries a JPEG then)."""
+    mime, data, width, height, note = image_bytes(image, "jpeg" if image_format == "raw" else image_format)
+    fields: dict[str, Any] = {"mime": mime, "data": _b64(data), "width": width, "height": height}
     if note is not None:
         fields["note"] = note
     return fields

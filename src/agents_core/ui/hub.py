@@ -5,6 +5,12 @@ the server's event loop, which puts it in each interested client's queue. A clie
 bounded (:attr:`OutputHub.client_queue`); a client that lets it fill up is too slow to follow
 and is dropped (its WebSocket closed with code 1013), never buffered without bound. The hub also
 watches each component's status topic and keeps the latest status for ``/api/interfaces``.
+
+A client of binary frames (``?frames=binary``, what the page opens) gets images as binary frames
+(:mod:`.binary_frames`), and its image and detections frames are *latest-wins* per topic: while one
+is waiting to be sent, a newer one replaces it (counted in :attr:`OutputHub.dropped_frames`) rather
+than queueing behind it, so a camera faster than the client's link or screen is shown at the rate
+the client takes, never buffered, and such a client is not dropped for being slow at images.
 """
 
 from __future__ import annotations
@@ -17,32 +23,100 @@ import threading
 from collections.abc import Callable, Iterable
 from typing import TYPE_CHECKING, Any
 
+from ..messages import CompressedImageMsg, ImageMsg
 from ..transport.core import status_topic
-from .frames import FrameRefused, error_frame, frame_for
+from .binary_frames import pack_image
+from .frames import FrameRefused, error_frame, frame_for, image_bytes
 
 if TYPE_CHECKING:
     from ..topics import Topic
     from ..transport.contract import Subscription, Transport
 
-__all__ = ["OutputClient", "OutputHub"]
+__all__ = ["LATEST_WINS", "OutputClient", "OutputHub"]
 
 logger = logging.getLogger(__name__)
+
+#: Frame kinds that binary clients get latest-wins per topic (only the newest is worth drawing).
+LATEST_WINS = frozenset({"image", "detections"})
+
+
+class _Latest:
+    """A queue entry that stands for the newest frame of ``topic`` waiting in ``OutputClient.latest``."""
+
+    __slots__ = ("topic",)
+
+    def __init__(self, topic: str) -> None:
+        self.topic = topic
+
+
+class _ImageFrames:
+    """One image value's frames, each encoded at most once: JSON text for JSON clients, binary for the others.
+
+    Encoded on the delivery thread for the kinds of client connected then, and on the event loop for a
+    kind that connected in between (rare).
+    """
+
+    def __init__(self, hub: OutputHub, topic: str, type_name: str, value: Any) -> None:
+        self._hub, self._topic, self._type, self._value = hub, topic, type_name, value
+        self._text: str | None = None
+        self._binary: bytes | str | None = None
+
+    def text(self) -> str:
+        if self._text is None:
+            self._text = self._hub.encode(self._topic, self._type, self._value)[1]
+        return self._text
+
+    def binary(self) -> bytes | str:
+        if self._binary is None:
+            self._binary = self._encode_binary()
+        return self._binary
+
+    def _encode_binary(self) -> bytes | str:
+        hub, value = self._hub, self._value
+        try:
+            mime, data, width, height, _ = image_bytes(value, hub.image_format)
+        except Exception:
+            return self.text()  # the JSON path says why, in an error frame (and counts it)
+        header = getattr(value, "header", None)
+        packed = pack_image(hub.topic_ids.get(self._topic, 0), mime, data, width, height,
+                            getattr(header, "stamp_ns", None))
+        return packed if packed is not None else self.text()  # e.g. a CompressedImage in another format
 
 
 class OutputClient:
     """One WebSocket client's bounded queue of encoded frames (None: the client was dropped)."""
 
-    def __init__(self, topics: frozenset[str] | None, depth: int) -> None:
+    def __init__(self, topics: frozenset[str] | None, depth: int, binary: bool = False) -> None:
         #: The topics it asked for (None: all); status frames always come.
         self.topics = topics
-        self.queue: asyncio.Queue[str | None] = asyncio.Queue(maxsize=depth + 1)  # + 1 for the drop marker
+        #: Unbounded as a queue, bounded by the hub: at most ``depth`` frames plus one entry per topic in
+        #: ``latest`` plus the drop marker.
+        self.queue: asyncio.Queue[str | bytes | _Latest | None] = asyncio.Queue()
         self.depth = depth
+        #: Images as binary frames, image / detections frames latest-wins (see the module docstring).
+        self.binary = binary
+        #: topic -> its newest latest-wins frame not sent yet.
+        self.latest: dict[str, str | bytes] = {}
+        #: Latest-wins frames replaced by a newer one before they were sent.
+        self.dropped_frames = 0
         self.dropped = False
         #: Called on the event loop when the client is dropped (its handler stops a send that is stuck).
         self.on_drop: Callable[[], object] | None = None
 
     def wants(self, topic: str, kind: str) -> bool:
         return kind == "status" or self.topics is None or topic in self.topics
+
+    @property
+    def backlog(self) -> int:
+        """Frames waiting that count against ``depth`` (latest-wins ones do not: one per topic at most)."""
+        return self.queue.qsize() - len(self.latest)
+
+    async def next_frame(self) -> str | bytes | None:
+        """The next frame to send (None: the client was dropped)."""
+        item = await self.queue.get()
+        if isinstance(item, _Latest):
+            return self.latest.pop(item.topic)
+        return item
 
 
 class OutputHub:
@@ -64,7 +138,13 @@ class OutputHub:
         self._subscriptions: list[Subscription] = []
         self._lock = threading.Lock()
         self._status: dict[str, dict[str, Any]] = {}
+        #: output topic -> the ``topic_id`` of its binary frames (its place in ``outputs``).
+        self.topic_ids = {name: i for i, name in enumerate(self.outputs)}
+        self._binary_clients = 0
+        self._json_clients = 0
         self.frames_sent = 0
+        #: Latest-wins frames replaced before they were sent, over every client.
+        self.dropped_frames = 0
         self.encode_errors = 0
         self.dropped_clients = 0
         #: WebSocket clients turned away because ``max_clients`` were connected.
@@ -93,41 +173,68 @@ class OutputHub:
 
     # -- frames -------------------------------------------------------------------------------
 
+    def encode(self, name: str, type_name: str, value: Any) -> tuple[dict[str, Any], str]:
+        """The JSON frame of ``value`` and its text; an ``error`` frame (counted) when it cannot be shown."""
+        try:
+            frame = frame_for(name, type_name, value, self.image_format)
+            return frame, json.dumps(frame, separators=(",", ":"), allow_nan=False)
+        except Exception as exc:
+            # Clients get an error frame in its place: a value is never lost without a word.
+            self.encode_errors += 1
+            if isinstance(exc, FrameRefused):
+                logger.warning("a value of topic %r is not shown: %s", name, exc)
+            else:  # a value the encoder should have handled: worth the traceback in the log
+                logger.exception("the UI could not encode a value of topic %r", name)
+            frame = error_frame(name, type_name, value, f"this value could not be shown: {exc}")
+            return frame, json.dumps(frame, separators=(",", ":"))
+
     def _receiver(self, topic: Topic) -> Any:
         name, type_name = topic.name, topic.msg_type.type_name()
 
         def receive(value: Any) -> None:
-            try:
-                frame = frame_for(name, type_name, value, self.image_format)
-                text = json.dumps(frame, separators=(",", ":"), allow_nan=False)
-            except Exception as exc:
-                # Clients get an error frame in its place: a value is never lost without a word.
-                self.encode_errors += 1
-                if isinstance(exc, FrameRefused):
-                    logger.warning("a value of topic %r is not shown: %s", name, exc)
-                else:  # a value the encoder should have handled: worth the traceback in the log
-                    logger.exception("the UI could not encode a value of topic %r", name)
-                frame = error_frame(name, type_name, value, f"this value could not be shown: {exc}")
-                text = json.dumps(frame, separators=(",", ":"))
-            if frame["kind"] == "status":
-                with self._lock:
-                    self._status[frame["component"]] = frame
+            payload: str | _ImageFrames
+            if isinstance(value, ImageMsg | CompressedImageMsg):
+                kind, payload = "image", _ImageFrames(self, name, type_name, value)
+                # Encoded here, off the event loop, in the forms the clients connected now take.
+                if self._binary_clients:
+                    payload.binary()
+                if self._json_clients:
+                    payload.text()
+            else:
+                frame, payload = self.encode(name, type_name, value)
+                kind = frame["kind"]
+                if kind == "status":
+                    with self._lock:
+                        self._status[frame["component"]] = frame
             loop = self._loop
             if loop is not None:
                 with contextlib.suppress(RuntimeError):  # the loop closed while the server stops
-                    loop.call_soon_threadsafe(self._fan_out, name, frame["kind"], text)
+                    loop.call_soon_threadsafe(self._fan_out, name, kind, payload)
 
         return receive
 
-    def _fan_out(self, topic: str, kind: str, text: str) -> None:
-        """On the event loop: queue ``text`` for every interested client; drop the ones that are full."""
+    def _fan_out(self, topic: str, kind: str, payload: str | _ImageFrames) -> None:
+        """On the event loop: queue the frame for every interested client; drop the ones that are full."""
         for client in list(self._clients):
             if client.dropped or not client.wants(topic, kind):
                 continue
-            if client.queue.qsize() >= client.depth:
+            if isinstance(payload, str):
+                data: str | bytes = payload
+            else:
+                data = payload.binary() if client.binary else payload.text()
+            if client.binary and kind in LATEST_WINS:
+                if topic in client.latest:  # the older one was not sent yet: the newer replaces it
+                    client.dropped_frames += 1
+                    self.dropped_frames += 1
+                else:
+                    client.queue.put_nowait(_Latest(topic))
+                    self.frames_sent += 1
+                client.latest[topic] = data
+                continue
+            if client.backlog >= client.depth:
                 self._drop(client)
                 continue
-            client.queue.put_nowait(text)
+            client.queue.put_nowait(data)
             self.frames_sent += 1
 
     def _drop(self, client: OutputClient) -> None:
@@ -135,6 +242,7 @@ class OutputHub:
         self.dropped_clients += 1
         while not client.queue.empty():
             client.queue.get_nowait()
+        client.latest.clear()
         client.queue.put_nowait(None)
         if client.on_drop is not None:
             client.on_drop()
@@ -142,10 +250,15 @@ class OutputHub:
 
     # -- clients ------------------------------------------------------------------------------
 
-    def connect(self, topics: Iterable[str] | None = None) -> OutputClient:
-        """A new client (on the event loop), following ``topics`` (None: every shown output)."""
-        client = OutputClient(frozenset(topics) if topics is not None else None, self.client_queue)
+    def connect(self, topics: Iterable[str] | None = None, binary: bool = False) -> OutputClient:
+        """A new client (on the event loop), following ``topics`` (None: every shown output); ``binary``:
+        images as binary frames, latest-wins (see the module docstring)."""
+        client = OutputClient(frozenset(topics) if topics is not None else None, self.client_queue, binary)
         self._clients.add(client)
+        if binary:
+            self._binary_clients += 1
+        else:
+            self._json_clients += 1
         with self._lock:
             known = list(self._status.values())
         for frame in known[: client.depth]:  # the current status of each component, first
@@ -153,7 +266,17 @@ class OutputHub:
         return client
 
     def disconnect(self, client: OutputClient) -> None:
-        self._clients.discard(client)
+        if client in self._clients:
+            self._clients.discard(client)
+            if client.binary:
+                self._binary_clients -= 1
+            else:
+                self._json_clients -= 1
+
+    @property
+    def clients(self) -> list[OutputClient]:
+        """The connected clients (a copy; read it on the event loop, or for diagnostics)."""
+        return list(self._clients)
 
     @property
     def client_count(self) -> int:

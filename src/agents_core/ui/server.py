@@ -21,9 +21,12 @@ from .settings import UISettings
 if TYPE_CHECKING:
     from ..transport.contract import Transport
 
-__all__ = ["UIServer", "resolve_topics"]
+__all__ = ["MAX_CLIENT_MESSAGE", "UIServer", "resolve_topics"]
 
 logger = logging.getLogger(__name__)
+
+#: The largest WebSocket message a client may send (bytes); a larger one closes its connection (1009).
+MAX_CLIENT_MESSAGE = 64 * 1024
 
 
 def resolve_topics(view: RecipeView, inputs: Sequence[Topic] | None, outputs: Sequence[Topic] | None,
@@ -104,7 +107,10 @@ class UIServer:
         self._socket = sock
         self.port = int(sock.getsockname()[1])
         # websockets-sansio: no deprecated legacy code path; access log off (paths only, but quiet).
+        # ws_max_size: the page sends nothing on its output socket, so a client's message past it is
+        # hostile (closed with 1009) rather than read into memory (uvicorn's default allows 16 MiB).
         config = uvicorn.Config(self.app, log_level="warning", access_log=False, ws="websockets-sansio", loop="asyncio",
+                                ws_max_size=MAX_CLIENT_MESSAGE,
                                 lifespan="on", timeout_graceful_shutdown=2, ssl_certfile=self.settings.tls_certfile,
                                 ssl_keyfile=self.settings.tls_keyfile)
         try:

@@ -36,7 +36,8 @@ class UISettings:
         ``agents_ui_token`` cookie set by ``POST /api/login``); None reads ``AGENTS_UI_TOKEN``.
         Never shown in reprs or logs.
     :param max_upload_bytes: the largest request body (uploads included).
-    :param image_format: ``"jpeg"`` or ``"png"`` for raw images sent to clients.
+    :param image_format: ``"jpeg"`` or ``"png"`` for raw images sent to clients; ``"raw"``: their rgb8
+        pixels in binary frames (no encode; several times the bytes, for loopback), JPEG in JSON frames.
     :param client_queue: frames a WebSocket client may have waiting before it is dropped as too slow.
     :param request_timeout: seconds for a transition or an action to answer.
     :param max_json_bytes: the largest JSON body of an input (uploads are bounded by ``max_upload_bytes``).
@@ -76,8 +77,8 @@ class UISettings:
         self._check_tls()
         if not isinstance(self.port, int) or not 0 <= self.port <= 65535:
             raise ConfigError(f"UI port must be an int from 0 to 65535, got {self.port!r}")
-        if self.image_format not in ("jpeg", "png"):
-            raise ConfigError(f"UI image_format must be 'jpeg' or 'png', got {self.image_format!r}")
+        if self.image_format not in ("jpeg", "png", "raw"):
+            raise ConfigError(f"UI image_format must be 'jpeg', 'png' or 'raw', got {self.image_format!r}")
         if self.max_upload_bytes <= 0 or self.client_queue <= 0 or not self.request_timeout > 0:
             raise ConfigError("UI max_upload_bytes, client_queue and request_timeout must be positive")
         if self.token is not None and (len(self.token.strip()) < 16 or self.token != self.token.strip()):

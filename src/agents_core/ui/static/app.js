@@ -135,6 +135,74 @@ function onStatus(frame) {
 const HANDLERS = { text: onText, stream: onStream, image: onImage, detections: onDetections, audio: onAudio,
                    status: onStatus, value: onValue, error: onError };
 
+// -- binary image frames (docs/ui.md, "Binary frames") -----------------------------------------
+// Latest-wins per topic: a frame that arrives while the previous one of its topic waits to be drawn
+// replaces it, and drawing happens once per display refresh, so a camera faster than the screen
+// costs skipped frames, never a growing backlog.
+const HEADER_BYTES = 24, MIMES = { 1: "image/jpeg", 2: "image/png" };
+const outputNames = {};   // topic_id -> output topic name (from /api/interfaces)
+const pendingImages = new Map();   // topic_id -> the newest frame not drawn yet
+const decoding = new Set();        // topic_ids with a decode in flight
+window.uiStats = { received: 0, drawn: 0, skipped: 0, bad: 0 };
+let drawScheduled = false;
+
+function onBinary(buffer) {
+  if (buffer.byteLength < HEADER_BYTES) { window.uiStats.bad++; return; }
+  const v = new DataView(buffer);
+  const frame = { version: v.getUint8(0), encoding: v.getUint8(1), topicId: v.getUint16(2, true),
+                  width: v.getUint32(4, true), height: v.getUint32(8, true), size: v.getUint32(12, true) };
+  if (frame.version !== 1 || frame.size !== buffer.byteLength - HEADER_BYTES || !(frame.topicId in outputNames)) {
+    window.uiStats.bad++; return;
+  }
+  frame.payload = new Uint8Array(buffer, HEADER_BYTES);
+  window.uiStats.received++;
+  if (pendingImages.has(frame.topicId)) window.uiStats.skipped++;
+  pendingImages.set(frame.topicId, frame);
+  if (!drawScheduled) { drawScheduled = true; requestAnimationFrame(drawPending); }
+}
+
+function imageCanvas(topic) {
+  const p = panel(topic, "Image");
+  let canvas = $("canvas.image", p);
+  if (!canvas) { canvas = el("canvas", { class: "image", "data-topic": topic }); p.append(canvas); }
+  return [p, canvas];
+}
+
+async function drawFrame(frame) {
+  const [p, canvas] = imageCanvas(outputNames[frame.topicId]);
+  const ctx = canvas.getContext("2d");
+  if (frame.encoding === 3) {   // raw rgb8 -> RGBA
+    const n = frame.width * frame.height;
+    if (!n || frame.payload.length !== n * 3) { window.uiStats.bad++; return; }
+    const rgba = new Uint8ClampedArray(n * 4), rgb = frame.payload;
+    for (let i = 0, j = 0; i < n * 3; i += 3, j += 4) { rgba[j] = rgb[i]; rgba[j + 1] = rgb[i + 1]; rgba[j + 2] = rgb[i + 2]; rgba[j + 3] = 255; }
+    if (canvas.width !== frame.width || canvas.height !== frame.height) { canvas.width = frame.width; canvas.height = frame.height; }
+    ctx.putImageData(new ImageData(rgba, frame.width, frame.height), 0, 0);
+  } else if (MIMES[frame.encoding]) {
+    const bitmap = await createImageBitmap(new Blob([frame.payload], { type: MIMES[frame.encoding] }));
+    // width / height are the image's own (it may have been sent downscaled)
+    const w = frame.width || bitmap.width, h = frame.height || bitmap.height;
+    if (canvas.width !== w || canvas.height !== h) { canvas.width = w; canvas.height = h; }
+    ctx.drawImage(bitmap, 0, 0, w, h);
+    bitmap.close();
+  } else { window.uiStats.bad++; return; }
+  window.uiStats.drawn++;
+  p.dataset.frames = String(Number(p.dataset.frames || 0) + 1);
+}
+
+function drawPending() {
+  drawScheduled = false;
+  for (const [topicId, frame] of [...pendingImages]) {
+    if (decoding.has(topicId)) continue;   // the next refresh takes the newest
+    pendingImages.delete(topicId);
+    decoding.add(topicId);
+    drawFrame(frame).catch(() => { window.uiStats.bad++; }).finally(() => {
+      decoding.delete(topicId);
+      if (pendingImages.size && !drawScheduled) { drawScheduled = true; requestAnimationFrame(drawPending); }
+    });
+  }
+}
+
 // -- components -------------------------------------------------------------------------------
 async function transition(name, which) {
   try { const r = await postJSON(`/api/components/${name}/transition`, { transition: which }); toast(`${name}: ${r.state}`); }
@@ -246,9 +314,13 @@ function inputControl(t) {
 // -- start ------------------------------------------------------------------------------------
 function connect() {
   const scheme = location.protocol === "https:" ? "wss" : "ws";
-  socket = new WebSocket(`${scheme}://${location.host}/api/outputs`);
+  socket = new WebSocket(`${scheme}://${location.host}/api/outputs?frames=binary`);
+  socket.binaryType = "arraybuffer";
   socket.onopen = () => { $("#connection").textContent = "live"; $("#connection").className = "badge ok"; };
-  socket.onmessage = (ev) => { const frame = JSON.parse(ev.data); const h = HANDLERS[frame.kind]; if (h) h(frame); };
+  socket.onmessage = (ev) => {
+    if (typeof ev.data !== "string") { onBinary(ev.data); return; }
+    const frame = JSON.parse(ev.data); const h = HANDLERS[frame.kind]; if (h) h(frame);
+  };
   socket.onclose = (ev) => {
     $("#connection").textContent = `disconnected (${ev.code})`; $("#connection").className = "badge bad";
     setTimeout(connect, 2000);
@@ -263,6 +335,7 @@ async function start() {
   $("#transport").textContent = `transport: ${info.transport}`;
   $("#components").replaceChildren(...info.components.map(componentCard));
   $("#inputs").replaceChildren(...info.inputs.map(inputControl));
+  for (const o of info.outputs) outputNames[o.id] = o.name;
   $("#main").hidden = false;
   document.body.dataset.ready = "true";
   connect();
