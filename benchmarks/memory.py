@@ -2,7 +2,7 @@
 
 Both sides live in one process and are measured interleaved, round after round (the order alternates),
 on the same texts, the same embedding client and the same settings (``MemoryConfig``'s defaults:
-batches of ``flush_batch_size`` = 5, ``flush_interval`` = 2 s):
+batches of ``flush_batch_size`` = 5):
 
 - writes, framework: a running Memory component with one String layer that triggers it (each value is
   an observation, as a speech or captioning stream feeds it) and an Odometry position, fed as a robot
@@ -11,10 +11,13 @@ batches of ``flush_batch_size`` = 5, ``flush_interval`` = 2 s):
   (``stats["stored"]``).
 - writes, raw: ``emem.SpatioTemporalMemory.add`` with the embedding precomputed by the same client,
   five texts per embedding request, emem committing every fifth ``add`` (its own batching, with the same
-  settings). Timed from the first embedding request to the last commit.
+  settings). Timed from the first embedding request to the last commit. After each timed write the rows
+  are counted through another SQLite connection (both sides must have committed them all).
 - search: ``semantic_search(query, n_results=5)`` on the two databases (the same observations), raw a
-  direct call on the emem object, framework a request to the component's ``execute_method`` service; the
-  two alternate query by query.
+  direct call on the emem object, framework a request to the component's ``execute_method`` service
+  (payload ``string``), and the component's method called in this thread (payload ``method_call``: the
+  component's own cost, without the service's hand-offs caller -> request lane -> worker and back); the
+  three alternate query by query.
 
 Each round adds ``n`` observations to each side; the figures are the medians over the rounds.
 Run alone: ``python -m benchmarks.memory --values 300 --rounds 3``.
@@ -23,7 +26,10 @@ Run alone: ``python -m benchmarks.memory --values 300 --rounds 3``.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib.util
+import math
+import sqlite3
 import statistics
 import sys
 import tempfile
@@ -46,6 +52,12 @@ def unavailable_reason() -> str | None:
     return None if importlib.util.find_spec("emem") else "the memory extra is not installed (emem)"
 
 
+def committed(db_path: Path) -> int:
+    """Observations committed to the SQLite file at ``db_path``, read through a connection of its own."""
+    with contextlib.closing(sqlite3.connect(db_path)) as db:
+        return int(db.execute("SELECT COUNT(*) FROM observations").fetchone()[0])
+
+
 def _texts(n: int, tag: str) -> list[str]:
     return [f"{TEXTS[i % len(TEXTS)]} #{tag}-{i}" for i in range(n)]
 
@@ -60,10 +72,13 @@ class RawSide:
         from agents_core.config import MemoryConfig  # noqa: PLC0415
 
         defaults = MemoryConfig()
+        self.db_path = folder / "raw.db"
         self.embedder = ClientEmbedder(_embedder())
         self.mem = SpatioTemporalMemory(config=SpatioTemporalMemoryConfig(
-            db_path=str(folder / "raw.db"), hnsw_path=str(folder / "raw.hnsw.bin"), embedding_dim=self.embedder.dim,
-            flush_batch_size=defaults.flush_batch_size, flush_interval=defaults.flush_interval,
+            db_path=str(self.db_path), hnsw_path=str(folder / "raw.hnsw.bin"), embedding_dim=self.embedder.dim,
+            # Count-based only: its age-based flush would fire on the first add after the pause between
+            # rounds, shift the batches and leave the round's last adds uncommitted when the clock stops.
+            flush_batch_size=defaults.flush_batch_size, flush_interval=math.inf,
             **defaults.engine_settings()), embedding_provider=self.embedder)
 
     def write(self, texts: list[str]) -> float:
@@ -81,9 +96,6 @@ class RawSide:
         self.mem.semantic_search(query=query, n_results=5)
         return time.perf_counter() - start
 
-    def count(self) -> int:
-        return int(self.mem.store.count_observations())
-
     def close(self) -> None:
         self.mem.close()
 
@@ -97,9 +109,10 @@ class FrameworkSide:
         from agents_core.config import MemoryConfig  # noqa: PLC0415
 
         odom, heard = Topic("odom", "Odometry"), Topic("heard", "String")
+        self.db_path = folder / "framework.db"
         self.mem = Memory(layers=[MemLayer(subscribes_to=heard, temporal_change=True)], position=odom,
                           embedding_client=_embedder(), trigger=heard,
-                          config=MemoryConfig(db_path=str(folder / "fw.db"), buffer_size=max(1000, 2 * n)))
+                          config=MemoryConfig(db_path=str(self.db_path), buffer_size=max(1000, 2 * n)))
         self.transport = MemoryTransport()
         self.launcher = Launcher(self.transport)
         self.launcher.add_pkg(components=[self.mem])
@@ -122,14 +135,16 @@ class FrameworkSide:
                 raise TimeoutError(f"memory bench: {self.mem.stats}")
         return time.perf_counter() - start
 
+    def search_method(self, query: str) -> float:
+        start = time.perf_counter()
+        self.mem.semantic_search(query=query, n_results=5)
+        return time.perf_counter() - start
+
     def search(self, query: str) -> float:
         start = time.perf_counter()
         self.transport.request("memory/execute_method",
                                {"method": "semantic_search", "kwargs": {"query": query, "n_results": 5}})
         return time.perf_counter() - start
-
-    def count(self) -> int:
-        return int(self.mem.run_on_worker(lambda: self.mem._engine.store.count_observations()))
 
     def close(self) -> None:
         try:
@@ -151,23 +166,34 @@ def measure(n: int, rounds: int, queries: int, folder: Path,
             side.search(TEXTS[0])
         for r in range(rounds):
             order = ["raw", "framework"] if r % 2 == 0 else ["framework", "raw"]
-            rate = {mode: n / sides[mode].write(_texts(n, str(r))) for mode in order}
-            lat: dict[str, list[float]] = {"raw": [], "framework": []}
-            for q in range(queries):
-                for mode in order if q % 2 == 0 else order[::-1]:
-                    lat[mode].append(sides[mode].search(TEXTS[q % len(TEXTS)]) * 1e6)
+            rate = {}
             for mode in order:
-                got = {"writes_per_s": rate[mode], "search_median_us": statistics.median(lat[mode])}
+                rate[mode] = n / sides[mode].write(_texts(n, str(r)))
+                # Durable: the rows are visible to another connection once the clock stopped.
+                if committed(sides[mode].db_path) != 2 * BATCH + (r + 1) * n:
+                    raise RuntimeError(f"memory bench: {mode} did not commit round {r}: "
+                                       f"{committed(sides[mode].db_path)} rows")
+            calls = {"raw": raw.search, "framework": fw.search, "method": fw.search_method}
+            lat: dict[str, list[float]] = {mode: [] for mode in calls}
+            for q in range(queries):
+                names = list(calls) if q % 2 == 0 else list(calls)[::-1]
+                for mode in names[q % 3:] + names[:q % 3]:
+                    lat[mode].append(calls[mode](TEXTS[q % len(TEXTS)]) * 1e6)
+            search = {mode: statistics.median(v) for mode, v in lat.items()}
+            for mode in order:
                 records.append({"suite": "memory", "transport": "memory", "payload": "string", "mode": mode,
-                                "round": r, "values": n, **got})
-                progress(f"{'memory':<10} {'memory':<6} {mode:<9} {got['writes_per_s']:8.1f} obs/s  "
-                         f"search {got['search_median_us']:8.0f} us  (round {r})")
-        counts = {mode: side.count() for mode, side in sides.items()}
+                                "round": r, "values": n, "writes_per_s": rate[mode],
+                                "search_median_us": search[mode]})
+                progress(f"{'memory':<10} {'memory':<6} {mode:<9} {rate[mode]:8.1f} obs/s  "
+                         f"search {search[mode]:8.0f} us  (round {r})")
+            # The component's method called directly against the same direct emem calls.
+            records += [{"suite": "memory", "transport": "memory", "payload": "method_call", "mode": mode,
+                         "round": r, "search_median_us": search["method" if mode == "framework" else "raw"]}
+                        for mode in ("raw", "framework")]
+            progress(f"{'memory':<10} {'memory':<6} {'method':<9} {'':>14}  search {search['method']:8.0f} us")
         stats = fw.mem.stats
-        if len(set(counts.values())) != 1 or any(stats[k] for k in ("dropped", "no_position", "pending")):
-            raise RuntimeError(f"memory bench: the two sides differ: {counts}, component {stats}")
-        for rec in records:
-            rec["observations"] = counts[rec["mode"]]
+        if any(stats[k] for k in ("dropped", "no_position", "unchanged", "pending")):
+            raise RuntimeError(f"memory bench: the component did not store every value: {stats}")
     finally:
         fw.close()
         raw.close()
@@ -195,12 +221,14 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     with tempfile.TemporaryDirectory() as folder:
         records = measure(args.values, args.rounds, args.queries, Path(folder), print)
-    fw = [r for r in records if r["mode"] == "framework"]
-    rw = [r for r in records if r["mode"] == "raw"]
-    writes = [f["writes_per_s"] / r["writes_per_s"] for f, r in zip(fw, rw, strict=True)]
-    search = [f["search_median_us"] / r["search_median_us"] for f, r in zip(fw, rw, strict=True)]
-    print("stored/s framework / raw per round = " + ", ".join(f"{x:.2f}" for x in writes)
-          + "; semantic_search latency framework / raw per round = " + ", ".join(f"{x:.2f}" for x in search))
+    def ratios(payload: str, key: str) -> str:
+        by_mode = {mode: [r[key] for r in records if r["payload"] == payload and r["mode"] == mode]
+                   for mode in ("framework", "raw")}
+        return ", ".join(f"{f / r:.2f}" for f, r in zip(by_mode["framework"], by_mode["raw"], strict=True))
+
+    print(f"per round, framework / raw: stored/s {ratios('string', 'writes_per_s')}; semantic_search latency "
+          f"through execute_method {ratios('string', 'search_median_us')}, the component's method called "
+          f"directly {ratios('method_call', 'search_median_us')}")
     return 0
 
 

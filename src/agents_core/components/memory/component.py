@@ -249,8 +249,9 @@ class Memory(Component):
                         self._logger.warning("client did not deinitialize cleanly: %s", exc)
             self._clients_ready = False
         with self._lock:
-            if self._pending:
-                self._logger.error("%d observations could not be written before shutdown", len(self._pending))
+            if self._pending or self._arrived:
+                self._logger.error("%d observations could not be written before shutdown",
+                                   len(self._pending) + len(self._arrived))
 
     def _write_all_quietly(self) -> None:
         try:
@@ -393,7 +394,8 @@ class Memory(Component):
                         elif observation in self._pending:  # the oldest may have been dropped meanwhile
                             self._pending.remove(observation)
                     self._counts["stored"] += len(batch)
-                    self._pending_since = time.monotonic() if self._pending else None
+                    if not self._pending:  # else the rest keeps the older age: it never waits longer
+                        self._pending_since = None
                 written += len(batch)
             if time.monotonic() - self._index_saved >= self.config.index_save_interval:
                 self._save_index()
