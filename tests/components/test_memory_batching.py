@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import contextlib
 import sqlite3
+import threading
 import time
 from pathlib import Path
 from typing import Any
@@ -95,3 +96,52 @@ def test_a_value_that_arrived_before_any_position_is_counted_even_if_one_arrives
         assert wait_for(lambda: m.stats["no_position"] == 1 and m.stats["stored"] + m.stats["pending"] >= 1)
         found: Any = m.semantic_search(query="where was I here")
         assert "here" in found and "where was I" not in found
+
+
+class BlockingEmbedder(WordEmbedder):
+    """Each request after the dimension probe takes ``delay`` s; ``busy`` is set while one runs."""
+
+    def __init__(self, delay: float) -> None:
+        super().__init__()
+        self.delay = delay
+        self.busy = threading.Event()
+
+    def _embed(self, texts: list[str]) -> list[list[float]]:
+        if self.calls:  # not the probe
+            self.busy.set()
+            time.sleep(self.delay)
+            self.busy.clear()
+        return super()._embed(texts)
+
+
+def test_a_value_is_placed_where_the_robot_was_when_it_arrived_even_if_the_worker_was_busy_longer_than_the_timeout(
+        tmp_path: Path) -> None:
+    embedder = BlockingEmbedder(delay=1.0)
+    db = tmp_path / "busy.db"
+    m = Memory(layers=[MemLayer(subscribes_to=HEARD, temporal_change=True)], position=ODOM, embedding_client=embedder,
+               config=MemoryConfig(db_path=str(db), position_timeout=0.4, flush_interval=0.0), trigger=10.0)
+    with running(m) as (_, send):
+        send(ODOM, odom(1.0, 0.0))
+        send(HEARD, "first, heard at one")
+        assert wait_for(embedder.busy.is_set)  # the worker embeds the first value for 1 s
+        send(ODOM, odom(2.0, 0.0))
+        send(HEARD, "second, heard at two")
+        assert wait_for(lambda: m.stats["stored"] == 2, timeout=10), m.stats
+    assert rows(db) == [("first, heard at one", 1.0), ("second, heard at two", 2.0)]
+    assert m.stats["no_position"] == 0
+
+
+def test_the_store_action_does_not_take_away_values_still_waiting_for_their_step(tmp_path: Path) -> None:
+    db = tmp_path / "store.db"
+    m = Memory(layers=[MemLayer(subscribes_to=HEARD, temporal_change=True)], position=ODOM,
+               embedding_client=SlowEmbedder(), trigger=HEARD,
+               config=MemoryConfig(db_path=str(db), flush_batch_size=1))
+    with running(m) as (_, send):
+        send(ODOM, odom(3.0, 0.0))
+        for i in range(10):
+            send(HEARD, f"value {i}")
+        m.store()  # the newest value once more, now; the ten still go in as they arrived
+        assert wait_for(lambda: m.stats["stored"] == 11, timeout=10), m.stats
+    texts = [t for t, _ in rows(db)]
+    assert sorted(texts) == sorted([f"value {i}" for i in range(10)] + ["value 9"])
+    assert [t for t in texts if t != "value 9"] == [f"value {i}" for i in range(9)]

@@ -1,14 +1,14 @@
 """``Memory``: what the robot observed, where and when, kept in the emem engine and answered by tools.
 
 Each :class:`~agents_core.components.memory.layers.MemLayer` subscribes to one topic. At every
-step (``auto_store``) or when the ``store`` action is called, each layer's newest value is turned
-into text and kept as an observation at the robot's latest position (an Odometry or PoseStamped
-topic) with its time. A layer whose topic triggers the component keeps every value instead, each
-at the position known when it arrived (each value fired a step: none is merged into the next when
-the worker is behind). Observations are embedded by the ``embedding_client`` and committed to the
-SQLite database at ``config.db_path`` in batches (one embedding request and one transaction for
-what is waiting), whose vector index is saved beside it: both survive a restart of the component
-and of the process.
+step (``auto_store``) the newest value each layer received since the last step is turned into text
+and kept as an observation at the robot's position (an Odometry or PoseStamped topic) when the value
+arrived, with its time; a layer whose topic triggers the component keeps every value (each one fired
+a step: none is merged into the next when the worker is behind). The ``store`` action keeps each
+layer's newest value at the current position. Observations are embedded by the ``embedding_client``
+and committed to the SQLite database at ``config.db_path`` in batches (one embedding request and one
+transaction for what is waiting), whose vector index is saved beside it: both survive a restart of
+the component and of the process.
 
 Never lost silently: an observation whose position is older than ``config.position_timeout`` (or
 missing) is not stored, and counted (and the step reports ``ALGORITHM_FAILURE``). When the
@@ -69,6 +69,8 @@ __all__ = ["Memory"]
 NOTES_LAYER = "agent_notes"
 #: How many observations one embedding request carries at most.
 _EMBED_CHUNK = 64
+#: A value as it arrived: layer, text, Unix time, the robot's position then, ``time.monotonic()`` then.
+_Arrival = tuple[str, str, float, Fix | None, float]
 
 
 class Memory(Component):
@@ -127,10 +129,11 @@ class Memory(Component):
         self._engine_lock = threading.RLock()  # the engine: steps, actions and direct calls one at a time
         self._fix: Fix | None = None
         self._partial: dict[str, str] = {}  # per StreamingString layer: the stream in progress
-        self._fresh: dict[str, tuple[str, float]] = {}  # per layer: a value not yet taken by a snapshot
+        # An arrival: (layer, text, Unix time, the position then, time.monotonic() then). Per sampled layer its
+        # newest not yet taken by a step; on the layers that trigger the component, every value in order.
+        self._fresh: dict[str, _Arrival] = {}
         self._latest: dict[str, tuple[str, float]] = {}  # per layer: the newest value (for ``store``)
-        # Values of the layers that trigger the component, in arrival order, with the position then.
-        self._arrived: collections.deque[tuple[str, str, float, Fix | None, float]] = collections.deque()
+        self._arrived: collections.deque[_Arrival] = collections.deque()
         self._actions: dict[str, dict[str, Any]] | None = None
         self._last_stored: dict[str, tuple[str, tuple[int, int]]] = {}  # per layer: text and cell
         self._pending: collections.deque[Observation] = collections.deque()
@@ -207,14 +210,15 @@ class Memory(Component):
         if stored is None:
             return
         with self._lock:
-            self._latest[layer] = (stored, time.time())
+            arrival = (layer, stored, time.time(), self._fix, time.monotonic())
+            self._latest[layer] = (stored, arrival[2])
             if not every:
-                self._fresh[layer] = self._latest[layer]
+                self._fresh[layer] = arrival
                 return
             if len(self._arrived) >= self.config.buffer_size:
                 self._arrived.popleft()
                 self._counts["dropped"] += 1
-            self._arrived.append((layer, stored, self._latest[layer][1], self._fix, time.monotonic()))
+            self._arrived.append(arrival)
 
     # -- lifecycle ----------------------------------------------------------------------------
 
@@ -316,25 +320,22 @@ class Memory(Component):
         return fix is not None and time.monotonic() - fix.received <= self.config.position_timeout
 
     def _snapshot(self, *, everything: bool) -> int:
-        """Buffer the new values of the layers (``everything``: the newest of each) at the current position,
-        and every value that arrived on a trigger layer at its position then; how many could not be placed
+        """Buffer the values that arrived since the last step, each at the position known when it arrived
+        (``everything``: the newest of each layer, at the current position); how many could not be placed
         (no recent position)."""
-        now = time.monotonic()
         with self._lock:
-            values = dict(self._latest if everything else self._fresh)
+            if everything:
+                now, fix = time.monotonic(), self._fix
+                taken = [(name, text, stamp, fix, now) for name, (text, stamp) in self._latest.items()]
+            else:
+                taken = [*self._arrived, *self._fresh.values()]
+                self._arrived.clear()
             self._fresh.clear()
-            fix = self._fix
-            arrived = [] if everything else list(self._arrived)
-            self._arrived.clear()
-        unplaced = 0
-        for name, text, stamp, then, received in arrived:
-            unplaced += not self._place(name, text, stamp, then, received)
-        for name, (text, stamp) in values.items():
-            unplaced += not self._place(name, text, stamp, fix, now)
-        return unplaced
+        return sum(not self._place(*arrival) for arrival in taken)
 
     def _place(self, name: str, text: str, stamp: float, fix: Fix | None, now: float) -> bool:
-        """Buffer one value at ``fix`` (unless unchanged); False when ``fix`` was not recent at ``now``."""
+        """Buffer one value at ``fix`` (unless unchanged); False when ``fix`` was not recent at ``now``
+        (both read when the value arrived: a worker busy with a slow embedding server loses nothing)."""
         if fix is None or now - fix.received > self.config.position_timeout:
             self._count("no_position")
             return False
