@@ -29,7 +29,8 @@ METRICS: dict[str, list[tuple[str, str, str, str]]] = {
     "voice": [("stt_speed", "x realtime", "higher", "speed"), ("first_audio", "ms", "lower", "first_audio_ms")],
     # layer values written into a local Chroma through MapEncoding vs direct ChromaClient.add calls.
     "map": [("writes_per_s", "writes/s", "higher", "writes_per_s")],
-    # Memory component (paced: one value per step) vs emem's add with the same embeddings; search via execute_method.
+    # Memory component fed a burst (values on its trigger topic) vs emem's add with the same embeddings; search via
+    # execute_method (string) and the component's method called directly (method_call), vs emem's direct call.
     "memory": [("stored_per_s", "obs/s", "higher", "writes_per_s"),
                ("semantic_search", "us", "lower", "search_median_us")],
     # Cortex's own cost per step: the plan -> the first dispatched action, model time excluded (no raw side).

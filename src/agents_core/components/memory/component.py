@@ -1,11 +1,14 @@
 """``Memory``: what the robot observed, where and when, kept in the emem engine and answered by tools.
 
 Each :class:`~agents_core.components.memory.layers.MemLayer` subscribes to one topic. At every
-step (``auto_store``) or when the ``store`` action is called, each layer's newest value is turned
-into text and kept as an observation at the robot's latest position (an Odometry or PoseStamped
-topic) with its time. Observations are embedded by the ``embedding_client`` (one request per
-batch) and committed to the SQLite database at ``config.db_path``, whose vector index is saved
-beside it: both survive a restart of the component and of the process.
+step (``auto_store``) the newest value each layer received since the last step is turned into text
+and kept as an observation at the robot's position (an Odometry or PoseStamped topic) when the value
+arrived, with its time; a layer whose topic triggers the component keeps every value (each one fired
+a step: none is merged into the next when the worker is behind). The ``store`` action keeps each
+layer's newest value at the current position. Observations are embedded by the ``embedding_client``
+and committed to the SQLite database at ``config.db_path`` in batches (one embedding request and one
+transaction for what is waiting), whose vector index is saved beside it: both survive a restart of
+the component and of the process.
 
 Never lost silently: an observation whose position is older than ``config.position_timeout`` (or
 missing) is not stored, and counted (and the step reports ``ALGORITHM_FAILURE``). When the
@@ -27,14 +30,14 @@ to an :class:`~agents_core.components.llm.LLM`.
 from __future__ import annotations
 
 import collections
+import functools
+import itertools
 import math
 import sqlite3
 import threading
 import time
 from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any
-
-from attrs import define
 
 from ...actions import component_action
 from ...clients.model_base import ModelClient
@@ -45,8 +48,16 @@ from ...supported_types import Odometry, Pose, SupportedType
 from ...topics import Topic
 from ..component_base import Component, TriggerType
 from .config import MemoryConfig
-from .engine import ClientEmbedder, ClientSummarizer, MemoryStoreError, open_engine, require_emem
-from .layers import MemLayer, position_of
+from .engine import (
+    ClientEmbedder,
+    ClientSummarizer,
+    MemoryStoreError,
+    Observation,
+    commit_batch,
+    open_engine,
+    require_emem,
+)
+from .layers import Fix, MemLayer, position_of
 from .tools import TOOL_NAMES, action_description, check_arguments, tool_description
 
 if TYPE_CHECKING:
@@ -58,25 +69,8 @@ __all__ = ["Memory"]
 NOTES_LAYER = "agent_notes"
 #: How many observations one embedding request carries at most.
 _EMBED_CHUNK = 64
-
-
-@define(frozen=True)
-class _Observation:
-    text: str
-    x: float
-    y: float
-    z: float
-    stamp: float
-    layer: str
-    internal: bool
-
-
-@define(frozen=True)
-class _Fix:
-    x: float
-    y: float
-    z: float
-    received: float  # time.monotonic() at arrival
+#: A value as it arrived: layer, text, Unix time, the robot's position then, ``time.monotonic()`` then.
+_Arrival = tuple[str, str, float, Fix | None, float]
 
 
 class Memory(Component):
@@ -133,12 +127,16 @@ class Memory(Component):
         self.config: MemoryConfig
         self._lock = threading.Lock()  # the buffers below, shared with the transport's threads
         self._engine_lock = threading.RLock()  # the engine: steps, actions and direct calls one at a time
-        self._fix: _Fix | None = None
+        self._fix: Fix | None = None
         self._partial: dict[str, str] = {}  # per StreamingString layer: the stream in progress
-        self._fresh: dict[str, tuple[str, float]] = {}  # per layer: a value not yet taken by a snapshot
+        # An arrival: (layer, text, Unix time, the position then, time.monotonic() then). Per sampled layer its
+        # newest not yet taken by a step; on the layers that trigger the component, every value in order.
+        self._fresh: dict[str, _Arrival] = {}
         self._latest: dict[str, tuple[str, float]] = {}  # per layer: the newest value (for ``store``)
+        self._arrived: collections.deque[_Arrival] = collections.deque()
+        self._actions: dict[str, dict[str, Any]] | None = None
         self._last_stored: dict[str, tuple[str, tuple[int, int]]] = {}  # per layer: text and cell
-        self._pending: collections.deque[_Observation] = collections.deque()
+        self._pending: collections.deque[Observation] = collections.deque()
         self._pending_since: float | None = None
         self._counts: collections.Counter[str] = collections.Counter()
         self._engine: Any = None
@@ -150,7 +148,8 @@ class Memory(Component):
         for name in (*self.layers, position.name):
             cb = self.callbacks.get(name)
             if cb is not None:  # trigger topics record their value in _make_topic_trigger, before the step
-                cb.on_callback_execute(self._on_position if name == position.name else self._value_hook(name))
+                take = self._on_position if name == position.name else functools.partial(self._on_value, name)
+                cb.on_callback_execute(take)
 
     def _make_topic_trigger(self, topic: Topic) -> Callable[[Any], None]:
         fire = super()._make_topic_trigger(topic)
@@ -159,7 +158,7 @@ class Memory(Component):
             if topic.name == self.position.name:
                 self._on_position(value)
             else:
-                self._on_value(topic.name, value)
+                self._on_value(topic.name, value, every=True)
             fire(value)
 
         return record_then_fire
@@ -171,11 +170,11 @@ class Memory(Component):
         """Counters: ``stored`` observations; not stored: ``no_position`` (no recent position), ``unchanged``
         (same value, same place, on a layer without ``temporal_change``), ``dropped`` (buffer full),
         ``unreadable`` (a value without a text form); failures: ``embed_errors``, ``store_errors``;
-        ``pending`` (buffered, to be written)."""
+        ``pending`` (buffered, to be written, including values that wait for the next step)."""
         with self._lock:
             counts = {k: self._counts[k] for k in ("stored", "no_position", "unchanged", "dropped", "unreadable",
                                                    "embed_errors", "store_errors")}
-            counts["pending"] = len(self._pending)
+            counts["pending"] = len(self._pending) + len(self._arrived)
         return counts
 
     def _count(self, what: str, n: int = 1) -> None:
@@ -183,12 +182,6 @@ class Memory(Component):
             self._counts[what] += n
 
     # -- arrivals (the transport's thread: short) ---------------------------------------------
-
-    def _value_hook(self, layer: str) -> Callable[[Any], None]:
-        def take(value: Any) -> None:
-            self._on_value(layer, value)
-
-        return take
 
     def _on_position(self, value: Any) -> None:
         pose = value.pose if isinstance(value, OdometryMsg) else value
@@ -198,9 +191,9 @@ class Memory(Component):
         if not all(math.isfinite(v) for v in p):
             return
         with self._lock:
-            self._fix = _Fix(p[0], p[1], p[2], time.monotonic())
+            self._fix = Fix(p[0], p[1], p[2], time.monotonic())
 
-    def _on_value(self, layer: str, value: Any) -> None:
+    def _on_value(self, layer: str, value: Any, every: bool = False) -> None:
         if isinstance(value, StreamingStringMsg):
             with self._lock:
                 text = self._partial.pop(layer, "") + value.data
@@ -217,7 +210,15 @@ class Memory(Component):
         if stored is None:
             return
         with self._lock:
-            self._fresh[layer] = self._latest[layer] = (stored, time.time())
+            arrival = (layer, stored, time.time(), self._fix, time.monotonic())
+            self._latest[layer] = (stored, arrival[2])
+            if not every:
+                self._fresh[layer] = arrival
+                return
+            if len(self._arrived) >= self.config.buffer_size:
+                self._arrived.popleft()
+                self._counts["dropped"] += 1
+            self._arrived.append(arrival)
 
     # -- lifecycle ----------------------------------------------------------------------------
 
@@ -252,8 +253,9 @@ class Memory(Component):
                         self._logger.warning("client did not deinitialize cleanly: %s", exc)
             self._clients_ready = False
         with self._lock:
-            if self._pending:
-                self._logger.error("%d observations could not be written before shutdown", len(self._pending))
+            if self._pending or self._arrived:
+                self._logger.error("%d observations could not be written before shutdown",
+                                   len(self._pending) + len(self._arrived))
 
     def _write_all_quietly(self) -> None:
         try:
@@ -296,7 +298,7 @@ class Memory(Component):
         for layer in self.layers.values():
             for point, text in layer.pre_defined:
                 x, y, z = position_of(point, "pre_defined position")
-                self._enqueue(_Observation(text.strip(), x, y, z, time.time(), layer.name, layer.is_internal_state))
+                self._enqueue(Observation(text.strip(), x, y, z, time.time(), layer.name, layer.is_internal_state))
 
     # -- snapshots and writing ----------------------------------------------------------------
 
@@ -318,29 +320,36 @@ class Memory(Component):
         return fix is not None and time.monotonic() - fix.received <= self.config.position_timeout
 
     def _snapshot(self, *, everything: bool) -> int:
-        """Buffer the new values of the layers (``everything``: the newest of each) at the current position;
-        how many could not be placed (no recent position)."""
+        """Buffer the values that arrived since the last step, each at the position known when it arrived
+        (``everything``: the newest of each layer, at the current position); how many could not be placed
+        (no recent position)."""
         with self._lock:
-            values = dict(self._latest if everything else self._fresh)
+            if everything:
+                now, fix = time.monotonic(), self._fix
+                taken = [(name, text, stamp, fix, now) for name, (text, stamp) in self._latest.items()]
+            else:
+                taken = [*self._arrived, *self._fresh.values()]
+                self._arrived.clear()
             self._fresh.clear()
-            fix = self._fix
-        if not values:
-            return 0
-        if fix is None or time.monotonic() - fix.received > self.config.position_timeout:
-            self._count("no_position", len(values))
-            return len(values)
-        for name, (text, stamp) in values.items():
-            layer = self.layers[name]
-            grain = self.config.cell_size * layer.resolution_multiple
-            cell = (math.floor(fix.x / grain), math.floor(fix.y / grain))
-            if not layer.temporal_change and self._last_stored.get(name) == (text, cell):
-                self._count("unchanged")
-                continue
-            self._last_stored[name] = (text, cell)
-            self._enqueue(_Observation(text, fix.x, fix.y, fix.z, stamp, name, layer.is_internal_state))
-        return 0
+        return sum(not self._place(*arrival) for arrival in taken)
 
-    def _enqueue(self, observation: _Observation) -> None:
+    def _place(self, name: str, text: str, stamp: float, fix: Fix | None, now: float) -> bool:
+        """Buffer one value at ``fix`` (unless unchanged); False when ``fix`` was not recent at ``now``
+        (both read when the value arrived: a worker busy with a slow embedding server loses nothing)."""
+        if fix is None or now - fix.received > self.config.position_timeout:
+            self._count("no_position")
+            return False
+        layer = self.layers[name]
+        grain = self.config.cell_size * layer.resolution_multiple
+        cell = (math.floor(fix.x / grain), math.floor(fix.y / grain))
+        if not layer.temporal_change and self._last_stored.get(name) == (text, cell):
+            self._count("unchanged")
+            return True
+        self._last_stored[name] = (text, cell)
+        self._enqueue(Observation(text, fix.x, fix.y, fix.z, stamp, name, layer.is_internal_state))
+        return True
+
+    def _enqueue(self, observation: Observation) -> None:
         with self._lock:
             if len(self._pending) >= self.config.buffer_size:
                 self._pending.popleft()
@@ -352,25 +361,25 @@ class Memory(Component):
     def _write(self, *, force: bool) -> int:
         """Embed and commit the buffered observations (when due, or ``force``); how many were written.
 
-        Each observation leaves the buffer only once committed: on a failure the rest stay for a retry and
-        the typed error is raised.
+        Due by count, whole batches of ``flush_batch_size`` are written (the rest waits for its batch or
+        for ``flush_interval``); forced or due by age, everything waiting now. Each chunk of up to
+        ``_EMBED_CHUNK`` is one embedding request and one transaction, and leaves the buffer, in order,
+        only once committed: on a failure it stays for a retry and the typed error is raised.
         """
         with self._lock:
             waiting = len(self._pending)
             since = self._pending_since
-        if not waiting:
-            return 0
-        due = waiting >= self.config.flush_batch_size or (
-            since is not None and time.monotonic() - since >= self.config.flush_interval)
-        if not (force or due):
+        aged = since is not None and time.monotonic() - since >= self.config.flush_interval
+        quota = waiting if force or aged else waiting - waiting % self.config.flush_batch_size
+        if not quota:
             return 0
         written = 0
         with self._engine_lock:
             engine = self._open()
             assert self._embedder is not None
-            while True:
+            while written < quota:
                 with self._lock:
-                    batch = list(self._pending)[:_EMBED_CHUNK]
+                    batch = list(itertools.islice(self._pending, min(_EMBED_CHUNK, quota - written)))
                 if not batch:
                     break
                 try:
@@ -378,24 +387,24 @@ class Memory(Component):
                 except ModelClientError:
                     self._count("embed_errors")
                     raise
-                for observation, vector in zip(batch, vectors, strict=True):
-                    self._commit(engine, observation, vector)
-                    with self._lock:
+                self._commit(engine, batch, vectors)
+                with self._lock:
+                    for observation in batch:
                         if self._pending and self._pending[0] is observation:
                             self._pending.popleft()
-                        elif observation in self._pending:
+                        elif observation in self._pending:  # the oldest may have been dropped meanwhile
                             self._pending.remove(observation)
-                        self._counts["stored"] += 1
-                        self._pending_since = time.monotonic() if self._pending else None
-                    written += 1
+                    self._counts["stored"] += len(batch)
+                    if not self._pending:  # else the rest keeps the older age: it never waits longer
+                        self._pending_since = None
+                written += len(batch)
             if time.monotonic() - self._index_saved >= self.config.index_save_interval:
                 self._save_index()
         return written
 
-    def _commit(self, engine: Any, o: _Observation, vector: Any) -> None:
+    def _commit(self, engine: Any, batch: list[Observation], vectors: Any) -> None:
         try:
-            engine.add(text=o.text, x=o.x, y=o.y, z=o.z, timestamp=o.stamp, layer_name=o.layer,
-                       source_type="interoception" if o.internal else "perception", embedding=vector)
+            commit_batch(engine, batch, vectors)
         except (sqlite3.Error, OSError, RuntimeError) as exc:
             self._count("store_errors")
             raise MemoryStoreError(f"cannot write to the memory database {self.config.db_path!r}: "
@@ -460,7 +469,7 @@ class Memory(Component):
                 raise ComponentError(str(exc)) from exc
         layer = self.layers.get(layer_name)
         internal = layer is not None and layer.is_internal_state
-        self._enqueue(_Observation(content.strip(), *place, time.time(), str(layer_name), internal))
+        self._enqueue(Observation(content.strip(), *place, time.time(), str(layer_name), internal))
         self._write(force=True)
         return True
 
@@ -500,6 +509,12 @@ class Memory(Component):
             return str(ended) if ended else "No active episode"
 
     # -- retrieval tools ----------------------------------------------------------------------
+
+    def available_actions(self) -> dict[str, dict[str, Any]]:
+        """The component actions and their descriptions (looked up once: every ``execute_method`` asks)."""
+        if self._actions is None:
+            self._actions = super().available_actions()
+        return dict(self._actions)
 
     def _tool(self, name: str, arguments: dict[str, Any]) -> str:
         checked = check_arguments(name, arguments)

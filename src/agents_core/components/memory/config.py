@@ -38,7 +38,8 @@ class MemoryConfig(BaseComponentConfig):
         at the same place" (multiplied by the layer's ``resolution_multiple``).
     :param buffer_size: the most observations held while they cannot be written (embedding server down,
         database not writable); when full the oldest is dropped and counted.
-    :param flush_batch_size: write (and embed, in one request) once this many observations wait ...
+    :param flush_batch_size: write (and embed, in one request) once this many observations wait, in whole
+        batches of this size (a backlog goes in requests and transactions of up to 64) ...
     :param flush_interval: ... or once the oldest waiting one is this many seconds old.
     :param index_save_interval: how often (s) the vector index file is saved while writing (it is always
         saved at deactivate and shutdown); the database rows are committed at once.

@@ -6,12 +6,16 @@ rest of the package, and ``import agents_core``, never load it.
 
 from __future__ import annotations
 
+import functools
 import json
 import logging
+import math
 import re
 import sqlite3
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
+
+from attrs import define
 
 from ...errors import ComponentError, ModelClientError
 
@@ -22,13 +26,28 @@ if TYPE_CHECKING:
     from ...clients.model_base import ModelClient
     from .config import MemoryConfig
 
-__all__ = ["ClientEmbedder", "ClientSummarizer", "MemoryStoreError", "index_path", "open_engine", "require_emem"]
+__all__ = ["ClientEmbedder", "ClientSummarizer", "MemoryStoreError", "Observation", "commit_batch", "index_path",
+           "open_engine", "require_emem"]
 
 _logger = logging.getLogger(__name__)
 
 
 class MemoryStoreError(ComponentError):
     """The memory's database or index cannot be opened or written (the observations stay buffered)."""
+
+
+@define(frozen=True)
+class Observation:
+    """One observation waiting to be written: its text, place (m), time (Unix s), layer, and whether it is
+    body state (an internal-state layer)."""
+
+    text: str
+    x: float
+    y: float
+    z: float
+    stamp: float
+    layer: str
+    internal: bool
 
 
 def require_emem() -> None:
@@ -141,17 +160,44 @@ class ClientSummarizer:
         return found
 
 
+@functools.cache
+def _engine_class() -> Any:
+    from emem import SpatioTemporalMemory  # noqa: PLC0415  (the optional engine)
+
+    class CommittedMemory(SpatioTemporalMemory):  # type: ignore[misc]
+        """emem's memory whose added observations wait in its working memory until :meth:`commit`."""
+
+        def commit(self) -> int:
+            """Write the observations added since the last commit in one transaction; how many."""
+            return int(self._wm.flush())
+
+    return CommittedMemory
+
+
 def open_engine(config: MemoryConfig, embedder: ClientEmbedder, summarizer: ClientSummarizer | None) -> Any:
-    """A ``SpatioTemporalMemory`` on ``config.db_path``; MemoryStoreError when it cannot be opened."""
-    from emem import SpatioTemporalMemory, SpatioTemporalMemoryConfig  # noqa: PLC0415  (the optional engine)
+    """A ``SpatioTemporalMemory`` on ``config.db_path``; MemoryStoreError when it cannot be opened.
+
+    Its own batching is off: the component adds a batch of observations and calls ``commit()``
+    (one SQLite transaction per batch), and takes them out of its buffer only once that returned.
+    """
+    from emem import SpatioTemporalMemoryConfig  # noqa: PLC0415  (the optional engine)
 
     db_path = str(Path(config.db_path).expanduser())
     settings = SpatioTemporalMemoryConfig(
         db_path=db_path, hnsw_path=index_path(db_path), embedding_dim=embedder.dim,
-        # Each observation is committed as it is added (the component batches the embedding requests):
-        # a write that fails then loses nothing the component has not kept in its own buffer.
-        flush_batch_size=1, flush_interval=0.0, **config.engine_settings())
+        # Never flushed by count or age on its own: a write that fails then loses nothing the component
+        # has not kept in its own buffer, and a batch is one transaction instead of one per observation.
+        flush_batch_size=2**62, flush_interval=math.inf, **config.engine_settings())
     try:
-        return SpatioTemporalMemory(config=settings, embedding_provider=embedder, llm_client=summarizer)
+        return _engine_class()(config=settings, embedding_provider=embedder, llm_client=summarizer)
     except (sqlite3.Error, OSError, RuntimeError) as exc:
         raise MemoryStoreError(f"cannot open the memory database {db_path!r}: {type(exc).__name__}: {exc}") from exc
+
+
+def commit_batch(engine: Any, batch: list[Observation], vectors: Any) -> None:
+    """Add ``batch`` with its embeddings to an engine from :func:`open_engine` and commit it in one transaction
+    (the engine's errors are raised as they are)."""
+    for o, vector in zip(batch, vectors, strict=True):
+        engine.add(text=o.text, x=o.x, y=o.y, z=o.z, timestamp=o.stamp, layer_name=o.layer,
+                   source_type="interoception" if o.internal else "perception", embedding=vector)
+    engine.commit()

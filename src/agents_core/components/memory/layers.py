@@ -87,6 +87,16 @@ def position_of(point: Any, what: str) -> tuple[float, float, float]:
     return values[0], values[1], values[2] if len(values) == 3 else 0.0
 
 
+@define(frozen=True)
+class Fix:
+    """The robot's position (m, world frame) and when it arrived (``time.monotonic()``)."""
+
+    x: float
+    y: float
+    z: float
+    received: float
+
+
 def _check_pre_defined(instance: Any, attribute: Any, value: Any) -> None:
     for i, point in enumerate(value):
         if not (isinstance(point, tuple) and len(point) == 2 and isinstance(point[1], str) and point[1].strip()):
