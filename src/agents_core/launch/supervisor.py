@@ -105,8 +105,10 @@ def _segments_since(started: float) -> set[str]:
 class ChildProcess:
     """One component's process, its reports and its history."""
 
-    def __init__(self, spec: ComponentSpec) -> None:
+    def __init__(self, spec: ComponentSpec, fork_server: ForkServer | None = None) -> None:
         self.spec = spec
+        #: Forks the process (its respawns too) when given; else a fresh interpreter each time.
+        self.fork_server = fork_server
         self.name = spec.component_name
         self.proc: subprocess.Popen[bytes] | ForkedProcess | None = None
         self.state = "unconfigured"
@@ -124,8 +126,9 @@ class ChildProcess:
     def pid(self) -> int | None:
         return self.proc.pid if self.proc is not None else None
 
-    def spawn(self, server: ForkServer | None = None) -> None:
-        """Start the process (forked by ``server`` if given) and write its spec to its stdin."""
+    def spawn(self) -> None:
+        """Start the process (forked by :attr:`fork_server` if set) and write its spec to its stdin."""
+        server = self.fork_server
         read_fd, write_fd = os.pipe()
         self.spawned_at = time.time()
         try:
@@ -230,8 +233,7 @@ class Supervisor:
                  on_giveup: Callable[[str], None] | None = None, backoff_s: float = 0.05,
                  max_backoff_s: float = 2.0, start_timeout: float = 60.0,
                  fork_server: ForkServer | None = None) -> None:
-        self.children = [ChildProcess(spec) for spec in specs]
-        self.fork_server = fork_server
+        self.children = [ChildProcess(spec, fork_server) for spec in specs]
         self.max_retries = max_retries
         self.backoff_s = backoff_s
         self.max_backoff_s = max_backoff_s
@@ -305,7 +307,7 @@ class Supervisor:
 
     def _spawn(self, child: ChildProcess) -> None:
         try:
-            child.spawn(self.fork_server)
+            child.spawn()
         except OSError as exc:
             child.error = f"cannot start a process: {exc}"
             child.proc = None
