@@ -278,7 +278,7 @@ def fork_server() -> ForkServer:
 
 
 def _close_server() -> None:
-    global _server  # noqa: PLW0603
+    global _server
     with _server_lock:
         server, _server = _server, None
     if server is not None:
@@ -348,12 +348,12 @@ def serve(sock: socket.socket, baseline_threads: int) -> tuple[int, int, str] | 
     signal.set_wakeup_fd(wake_write)
     signal.signal(signal.SIGCHLD, lambda *_: None)  # a handler, so that SIGCHLD writes to the wakeup fd
     while True:
-        ready = select.select([sock, wake_read], [], [])[0]
+        ready = select.select([sock.fileno(), wake_read], [], [])[0]
         if wake_read in ready:
             with contextlib.suppress(BlockingIOError):
                 os.read(wake_read, 4096)
             _reap(sock)
-        if sock not in ready:
+        if sock.fileno() not in ready:
             continue
         try:
             data, fds, _, _ = socket.recv_fds(sock, _MAX_PACKET, 2)

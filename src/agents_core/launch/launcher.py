@@ -260,8 +260,7 @@ class Launcher:
         refuse_inside_component_process()
         self._apply_component_sections()
         self._apply_fail_action()
-        self._choose_default_transport()
-        self._prepare_fork_server()  # before the transport: the server imports its adapter meanwhile
+        self._choose_default_transport()  # then the fork server, which imports the adapter meanwhile
         self._transport = resolve_transport(self._transport_spec, **self._transport_options)
         self._owns_transport = isinstance(self._transport_spec, str) or self._transport_spec is None
         if self._multiprocessing and not self._transport.capabilities.cross_process:
@@ -328,7 +327,14 @@ class Launcher:
             c.on_fail(Action(method), max_retries)
 
     def _choose_default_transport(self) -> None:
-        """``multiprocessing=True`` with no transport named anywhere: Zenoh if installed, else one process."""
+        """``multiprocessing=True`` with no transport named anywhere: Zenoh if installed, else one process.
+
+        Then (before the transport opens) the fork server is prepared for the transport's adapter.
+        """
+        self._default_transport()
+        self._prepare_fork_server()
+
+    def _default_transport(self) -> None:
         if not self._multiprocessing or self._transport_spec is not None \
                 or os.environ.get(TRANSPORT_ENV_VAR, "").strip():
             return
