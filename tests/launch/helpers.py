@@ -19,13 +19,32 @@ REPO = Path(__file__).resolve().parents[2]
 SECRET = "sk-test-7f3a9c-SECRET-KEY"
 
 
-def child_pids(pid: int) -> list[int]:
+def direct_children(pid: int) -> list[int]:
     """The direct children of ``pid`` (from /proc)."""
     found: list[int] = []
     with contextlib.suppress(OSError):
         for task in os.listdir(f"/proc/{pid}/task"):
             with contextlib.suppress(OSError), open(f"/proc/{pid}/task/{task}/children") as f:
                 found += [int(p) for p in f.read().split()]
+    return sorted(set(found))
+
+
+def is_fork_server(pid: int) -> bool:
+    """True when ``pid`` is a launcher's fork server (agents_core.launch.fork_server)."""
+    try:
+        with open(f"/proc/{pid}/cmdline", "rb") as f:
+            return b"agents_core.launch.fork_server" in f.read().split(b"\0")[:3]
+    except OSError:
+        return False
+
+
+def child_pids(pid: int) -> list[int]:
+    """The processes launcher ``pid`` started for its components: its direct children, where one is
+    its fork server, that server's children in its place (a forked process keeps the server's argv,
+    so it is told apart by its parent)."""
+    found: list[int] = []
+    for kid in direct_children(pid):
+        found += direct_children(kid) if is_fork_server(kid) else [kid]
     return sorted(set(found))
 
 

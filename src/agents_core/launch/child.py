@@ -45,7 +45,7 @@ if TYPE_CHECKING:
     from ..transport.contract import Transport
     from .spec import ComponentSpec
 
-__all__ = ["EXIT_DEADLINE_S", "main", "set_parent_death_signal"]
+__all__ = ["EXIT_DEADLINE_S", "main", "run_forked", "set_parent_death_signal"]
 
 logger = logging.getLogger("agents_core.launch.child")
 
@@ -56,6 +56,7 @@ MAX_SPEC_BYTES = 16 * 1024 * 1024
 #: How often the launcher-watch thread checks that the launcher is still this process's parent.
 PARENT_POLL_S = 0.1
 _PR_SET_PDEATHSIG = 1
+_PR_SET_NAME = 15
 #: Commands that end the process: the launcher is gone (end of stdin, another parent), a signal, a stop.
 _STOPS = frozenset({"eof", "parent-gone", "signal", "shutdown"})
 
@@ -262,13 +263,17 @@ def _await_startup(startup: _Startup, commands: queue.SimpleQueue[str], reporter
     return deferred
 
 
-def run(spec_line: bytes, reporter: _Reporter, stdin: _PipeLines) -> int:
-    """Build, run and stop the component of ``spec_line``; the process's exit status."""
+def run(spec_line: bytes, reporter: _Reporter, stdin: _PipeLines, parent_pid: int = 0) -> int:
+    """Build, run and stop the component of ``spec_line``; the process's exit status.
+
+    ``parent_pid``: the process expected as parent (the fork server's, for a forked process);
+    by default the launcher's, from the spec.
+    """
     from ..events import Event  # noqa: PLC0415
     from .spec import ComponentSpec  # noqa: PLC0415
 
     spec = ComponentSpec.from_dict(json.loads(spec_line))
-    parent_pid = spec.parent_pid or os.getppid()
+    parent_pid = parent_pid or spec.parent_pid or os.getppid()
     if os.getppid() != parent_pid:
         return 1  # the launcher died before PR_SET_PDEATHSIG was set
     logging.basicConfig(level=logging.INFO, stream=sys.stderr,
@@ -310,23 +315,43 @@ def run(spec_line: bytes, reporter: _Reporter, stdin: _PipeLines) -> int:
     return 0
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m agents_core.launch.child", description=__doc__)
-    parser.add_argument("--report-fd", type=int, required=True, help="inherited pipe to report states on")
-    args = parser.parse_args(argv)
-    set_parent_death_signal(signal.SIGTERM)
-    reporter = _Reporter(args.report_fd)
-    stdin = _PipeLines(sys.stdin.fileno())
+def _serve(reporter: _Reporter, stdin: _PipeLines, parent_pid: int = 0) -> int:
     spec_line = stdin.readline(MAX_SPEC_BYTES)
     if spec_line is None:
         reporter.send(error="no complete component spec on stdin")
         return 2
     try:
-        return run(spec_line, reporter, stdin)
+        return run(spec_line, reporter, stdin, parent_pid)
     except Exception as exc:
         logger.exception("component process failed")
         reporter.send(error=f"{type(exc).__name__}: {exc}")
         return 1
+
+
+def run_forked(stdin_fd: int, report_fd: int, server_pid: int, name: str) -> int:
+    """The entry of a process forked by :mod:`agents_core.launch.fork_server`; its exit status.
+
+    Same contract as :func:`main`: the spec comes on ``stdin_fd`` (made this process's stdin),
+    states go to ``report_fd``; the process ends when the server (its parent) or the launcher
+    (the end of its command pipe) is gone.
+    """
+    set_parent_death_signal(signal.SIGTERM)
+    if os.getppid() != server_pid:
+        return 1  # the server ended before PR_SET_PDEATHSIG was set
+    if name:  # what ps and top show instead of the server's name (at most 15 bytes)
+        with contextlib.suppress(OSError, AttributeError):
+            ctypes.CDLL(None).prctl(_PR_SET_NAME, ctypes.c_char_p(f"agents:{name}".encode()[:15]), 0, 0, 0)
+    os.dup2(stdin_fd, 0)
+    os.close(stdin_fd)
+    return _serve(_Reporter(report_fd), _PipeLines(0), server_pid)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m agents_core.launch.child", description=__doc__)
+    parser.add_argument("--report-fd", type=int, required=True, help="inherited pipe to report states on")
+    args = parser.parse_args(argv)
+    set_parent_death_signal(signal.SIGTERM)
+    return _serve(_Reporter(args.report_fd), _PipeLines(sys.stdin.fileno()))
 
 
 if __name__ == "__main__":

@@ -41,6 +41,7 @@ import functools
 import logging
 import os
 import signal
+import sys
 import threading
 from collections.abc import Mapping, Sequence
 from types import FrameType
@@ -56,6 +57,8 @@ from ..runtime.worker import StepWorker
 from ..status import LifecycleState
 from ..transport.contract import Subscription, Transport
 from ..transport.registry import TRANSPORT_ENV_VAR, resolve_transport
+from .fork_server import ForkServer, adapter_module, prepare
+from .fork_server import process_start as choose_process_start
 from .live_status import LiveStatus, Row, child_rows, component_rows
 from .preflight import (
     LIFECYCLE_METHODS,
@@ -91,12 +94,21 @@ class Launcher:
     :param quiet: True: print no status lines. By default :meth:`start` prints a few lines on
         stderr (transport, components, UI address, how to stop; :mod:`agents_core.launch.report`)
         unless ``AGENTS_QUIET=1`` or the ``agents_core`` logger has a level above INFO.
+    :param process_start: with ``multiprocessing=True``, ``"fork"`` (component processes forked by
+        a pre-imported server, :mod:`agents_core.launch.fork_server`; the default on Linux) or
+        ``"spawn"`` (a fresh interpreter each); None reads ``AGENTS_PROCESS_START``.
     """
 
     def __init__(self, transport: str | Transport | None = None, *,
                  transport_options: Mapping[str, Any] | None = None,
-                 config_file: str | os.PathLike[str] | None = None, quiet: bool | None = None) -> None:
+                 config_file: str | os.PathLike[str] | None = None, quiet: bool | None = None,
+                 process_start: str | None = None) -> None:
         self._quiet = quiet
+        try:
+            self._process_start = choose_process_start(process_start)
+        except ValueError as exc:
+            raise ConfigError(str(exc)) from None
+        self._fork_server: ForkServer | None = None
         self._component_sections: dict[str, dict[str, Any]] = {}
         self._config_file = str(config_file) if config_file is not None else None
         file_transport: dict[str, Any] = {}
@@ -158,6 +170,7 @@ class Launcher:
             self.components.append(c)
         if self._multiprocessing:
             check_transferable(self.components)
+            self._prepare_fork_server()
         for event, actions in (events_actions or {}).items():
             if not isinstance(event, Event):
                 raise WiringError(f"events_actions keys must be Event objects, got {type(event).__name__}")
@@ -266,7 +279,7 @@ class Launcher:
         refuse_inside_component_process()
         self._apply_component_sections()
         self._apply_fail_action()
-        self._choose_default_transport()
+        self._choose_default_transport()  # then the fork server, which imports the adapter meanwhile
         self._transport = resolve_transport(self._transport_spec, **self._transport_options)
         self._owns_transport = isinstance(self._transport_spec, str) or self._transport_spec is None
         if self._multiprocessing and not self._transport.capabilities.cross_process:
@@ -345,7 +358,14 @@ class Launcher:
             c.on_fail(Action(method), max_retries)
 
     def _choose_default_transport(self) -> None:
-        """``multiprocessing=True`` with no transport named anywhere: Zenoh if installed, else one process."""
+        """``multiprocessing=True`` with no transport named anywhere: Zenoh if installed, else one process.
+
+        Then (before the transport opens) the fork server is prepared for the transport's adapter.
+        """
+        self._default_transport()
+        self._prepare_fork_server()
+
+    def _default_transport(self) -> None:
         if not self._multiprocessing or self._transport_spec is not None \
                 or os.environ.get(TRANSPORT_ENV_VAR, "").strip():
             return
@@ -375,6 +395,15 @@ class Launcher:
                     raise ConfigError(f"config file {self._config_file}, section {c.component_name!r}: {exc}") \
                         from exc
 
+    def _prepare_fork_server(self) -> None:
+        """Start (or reuse) the fork server and have it import what the component processes need."""
+        recipe_import = sys.modules.get("agents_core.launch.recipe_import")
+        if not self._multiprocessing or self._process_start != "fork" or (
+                recipe_import is not None and recipe_import.importing_recipe()):
+            return  # a component process importing its recipe never starts a server
+        modules = {type(c).__module__ for c in self.components} | {adapter_module(self._transport_spec) or ""}
+        self._fork_server = prepare(modules, sys.path)
+
     def _start_processes(self) -> None:
         from .spec import ComponentSpec, check_rebuild  # noqa: PLC0415
         from .supervisor import Supervisor  # noqa: PLC0415
@@ -392,7 +421,8 @@ class Launcher:
             for action in actions:
                 check_remote_action(event, action)
         retries = self._process_fail_retries if self._process_fail_retries is not None else 0
-        self._supervisor = Supervisor(specs, max_retries=retries, on_giveup=self._gave_up_on)
+        self._supervisor = Supervisor(specs, max_retries=retries, on_giveup=self._gave_up_on,
+                                      fork_server=self._fork_server)
         for c in self.components:
             if isinstance(c.trigger, Event):
                 forward = functools.partial(_forward_trigger, self._supervisor, c.component_name)

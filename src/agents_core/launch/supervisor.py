@@ -10,6 +10,9 @@ A child killed by a signal cannot remove its shared-memory segments (Zenoh's, Fa
 /dev/shm. The supervisor notes the segments each child maps while it runs; after a crash, each
 of them is unlinked as soon as no live process maps it any more (peers that received from the
 dead child keep its segment mapped until they let go of it).
+
+Given a :class:`~agents_core.launch.fork_server.ForkServer`, children (respawns included) are
+forked by it instead of started as fresh interpreters; if it cannot, the child is spawned.
 """
 
 from __future__ import annotations
@@ -26,6 +29,7 @@ from collections.abc import Callable, Sequence
 from typing import IO, Any
 
 from ..errors import ComponentError
+from .fork_server import ForkedProcess, ForkServer, ForkServerError
 from .spec import ComponentSpec
 
 __all__ = ["ChildProcess", "Supervisor"]
@@ -101,10 +105,12 @@ def _segments_since(started: float) -> set[str]:
 class ChildProcess:
     """One component's process, its reports and its history."""
 
-    def __init__(self, spec: ComponentSpec) -> None:
+    def __init__(self, spec: ComponentSpec, fork_server: ForkServer | None = None) -> None:
         self.spec = spec
+        #: Forks the process (its respawns too) when given; else a fresh interpreter each time.
+        self.fork_server = fork_server
         self.name = spec.component_name
-        self.proc: subprocess.Popen[bytes] | None = None
+        self.proc: subprocess.Popen[bytes] | ForkedProcess | None = None
         self.state = "unconfigured"
         self.error: str | None = None
         self.restarts = 0
@@ -121,13 +127,19 @@ class ChildProcess:
         return self.proc.pid if self.proc is not None else None
 
     def spawn(self) -> None:
-        """Start the process and write its spec (with the launcher's pid) to its stdin."""
+        """Start the process (forked by :attr:`fork_server` if set) and write its spec to its stdin."""
+        server = self.fork_server
         read_fd, write_fd = os.pipe()
         self.spawned_at = time.time()
         try:
-            self.proc = subprocess.Popen(
-                [sys.executable, "-m", "agents_core.launch.child", "--report-fd", str(write_fd)],
-                stdin=subprocess.PIPE, pass_fds=(write_fd,), close_fds=True)
+            self.proc = self._fork(server, write_fd) if server is not None else None
+            if self.proc is None:
+                self.proc = subprocess.Popen(
+                    [sys.executable, "-m", "agents_core.launch.child", "--report-fd", str(write_fd)],
+                    stdin=subprocess.PIPE, pass_fds=(write_fd,), close_fds=True)
+        except BaseException:
+            os.close(read_fd)
+            raise
         finally:
             os.close(write_fd)
         with self.state_changed:
@@ -136,6 +148,19 @@ class ChildProcess:
                                         name=f"reports:{self.name}", daemon=True)
         self._reader.start()
         self.send(json.dumps(self.spec.to_dict()))
+
+    def _fork(self, server: ForkServer, report_fd: int) -> ForkedProcess | None:
+        """The process forked by ``server``; None (after a warning) when it cannot fork one."""
+        stdin_read, stdin_write = os.pipe()
+        try:
+            return server.fork(self.name, stdin_read, report_fd, stdin_write)
+        except ForkServerError as exc:
+            os.close(stdin_write)
+            logger.warning("component %r: the fork server did not start its process (%s); starting a fresh "
+                           "interpreter", self.name, exc)
+            return None
+        finally:
+            os.close(stdin_read)
 
     def send(self, line: str) -> bool:
         """Write one line to the child's stdin; False when it is gone."""
@@ -206,8 +231,9 @@ class Supervisor:
 
     def __init__(self, specs: Sequence[ComponentSpec], *, max_retries: int = 3,
                  on_giveup: Callable[[str], None] | None = None, backoff_s: float = 0.05,
-                 max_backoff_s: float = 2.0, start_timeout: float = 60.0) -> None:
-        self.children = [ChildProcess(spec) for spec in specs]
+                 max_backoff_s: float = 2.0, start_timeout: float = 60.0,
+                 fork_server: ForkServer | None = None) -> None:
+        self.children = [ChildProcess(spec, fork_server) for spec in specs]
         self.max_retries = max_retries
         self.backoff_s = backoff_s
         self.max_backoff_s = max_backoff_s

@@ -1,0 +1,410 @@
+"""A pre-imported process server that forks component processes, so each starts like a thread.
+
+A fresh interpreter per component pays the imports (the framework, the middleware, the
+component's module) every time. Instead, the launcher process starts one **fork server** the
+first time a recipe asks for ``multiprocessing=True``: ``python -m agents_core.launch.fork_server``,
+a fresh interpreter of its own, started by ``subprocess`` (so whatever threads or middleware
+sessions the launcher holds, the server holds none). It imports the framework, the component
+process entry point (:mod:`agents_core.launch.child`), the transport adapter and the component
+classes' modules, then forks one process per request. The server is shared by every launcher of
+the process and lives until the launcher process ends (like ``multiprocessing``'s forkserver).
+
+Forking is safe only in a process with no thread that may hold a lock and no middleware
+session: the server runs no recipe code (the recipe file itself is still imported by each
+component process, cheaply, since everything it imports is loaded) and counts its threads
+(``/proc/self/task``) after each import. The framework's own imports leave numpy's OpenBLAS
+pool, which stops its threads around a fork (``pthread_atfork``); that count is the baseline. A
+preloaded module that starts more threads makes the server refuse to fork, and the launcher
+falls back to a fresh interpreter per component. ROS 2's client library starts threads when it
+is loaded, so it is never preloaded: a ROS 2 component process loads it after the fork.
+
+The protocol, on a ``SOCK_SEQPACKET`` Unix socket pair (one JSON object per packet):
+
+* launcher -> server ``{"op": "preload", "modules": [...], "path": [...]}``: import these (the
+  path entries go in front of ``sys.path``); errors are ignored (the component process reports them).
+* launcher -> server ``{"op": "fork", "id": n, "name": ...}`` with two descriptors attached
+  (``SCM_RIGHTS``): the read end of the component's command pipe (its stdin) and the write end
+  of its report pipe. The reply is ``{"id": n, "pid": p}`` or ``{"id": n, "error": "..."}``.
+* server -> launcher ``{"exit": pid, "status": s}``: a component process ended (``s`` as
+  ``Popen.returncode``: negative for a signal).
+
+The spec (which may hold secrets) is never seen by the server: the launcher writes it on the
+component's command pipe, as for a spawned process. A forked component process's argv and
+environment are the server's (no secret in either). It dies with the launcher: its command pipe
+ends (only the launcher holds the write end), the server exits when its socket ends and each
+forked process has ``PR_SET_PDEATHSIG`` set towards the server.
+
+Opt out with ``AGENTS_PROCESS_START=spawn`` (or ``Launcher(process_start="spawn")``); where
+fork or descriptor passing is not available (not Linux) the spawn path is used anyway.
+"""
+
+from __future__ import annotations
+
+import argparse
+import atexit
+import contextlib
+import importlib
+import json
+import logging
+import os
+import select
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Iterable
+from typing import IO, Any
+
+__all__ = [
+    "PROCESS_START_ENV",
+    "ForkServer",
+    "ForkServerError",
+    "ForkedProcess",
+    "adapter_module",
+    "fork_available",
+    "fork_server",
+    "prepare",
+    "process_start",
+]
+
+logger = logging.getLogger(__name__)
+
+#: ``fork`` (the default where available) or ``spawn``: how component processes start.
+PROCESS_START_ENV = "AGENTS_PROCESS_START"
+#: Always imported by the server: what every component process needs.
+BASE_MODULES = ("agents_core.launch.child", "agents_core.launch.spec", "agents_core.launch.recipe_import",
+                "agents_core.transport.registry", "agents_core.components.component_base")
+#: Never imported by the server: they start threads when loaded (rclpy's middleware libraries).
+NOT_PRELOADED = ("agents_ros2", "rclpy")
+#: How long a fork request may wait for its reply.
+FORK_TIMEOUT_S = 10.0
+_MAX_PACKET = 1 << 20
+
+
+class ForkServerError(OSError):
+    """The fork server could not start a process (gone, unsafe to fork, or it refused)."""
+
+
+def fork_available() -> bool:
+    """True where the fork server can run: Linux, with fork and descriptor passing."""
+    return (sys.platform.startswith("linux") and hasattr(os, "fork") and hasattr(socket, "send_fds")
+            and hasattr(socket, "SOCK_SEQPACKET"))
+
+
+def process_start(option: str | None = None) -> str:
+    """``"fork"`` or ``"spawn"``: ``option`` (a launcher's), else :data:`PROCESS_START_ENV`, else fork.
+
+    ``fork`` where :func:`fork_available` says no becomes ``spawn``.
+    """
+    chosen = (option or os.environ.get(PROCESS_START_ENV, "") or "fork").strip().lower()
+    if chosen not in ("fork", "spawn"):
+        raise ValueError(f"process start must be 'fork' or 'spawn', got {chosen!r} "
+                         f"(from {'the launcher' if option else PROCESS_START_ENV})")
+    return "fork" if chosen == "fork" and fork_available() else "spawn"
+
+
+# -- the launcher side --------------------------------------------------------------------------
+
+
+class ForkedProcess:
+    """A component process forked by the server: the part of ``subprocess.Popen`` the supervisor uses."""
+
+    def __init__(self, server: ForkServer, pid: int, stdin: IO[bytes]) -> None:
+        self.pid = pid
+        self.stdin: IO[bytes] | None = stdin
+        self.returncode: int | None = None
+        self._server = server
+        self._exited = threading.Event()
+
+    def set_exit(self, status: int) -> None:
+        self.returncode = status
+        self._exited.set()
+
+    def poll(self) -> int | None:
+        if self.returncode is None and self._server.gone and not _alive(self.pid):
+            # The server (its parent) is gone, so its status is unknown; it got PR_SET_PDEATHSIG's SIGTERM.
+            self.set_exit(-signal.SIGTERM)
+        return self.returncode
+
+    def wait(self, timeout: float | None = None) -> int:
+        deadline = None if timeout is None else time.monotonic() + timeout
+        while self.poll() is None:
+            left = 0.05 if deadline is None else min(0.05, deadline - time.monotonic())
+            if left <= 0:
+                raise subprocess.TimeoutExpired(f"component process {self.pid}", timeout or 0.0)
+            self._exited.wait(left)
+        assert self.returncode is not None
+        return self.returncode
+
+    def send_signal(self, signum: int) -> None:
+        if self.poll() is None:
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(self.pid, signum)
+
+    def terminate(self) -> None:
+        self.send_signal(signal.SIGTERM)
+
+    def kill(self) -> None:
+        self.send_signal(signal.SIGKILL)
+
+
+def _alive(pid: int) -> bool:
+    try:
+        with open(f"/proc/{pid}/stat", encoding="ascii", errors="replace") as f:
+            return f.read().rsplit(")", 1)[1].split()[0] not in ("Z", "X")
+    except (OSError, IndexError):
+        return False
+
+
+class ForkServer:
+    """The launcher's handle on a running fork server (see the module docstring)."""
+
+    def __init__(self) -> None:
+        self._sock, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
+        try:
+            self.proc = subprocess.Popen(
+                [sys.executable, "-m", "agents_core.launch.fork_server", "--socket-fd", str(theirs.fileno())],
+                stdin=subprocess.DEVNULL, pass_fds=(theirs.fileno(),), close_fds=True)
+        finally:
+            theirs.close()
+        self.gone = False
+        self._send_lock = threading.Lock()
+        self._replies: dict[int, dict[str, Any]] = {}
+        self._children: dict[int, ForkedProcess] = {}
+        self._early_exits: dict[int, int] = {}
+        self._changed = threading.Condition()
+        self._next_id = 0
+        self._reader = threading.Thread(target=self._read, name="fork-server", daemon=True)
+        self._reader.start()
+
+    @property
+    def pid(self) -> int:
+        return self.proc.pid
+
+    def _send(self, message: dict[str, Any], fds: Iterable[int] = ()) -> None:
+        data = json.dumps(message).encode("utf-8")
+        with self._send_lock:
+            try:
+                socket.send_fds(self._sock, [data], list(fds))
+            except OSError as exc:
+                raise ForkServerError(f"the fork server is gone: {exc}") from exc
+
+    def preload(self, modules: Iterable[str], path: Iterable[str] = ()) -> None:
+        """Have the server import ``modules`` (with ``path`` in front of its ``sys.path``); no reply."""
+        self._send({"op": "preload", "modules": sorted(set(modules)), "path": list(path)})
+
+    def fork(self, name: str, stdin_read: int, report_write: int, stdin_write: int) -> ForkedProcess:
+        """A new component process reading commands from ``stdin_read`` and reporting on ``report_write``.
+
+        The caller keeps (and closes) its copies of the two descriptors; ``stdin_write`` becomes
+        the returned process's ``stdin``.
+        """
+        with self._changed:
+            self._next_id += 1
+            request = self._next_id
+        self._send({"op": "fork", "id": request, "name": name}, (stdin_read, report_write))
+        deadline = time.monotonic() + FORK_TIMEOUT_S
+        with self._changed:
+            while request not in self._replies:
+                left = deadline - time.monotonic()
+                if self.gone or left <= 0:
+                    raise ForkServerError("the fork server is gone" if self.gone
+                                          else f"no reply from the fork server in {FORK_TIMEOUT_S:g} s")
+                self._changed.wait(left)
+            reply = self._replies.pop(request)
+            if "pid" not in reply:
+                raise ForkServerError(str(reply.get("error", "the fork server refused")))
+            pid = int(reply["pid"])
+            child = ForkedProcess(self, pid, os.fdopen(stdin_write, "wb"))
+            self._children[pid] = child
+            if pid in self._early_exits:  # it ended before this thread saw the reply
+                child.set_exit(self._early_exits.pop(pid))
+        return child
+
+    def _read(self) -> None:
+        while True:
+            try:
+                data = self._sock.recv(_MAX_PACKET)
+            except OSError:
+                data = b""
+            if not data:
+                break
+            try:
+                message = json.loads(data)
+            except json.JSONDecodeError:
+                continue
+            with self._changed:
+                if "exit" in message:
+                    pid, status = int(message["exit"]), int(message["status"])
+                    child = self._children.pop(pid, None)
+                    if child is not None:
+                        child.set_exit(status)
+                    else:
+                        self._early_exits[pid] = status
+                elif "id" in message:
+                    self._replies[int(message["id"])] = message
+                self._changed.notify_all()
+        with self._changed:
+            self.gone = True
+            self._changed.notify_all()
+
+    def close(self, timeout: float = 2.0) -> None:
+        """End the server (its component processes get PR_SET_PDEATHSIG's SIGTERM)."""
+        with contextlib.suppress(OSError):
+            self._sock.shutdown(socket.SHUT_RDWR)
+        self._sock.close()
+        try:
+            self.proc.wait(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+            self.proc.wait(timeout=5.0)
+
+
+_server: ForkServer | None = None
+_server_lock = threading.Lock()
+
+
+def fork_server() -> ForkServer:
+    """This process's fork server, started on first use (and again if it has died)."""
+    global _server  # noqa: PLW0603  # one server per launcher process, like multiprocessing's
+    with _server_lock:
+        if _server is None or _server.gone or _server.proc.poll() is not None:
+            if _server is None:
+                atexit.register(_close_server)
+            _server = ForkServer()
+        return _server
+
+
+def _close_server() -> None:
+    global _server
+    with _server_lock:
+        server, _server = _server, None
+    if server is not None:
+        server.close()
+
+
+def adapter_module(transport: object) -> str | None:
+    """The module of the transport adapter ``transport`` (a name or a transport object) names, if known."""
+    if transport is None or isinstance(transport, str):
+        from ..transport.registry import TRANSPORT_ALIASES, TRANSPORT_ENV_VAR  # noqa: PLC0415
+
+        name = transport or os.environ.get(TRANSPORT_ENV_VAR, "").strip()
+        return TRANSPORT_ALIASES[name][0].partition(":")[0] if name in TRANSPORT_ALIASES else None
+    return type(transport).__module__
+
+
+def prepare(modules: Iterable[str], path: Iterable[str] = ()) -> ForkServer | None:
+    """Start the fork server if needed and have it import ``modules``; None where it cannot run."""
+    try:
+        server = fork_server()
+        server.preload([*BASE_MODULES, *(m for m in modules if m and m != "__main__")], path)
+    except (OSError, ForkServerError) as exc:
+        logger.warning("cannot use a fork server for component processes (%s): starting each in a fresh "
+                       "interpreter", exc)
+        return None
+    return server
+
+
+# -- the server ---------------------------------------------------------------------------------
+
+
+def _thread_count() -> int:
+    try:
+        return len(os.listdir("/proc/self/task"))
+    except OSError:
+        return threading.active_count()
+
+
+def _preload(request: dict[str, Any]) -> None:
+    for entry in reversed([str(p) for p in request.get("path", [])]):
+        if entry not in sys.path:
+            sys.path.insert(0, entry)
+    for name in map(str, request.get("modules", [])):
+        if name.partition(".")[0] in NOT_PRELOADED:
+            continue
+        with contextlib.suppress(Exception):  # the component process reports the error, with context
+            importlib.import_module(name)
+
+
+def _reap(sock: socket.socket) -> None:
+    while True:
+        try:
+            pid, status = os.waitpid(-1, os.WNOHANG)
+        except ChildProcessError:
+            return
+        if pid == 0:
+            return
+        with contextlib.suppress(OSError):
+            sock.send(json.dumps({"exit": pid, "status": os.waitstatus_to_exitcode(status)}).encode())
+
+
+def serve(sock: socket.socket, baseline_threads: int) -> tuple[int, int, str] | None:
+    """Answer requests until the launcher's end closes (None); in a forked child, its descriptors and name."""
+    wake_read, wake_write = os.pipe()
+    os.set_blocking(wake_read, False)
+    os.set_blocking(wake_write, False)
+    signal.set_wakeup_fd(wake_write)
+    signal.signal(signal.SIGCHLD, lambda *_: None)  # a handler, so that SIGCHLD writes to the wakeup fd
+    while True:
+        ready = select.select([sock.fileno(), wake_read], [], [])[0]
+        if wake_read in ready:
+            with contextlib.suppress(BlockingIOError):
+                os.read(wake_read, 4096)
+            _reap(sock)
+        if sock.fileno() not in ready:
+            continue
+        try:
+            data, fds, _, _ = socket.recv_fds(sock, _MAX_PACKET, 2)
+        except OSError:
+            data, fds = b"", []
+        if not data:
+            return None  # the launcher is gone or done: the component processes see their pipes end
+        request = json.loads(data)
+        if request.get("op") == "preload":
+            _preload(request)
+            continue
+        reply: dict[str, Any] = {"id": request.get("id")}
+        if len(fds) != 2:
+            reply["error"] = "a fork request needs two descriptors"
+        elif _thread_count() > baseline_threads:
+            reply["error"] = "an imported module started a thread in the fork server: forking is unsafe"
+        else:
+            pid = os.fork()
+            if pid == 0:
+                signal.set_wakeup_fd(-1)
+                signal.signal(signal.SIGCHLD, signal.SIG_DFL)
+                for fd in (wake_read, wake_write):
+                    os.close(fd)
+                sock.close()
+                return fds[0], fds[1], str(request.get("name", ""))
+            reply["pid"] = pid
+        for fd in fds:
+            os.close(fd)
+        sock.send(json.dumps(reply).encode())
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m agents_core.launch.fork_server", description=__doc__)
+    parser.add_argument("--socket-fd", type=int, required=True, help="inherited SOCK_SEQPACKET socket")
+    args = parser.parse_args(argv)
+    # Ctrl-C reaches the whole process group: the launcher decides when the server ends.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    server_pid = os.getpid()
+    sock = socket.socket(fileno=args.socket_fd)
+    for name in BASE_MODULES:
+        importlib.import_module(name)
+    forked = serve(sock, _thread_count())
+    if forked is None:
+        return 0
+    # A forked component process: the server's frames are gone; run it, then exit normally (the
+    # middleware's exit handlers remove its shared-memory segments).
+    from .child import run_forked  # noqa: PLC0415
+
+    stdin_fd, report_fd, name = forked
+    return run_forked(stdin_fd, report_fd, server_pid, name)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
