@@ -40,11 +40,9 @@ import difflib
 import functools
 import logging
 import os
-import signal
 import sys
 import threading
 from collections.abc import Mapping, Sequence
-from types import FrameType
 from typing import TYPE_CHECKING, Any
 
 from ..actions import Action
@@ -69,6 +67,7 @@ from .preflight import (
     refuse_inside_component_process,
 )
 from .report import LaunchReport, component_row
+from .stop_signals import stop_signals
 
 if TYPE_CHECKING:
     from .supervisor import Supervisor
@@ -563,41 +562,14 @@ class Launcher:
         finish); a second one makes it hurry (nothing more is waited for, the transport is still
         closed); a third exits the process at once with status 128 + the signal number.
         """
-        previous: dict[signal.Signals, Any] = {}
-        received = 0
-
-        def handler(signum: int, frame: FrameType | None) -> None:
-            nonlocal received
-            received += 1
-            if received == 1:
-                say("agents: stopping (Ctrl-C again to hurry)", quiet=self._quiet)
-                logger.info("received signal %d, shutting down (again to hurry, a third time to exit at once)",
-                            signum)
-                self._stop_requested.set()
-            elif received == 2:
-                logger.warning("received signal %d again: not waiting for running steps any longer", signum)
-                self._stop_requested.set()
-                self.hurry()
-            else:
-                os._exit(128 + signum)
-
-        # Handlers first: a signal that arrives while components start still ends in a clean stop.
-        # They stay installed until stop() has returned, so a repeated Ctrl-C never raises
-        # KeyboardInterrupt in the middle of the shutdown.
-        if threading.current_thread() is threading.main_thread():
-            for sig in (signal.SIGINT, signal.SIGTERM):
-                previous[sig] = signal.signal(sig, handler)
-        try:
-            self.start()
-            while not self._stop_requested.wait(0.5):
-                pass
-        finally:
+        with stop_signals(self._stop_requested.set, self.hurry, quiet=self._quiet):
             try:
+                self.start()
+                while not self._stop_requested.wait(0.5):
+                    pass
+            finally:
                 self.stop()
                 say("agents: stopped", quiet=self._quiet)
-            finally:
-                for sig, old in previous.items():
-                    signal.signal(sig, old)
 
     def request_stop(self) -> None:
         """Make :meth:`bringup` return (thread-safe)."""
