@@ -290,6 +290,7 @@ def _voice_demo(argv: list[str]) -> int:
     mic, heard, spoken = Topic("mic", "Audio"), Topic("heard", "String"), Topic("spoken", "Audio")
     stt = SpeechToText(inputs=[mic], outputs=[heard], component_name="ears", config=SpeechToTextConfig(
         enable_local_model=True, local_model_path=args.stt_model, vad_model_path=args.vad_model,
+        enable_vad=True,  # the default VAD (silero-vad's file) when --vad-model is not given
         max_buffer_s=seconds + 5.0, log_level="warning"))
     # The transcript is asked on the LLM's question topic below, so the demo can print both.
     llm, question, answer = build_agent(max_new_tokens=args.max_new_tokens)

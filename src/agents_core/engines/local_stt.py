@@ -52,6 +52,9 @@ MODEL_RATE = 16_000
 #: The longest utterance given to the recognizer (s): Whisper sees 30 s windows, and longer audio
 #: would only make one step block the worker for long.
 MAX_UTTERANCE_SECONDS = 30.0
+#: Shorter utterances are padded with silence to this length: sherpa-onnx's Whisper crashes the
+#: process (SIGSEGV, 2.0.1) on a few dozen samples, which a VAD can cut at the end of a stream.
+MIN_UTTERANCE_SECONDS = 0.1
 
 
 def import_sherpa_onnx() -> Any:
@@ -159,6 +162,9 @@ class LocalSTT:
         if samples.size > MAX_UTTERANCE_SECONDS * sample_rate:
             raise InferenceError(f"a {samples.size / sample_rate:.1f} s utterance is longer than the "
                                  f"{MAX_UTTERANCE_SECONDS:.0f} s the recognizer takes at once")
+        shortest = int(MIN_UTTERANCE_SECONDS * sample_rate)
+        if samples.size < shortest:
+            samples = np.concatenate([samples.astype(np.float32), np.zeros(shortest - samples.size, np.float32)])
         stream = self._recognizer.create_stream()
         stream.accept_waveform(sample_rate, np.ascontiguousarray(samples, np.float32))
         try:
