@@ -47,6 +47,9 @@ METRICS: dict[str, list[tuple[str, str, str, str]]] = {
     "vla": [("latency_p50", "ms", "lower", "latency_ms.p50"), ("latency_p99", "ms", "lower", "latency_ms.p99")],
     # the rate `agentsctl topics hz` reports vs a raw zenoh subscriber counting the same publisher.
     "cli": [("hz_rate", "Hz", "higher", "rate_hz")],
+    # a whole loop (voice: speech file -> STT -> LLM -> TTS -> first audio; perception: image -> Vision ->
+    # VLM answer) through the recipe vs the sum of its stages run directly; ratio - 1 = framework overhead.
+    "e2e": [("loop", "ms", "lower", "loop_ms")],
 }
 
 #: Above this slowdown (framework cost / raw cost) a latency figure needs a profile note.
@@ -184,7 +187,8 @@ def plot(figures: list[dict[str, Any]], records: list[dict[str, Any]], path: Pat
     colors = {"hop": "tab:blue", "throughput": "tab:orange", "startup": "tab:green", "model": "tab:purple",
               "imports": "tab:brown", "vision": "tab:red", "voice": "tab:olive",
               "map": "tab:cyan", "processes": "tab:pink", "ui": "tab:gray", "goals": "tab:olive",
-              "vla": "tab:brown", "cli": "tab:red", "memory": "tab:purple", "cortex": "tab:green"}
+              "vla": "tab:brown", "cli": "tab:red", "memory": "tab:purple", "cortex": "tab:green",
+              "e2e": "tab:orange"}
     labels = [f["id"] for f in shown]
     values = [f["slowdown"] for f in shown]
     y = list(range(len(shown)))
