@@ -9,7 +9,8 @@ Two loops, each on the memory and the Zenoh transport (one process; Zenoh: a pee
   chunk. framework: the speech published as 20 ms Audio chunks as fast as possible; the clock runs
   from the first chunk to the first Audio message at a subscriber. raw (the stage sum): the same
   engines called directly, one after another: ``SpeechSegmenter`` + ``LocalSTT`` on the same chunks
-  until the utterance's text; ``LocalLLM`` streaming the same message until
+  until the utterance's text (one segmenter for all repetitions, fed the trailing silence untimed,
+  as the component's, so both hear the same utterance); ``LocalLLM`` streaming the same message until
   :func:`~agents_core.engines.local_tts.split_speakable` has a first piece; ``LocalTTS`` speaking
   it. In the recipe the LLM goes on generating while TTS speaks its first piece (the same 2
   cores), so part of the difference is that contention, not the framework.
@@ -102,29 +103,33 @@ class VoiceLoop:
     def raw(self) -> dict[str, Any]:
         import numpy as np  # noqa: PLC0415
 
+        from agents_core.engines.audio import to_mono_float  # noqa: PLC0415
         from agents_core.engines.local_llm import LocalLLM  # noqa: PLC0415
         from agents_core.engines.local_stt import LocalSTT, SpeechSegmenter  # noqa: PLC0415
         from agents_core.engines.local_tts import LocalTTS, split_speakable  # noqa: PLC0415
 
+        s = self.stt_config
         if not hasattr(self, "_engines"):
-            s, l_, t = self.stt_config, self.llm_config, self.tts_config
+            l_, t = self.llm_config, self.tts_config
             stt = LocalSTT(str(s.local_model_path), ncpu=s.ncpu_local_model)
             stt.transcribe(np.zeros(8_000, np.float32))  # warm-up, as the components'
             llm = LocalLLM(str(l_.local_model_path), ncpu=l_.ncpu_local_model)
             tts = LocalTTS(str(t.local_model_path), ncpu=t.ncpu_local_model)
             tts.synthesize("Ready.")
-            self._engines = (stt, llm, tts)
-        stt, llm, tts = self._engines
-        s, l_ = self.stt_config, self.llm_config
-        segmenter = SpeechSegmenter(s.vad_model_path, threshold=s.vad_threshold,
-                                    min_silence_ms=s.min_silence_duration_ms, min_speech_ms=s.min_speech_duration_ms,
-                                    max_speech_s=s.max_speech_duration_s)
+            # One stream for all repetitions, as the component's: the detector's state carries over.
+            segmenter = SpeechSegmenter(s.vad_model_path, threshold=s.vad_threshold,
+                                        min_silence_ms=s.min_silence_duration_ms,
+                                        min_speech_ms=s.min_speech_duration_ms, max_speech_s=s.max_speech_duration_s)
+            self._engines = (stt, llm, tts, segmenter)
+        stt, llm, tts, segmenter = self._engines
+        l_ = self.llm_config
+        chunks = [to_mono_float(self.pcm[i:i + 320]) for i in range(0, self.pcm.size, 320)]
         start = time.perf_counter()
-        text = ""
-        for i in range(0, self.pcm.size, 320):
-            done = segmenter.accept(self.pcm[i:i + 320].astype(np.float32) / 32768.0)
+        text, fed = "", len(chunks)
+        for i, chunk in enumerate(chunks):
+            done = segmenter.accept(chunk)
             if done:
-                text = stt.transcribe(done[0][1])
+                text, fed = stt.transcribe(done[0][1]), i + 1
                 break
         heard = time.perf_counter()
         stream = llm({"query": [{"role": "user", "content": text}], "stream": True, "temperature": 0.0,
@@ -141,6 +146,8 @@ class VoiceLoop:
         spoken = time.perf_counter()
         for _ in stream:  # the rest of the answer is no stage of the first audio: drained, untimed
             pass
+        for chunk in chunks[fed:]:  # and the silence after the utterance, which the component also hears
+            segmenter.accept(chunk)
         return {"loop_ms": (spoken - start) * 1000, "stt_ms": (heard - start) * 1000,
                 "llm_ms": (answered - heard) * 1000, "tts_ms": (spoken - answered) * 1000, "heard": text,
                 "first_piece": piece}

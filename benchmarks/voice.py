@@ -164,7 +164,7 @@ def tts_raw(voice: Path, answer: str = ANSWER) -> dict[str, Any]:
     return {"first_audio_ms": elapsed * 1000, "audio_s": samples.size / tts.sample_rate}
 
 
-def tts_framework(voice: Path, answer: str = ANSWER) -> dict[str, Any]:
+def tts_framework(voice: Path, text: str = ANSWER) -> dict[str, Any]:
     from agents_core import Launcher, Topic  # noqa: PLC0415
     from agents_core.components import TextToSpeech  # noqa: PLC0415
     from agents_core.config import TextToSpeechConfig  # noqa: PLC0415
@@ -190,7 +190,7 @@ def tts_framework(voice: Path, answer: str = ANSWER) -> dict[str, Any]:
         launcher.transport.create_subscription(spoken, on_audio, inline=True)
         publish = launcher.transport.create_publisher(answer).publish
         start = time.perf_counter()
-        for word in answer.split(" "):
+        for word in text.split(" "):
             publish(StreamingStringMsg(data=word + " ", stream=True, done=False))
         publish(StreamingStringMsg(data="", stream=True, done=True))
         first.wait(60)
