@@ -50,6 +50,9 @@ METRICS: dict[str, list[tuple[str, str, str, str]]] = {
     "cli": [("hz_rate", "Hz", "higher", "rate_hz")],
     # a relay hop's throughput with a Recorder writing MCAP (framework) vs without one (raw); playback lateness.
     "recording": [("msgs_per_s", "msg/s", "higher", "msgs_per_s"), ("playback_p99", "ms", "lower", "lateness_ms.p99")],
+    # a whole loop (voice: speech file -> STT -> LLM -> TTS -> first audio; perception: image -> Vision ->
+    # VLM answer) through the recipe vs the sum of its stages run directly; ratio - 1 = framework overhead.
+    "e2e": [("loop", "ms", "lower", "loop_ms")],
 }
 
 #: Above this slowdown (framework cost / raw cost) a latency figure needs a profile note.
@@ -187,7 +190,8 @@ def plot(figures: list[dict[str, Any]], records: list[dict[str, Any]], path: Pat
     colors = {"hop": "tab:blue", "throughput": "tab:orange", "startup": "tab:green", "model": "tab:purple",
               "imports": "tab:brown", "vision": "tab:red", "voice": "tab:olive",
               "map": "tab:cyan", "processes": "tab:pink", "ui": "tab:gray", "goals": "tab:olive",
-              "vla": "tab:brown", "cli": "tab:red", "memory": "tab:purple", "cortex": "tab:green"}
+              "vla": "tab:brown", "cli": "tab:red", "memory": "tab:purple", "cortex": "tab:green",
+              "e2e": "tab:orange"}
     labels = [f["id"] for f in shown]
     values = [f["slowdown"] for f in shown]
     y = list(range(len(shown)))

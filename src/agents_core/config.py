@@ -493,6 +493,9 @@ class TextToSpeechConfig(ModelComponentConfig):
     :param speaker_id: the speaker of multi-speaker voices.
     :param speed: speaking rate (1.0: the voice's own).
     :param chunk_ms: the length of each published Audio message (ms).
+    :param first_clause_words: speak an utterance's first clause on its own, as soon as it is complete
+        (ends at , ; or :), when it has at least this many words, so speech starts before the first
+        sentence ends; shorter first clauses wait for the sentence (0: whole sentences only).
     :param data_dir: the espeak-ng data directory the voice phonemizes with (None: found in the
         ``voice-gpl`` extra's ``espeakng-loader`` package when installed).
     """
@@ -506,6 +509,7 @@ class TextToSpeechConfig(ModelComponentConfig):
     speaker_id: int = field(default=0, validator=base_validators.in_range(0, 100_000))
     speed: float = field(default=1.0, validator=base_validators.in_range(0.25, 4.0))
     chunk_ms: int = field(default=100, validator=base_validators.in_range(10, 10_000))
+    first_clause_words: int = field(default=4, validator=base_validators.in_range(0, 1000))
     data_dir: str | None = field(default=None, validator=_optional_str, metadata=AT_CONFIGURE)
     ncpu_local_model: int = field(default=2, validator=base_validators.gt(0), metadata=AT_CONFIGURE)
 

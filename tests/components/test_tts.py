@@ -3,6 +3,8 @@ SpeechToText, actions, limits and wiring errors (memory transport)."""
 
 from __future__ import annotations
 
+import difflib
+import re
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -15,7 +17,8 @@ from agents_core import Launcher, Topic
 from agents_core.components import SpeechToText, TextToSpeech
 from agents_core.config import SpeechToTextConfig, TextToSpeechConfig
 from agents_core.engines.audio import wav_bytes
-from agents_core.engines.local_tts import split_sentences
+from agents_core.engines.local_stt import LocalSTT
+from agents_core.engines.local_tts import LocalTTS, split_sentences
 from agents_core.errors import ConfigError, WiringError
 from agents_core.messages import AudioMsg, StreamingStringMsg
 from agents_core.status import HealthStatus
@@ -84,6 +87,33 @@ def test_a_stream_is_spoken_sentence_by_sentence_before_it_ends() -> None:
         publish(StreamingStringMsg(data="", stream=True, done=True))
         assert wait_for(lambda: tts.sentences_spoken == 2 and not tts.busy, timeout=20)
     assert all(a.duration <= 0.05 + 1e-6 for a in audio)
+
+
+def _words(text: str) -> list[str]:
+    return re.findall(r"[a-z0-9']+", text.lower())
+
+
+def test_the_first_clause_is_spoken_first_and_the_whole_answer_is_heard_once() -> None:
+    whisper, _ = needs_stt()
+    answer = ("The red cube is on the table, next to the window. I will drive there and pick it up now. "
+              "Tell me where you want me to put it.")
+    tts = _tts(chunk_ms=50)
+    with _running(tts) as (launcher, audio):
+        publish = launcher.transport.create_publisher(STREAM).publish
+        for word in answer.split(" "):
+            publish(StreamingStringMsg(data=word + " ", stream=True, done=False))
+        publish(StreamingStringMsg(data="", stream=True, done=True))
+        assert wait_for(lambda: tts.sentences_spoken == 4 and not tts.busy, timeout=60)
+    assert tts.dropped_sentences == 0
+    assert {a.sample_rate for a in audio} == {22_050}
+    spoken = np.concatenate([a.data for a in audio]).astype(np.float32) / 32768.0
+    # The pieces together last about as long as the answer synthesized whole (nothing dropped or repeated).
+    whole = LocalTTS(str(voice_dir())).synthesize(answer)
+    assert 0.85 < spoken.size / whole.size < 1.2, (spoken.size, whole.size)
+    heard = _words(LocalSTT(whisper).transcribe(spoken, 22_050))
+    expected = _words(answer)
+    assert difflib.SequenceMatcher(a=expected, b=heard).ratio() >= 0.9, heard
+    assert heard.count("table") == 1 and heard.count("window") == 1, heard
 
 
 def test_say_stop_playback_limits_and_recovery() -> None:

@@ -3,7 +3,10 @@
 Input is String (each message one utterance) or StreamingString (an LLM's answer as it is
 generated). With ``stream`` on (the default), a stream is spoken sentence by sentence as the
 sentences complete, so the robot starts talking before the LLM has finished; off, the whole text
-is spoken once the stream's last chunk (``done``) arrives.
+is spoken once the stream's last chunk (``done``) arrives. The first clause of an utterance is
+spoken on its own as soon as it is complete, when it has ``first_clause_words`` words or more
+(:func:`~agents_core.engines.local_tts.split_speakable`): first audio then waits only for the
+synthesis of that clause, not of the whole first sentence.
 
 Each sentence is synthesized on the component's serial worker and published on the Audio outputs
 as int16 chunks of ``chunk_ms``; with ``play_on_device`` it is also played on a sound device (the
@@ -37,7 +40,7 @@ from ..actions import component_action
 from ..clients.model_base import ModelClient
 from ..config import TextToSpeechConfig
 from ..engines.audio import AudioInputError, float_to_int16, read_wav, to_mono_float
-from ..engines.local_tts import split_sentences
+from ..engines.local_tts import split_speakable
 from ..errors import AlgorithmFailure, ConfigError, WiringError
 from ..install_hint import install_hint
 from ..messages import AudioMsg, StreamingStringMsg
@@ -129,6 +132,7 @@ class TextToSpeech(ModelComponent):
         self._lock = threading.Lock()
         self._texts: collections.deque[tuple[str, Any]] = collections.deque()  # (input name, value) arrivals
         self._partial: dict[str, str] = {}  # per input: the unfinished text of the stream in progress
+        self._begun: set[str] = set()  # inputs whose utterance in progress has had a piece queued
         self._sentences: collections.deque[str] = collections.deque()
         self._step_queued = False
         self._player: _Player | None = None
@@ -198,6 +202,7 @@ class TextToSpeech(ModelComponent):
             self.dropped_sentences += len(self._sentences)
             self._sentences.clear()
             self._partial.clear()
+            self._begun.clear()
         if self._player is not None:
             self._player.stop()
 
@@ -235,18 +240,24 @@ class TextToSpeech(ModelComponent):
             raise AlgorithmFailure(f"component {self.component_name!r}: cannot speak a {type(value).__name__}")
         if new and cfg.interrupt:
             self._clear()
+        if new:
+            self._begun.discard(name)
         pending = self._partial.pop(name, "") + text
         if len(pending) > cfg.max_text_chars:
             raise AlgorithmFailure(f"component {self.component_name!r}: {len(pending)} characters of text is more "
                                    f"than max_text_chars ({cfg.max_text_chars}); split it or raise the limit")
         if cfg.stream or done:
-            sentences, rest = split_sentences(pending)
+            sentences, rest = split_speakable(pending, first=name not in self._begun,
+                                              min_clause_words=cfg.first_clause_words)
         else:
             sentences, rest = [], pending
         if done:
             sentences += [rest.strip()] if rest.strip() else []
+            self._begun.discard(name)
         else:
             self._partial[name] = rest
+            if sentences:
+                self._begun.add(name)
         self._queue_sentences(sentences)
 
     def _queue_sentences(self, sentences: list[str]) -> None:

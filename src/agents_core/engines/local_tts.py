@@ -1,4 +1,5 @@
-"""Built-in offline speech synthesis on sherpa-onnx: :class:`LocalTTS`, and :func:`split_sentences`.
+"""Built-in offline speech synthesis on sherpa-onnx: :class:`LocalTTS`, and how a text is cut into what
+can be spoken already (:func:`split_sentences`, :func:`split_speakable`).
 
 ``model_path`` is a directory holding a sherpa-onnx TTS model:
 
@@ -39,7 +40,7 @@ from ..errors import ConfigError, InferenceError
 from ..install_hint import install_hint
 from .local_stt import import_sherpa_onnx
 
-__all__ = ["DEFAULT_VOICE_PACKAGE", "LocalTTS", "default_voice_dir", "split_sentences"]
+__all__ = ["DEFAULT_VOICE_PACKAGE", "LocalTTS", "default_voice_dir", "split_sentences", "split_speakable"]
 
 _logger = logging.getLogger("agents_core.engines.local_tts")
 
@@ -57,6 +58,32 @@ def split_sentences(text: str) -> tuple[list[str], str]:
     parts = _SENTENCE_END.split(text)
     rest = parts.pop() if parts else ""
     return [p.strip() for p in parts if p.strip()], rest
+
+
+# A clause ends at , ; or : followed by white space (so "3,000" and "10:30" stay whole).
+_CLAUSE_END = re.compile(r"(?<=[,;:])\s+")
+
+
+def split_speakable(text: str, first: bool, min_clause_words: int) -> tuple[list[str], str]:
+    """``(pieces to speak now, unfinished rest)`` of ``text``, the unspoken text of one utterance.
+
+    Pieces are sentences (:func:`split_sentences`), except that while ``first`` (nothing of the
+    utterance spoken yet) the first clause is a piece of its own when it is complete and has at
+    least ``min_clause_words`` words, so that speech can start before the first sentence ends;
+    shorter fragments ("Well,", "Yes,") wait for more. ``min_clause_words <= 0`` turns this off.
+    The pieces and the rest together are ``text`` in order, only white space between them removed.
+    """
+    if first and min_clause_words > 0:
+        sentence_end = _SENTENCE_END.search(text)
+        limit = sentence_end.start() if sentence_end else len(text)
+        for boundary in _CLAUSE_END.finditer(text):
+            if boundary.start() > limit:
+                break  # the first sentence ends first: it is the first piece
+            clause = text[:boundary.start()].strip()
+            if len(clause.split()) >= min_clause_words:
+                sentences, rest = split_sentences(text[boundary.end():])
+                return [clause, *sentences], rest
+    return split_sentences(text)
 
 
 def _package_dir(name: str) -> Path | None:
