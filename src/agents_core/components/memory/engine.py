@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING, Any
 from attrs import define
 
 from ...errors import ComponentError, ModelClientError
+from ...install_hint import install_hint
 
 if TYPE_CHECKING:
     import numpy as np
@@ -55,7 +56,7 @@ def require_emem() -> None:
     import importlib.util  # noqa: PLC0415
 
     if importlib.util.find_spec("emem") is None:
-        raise ImportError("the Memory component needs the emem engine: pip install 'agents-core[memory]'")
+        raise ImportError(f"the Memory component needs the emem engine: {install_hint('memory')}")
 
 
 def index_path(db_path: str) -> str:
