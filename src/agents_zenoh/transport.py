@@ -65,7 +65,8 @@ from agents_core.transport.requests import with_caller_timeout
 from .codecs import MSGPACK, CodecError, codec_for, decode_value, pack
 from .config import ZenohConfig
 from .context import CONTROL_PRIORITY, ZenohContext
-from .goals import ZenohActionServer, ZenohGoal
+from .goal_client import ZenohGoal
+from .goals import ZenohActionServer
 from .graph import discover_graph
 from .keys import state_key, transition_key
 from .pubsub import ZenohPublisher, ZenohSubscription
