@@ -16,7 +16,7 @@
 - components to a liveliness token plus two queryables (state, transition), see
   :mod:`agents_zenoh.keys`;
 - graph discovery to a liveliness token per publisher and subscriber (:mod:`agents_zenoh.graph`).
-- long-running goals to queryables (goal, cancel, result) and topics (feedback, status) under
+- long-running goals to one query stream per goal (and queryables goal, cancel, result, topics feedback, status) under
   ``<namespace>/<action>/@action/``, see :mod:`agents_zenoh.goals`.
 
 QoS: ``reliable`` -> Zenoh reliable + congestion control *block*; ``best_effort`` -> best

@@ -78,7 +78,7 @@ def test_a_result_is_answered_to_a_late_result_query_after_the_stream_ended() ->
 
 def test_a_goal_that_outlives_its_stream_is_followed_by_result_queries(monkeypatch: pytest.MonkeyPatch) -> None:
     """The stream's time runs out mid-goal: feedback goes out as samples, the result comes from a result query."""
-    import agents_zenoh.goal_client as goal_client  # noqa: PLC0415
+    from agents_zenoh import goal_client  # noqa: PLC0415
 
     monkeypatch.setattr(goal_client, "STREAM_S", 2.0)  # the server gives the stream up at 1 s
 
