@@ -242,3 +242,14 @@ def test_a_stream_that_ends_without_a_result_ends_the_goal_aborted(hostile: tupl
     status, result = goal.result(10.0)
     assert status == GoalStatus.ABORTED and "went away" in result["message"]
     assert time.monotonic() - started < 5.0
+
+
+def test_a_stream_request_with_a_nan_stream_s_gets_an_error_reply() -> None:
+    with served_action() as (server, _client, peer):
+        request = {"goal_id": uuid.uuid4().hex, "goal": {"task": "x"}, "cancel_token": secrets.token_hex(16),
+                   "stream_s": float("nan")}
+        ok, answer = peer.ask("stream", request)
+        assert not ok and "stream_s must be a number of seconds, not NaN" in answer["error"]
+        ok, answer = peer.ask("stream", {**request, "stream_s": "long"})
+        assert not ok and "stream_s must be a number of seconds" in answer["error"]
+        assert server.statistics().decode_errors == 2 and server.statistics().accepted == 0
