@@ -6,7 +6,7 @@
 ``<ns>/@agents/components/<name>``     a component's liveliness token
 ``<ns>/@agents/state/<name>``          queryable: the component's lifecycle state and health
 ``<ns>/@agents/transition/<name>``     queryable: ask the component to run a lifecycle transition
-``<ns>/<action>/@action/...``          an action's goal, cancel and result queryables and its
+``<ns>/<action>/@action/...``          an action's stream, goal, cancel and result queryables and its
                                        feedback / status / result samples (:mod:`agents_zenoh.goals`)
 =====================================  ==================================================
 

@@ -16,7 +16,7 @@
 - components to a liveliness token plus two queryables (state, transition), see
   :mod:`agents_zenoh.keys`;
 - graph discovery to a liveliness token per publisher and subscriber (:mod:`agents_zenoh.graph`).
-- long-running goals to queryables (goal, cancel, result) and topics (feedback, status) under
+- long-running goals to one query stream per goal (and queryables goal, cancel, result, topics feedback, status) under
   ``<namespace>/<action>/@action/``, see :mod:`agents_zenoh.goals`.
 
 QoS: ``reliable`` -> Zenoh reliable + congestion control *block*; ``best_effort`` -> best
@@ -65,7 +65,8 @@ from agents_core.transport.requests import with_caller_timeout
 from .codecs import MSGPACK, CodecError, codec_for, decode_value, pack
 from .config import ZenohConfig
 from .context import CONTROL_PRIORITY, ZenohContext
-from .goals import ZenohActionServer, ZenohGoal
+from .goal_client import ZenohGoal
+from .goals import ZenohActionServer
 from .graph import discover_graph
 from .keys import state_key, transition_key
 from .pubsub import ZenohPublisher, ZenohSubscription

@@ -19,11 +19,11 @@ from typing import Any
 
 import jinja2
 
+from .._component_configs import LLMConfig
 from ..actions import component_action
 from ..clients.db_base import DBClient
 from ..clients.model_base import ModelClient
 from ..component_method import ComponentMethod
-from ..config import LLMConfig
 from ..errors import AlgorithmFailure, ConfigError, WiringError
 from ..messages import DetectionsMsg, StreamingStringMsg
 from ..setup_calls import setup_method

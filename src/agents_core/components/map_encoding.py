@@ -44,9 +44,10 @@ from typing import Any
 
 from attrs import define, field
 
+from .._component_configs import MapConfig
 from ..actions import component_action
 from ..clients.db_base import DBClient
-from ..config import BaseAttrs, MapConfig
+from ..config import BaseAttrs
 from ..errors import ComponentError, ConfigError, ModelClientError, WiringError
 from ..messages import DetectionsMsg, OccupancyGridMsg, OdometryMsg, PoseMsg, StreamingStringMsg, TrackingsMsg
 from ..status import HealthStatus

@@ -27,10 +27,10 @@ from typing import Any
 
 import numpy as np
 
+from .._component_configs import MLLMConfig
 from ..actions import component_action
 from ..clients.db_base import DBClient
 from ..clients.model_base import ModelClient
-from ..config import MLLMConfig
 from ..errors import AlgorithmFailure, WiringError
 from ..messages import DetectionsMsg, ImageMsg, PointsOfInterestMsg
 from ..supported_types import Detections, Image, PointsOfInterest, StreamingString, String, SupportedType

@@ -20,9 +20,10 @@ from typing import Any
 
 from attrs import define, field
 
+from .._component_configs import SemanticRouterConfig
 from ..clients.db_base import DBClient
 from ..clients.model_base import ModelClient
-from ..config import BaseAttrs, SemanticRouterConfig
+from ..config import BaseAttrs
 from ..errors import ConfigError, ProtocolError, WiringError
 from ..supported_types import String
 from ..topics import Topic

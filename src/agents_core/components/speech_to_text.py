@@ -40,8 +40,8 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from .._component_configs import SpeechToTextConfig
 from ..clients.model_base import ModelClient
-from ..config import SpeechToTextConfig
 from ..engines.audio import AudioInputError, StreamResampler, check_rate, to_mono_float
 from ..errors import AlgorithmFailure, ConfigError
 from ..install_hint import install_hint

@@ -36,9 +36,9 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from .._component_configs import TextToSpeechConfig
 from ..actions import component_action
 from ..clients.model_base import ModelClient
-from ..config import TextToSpeechConfig
 from ..engines.audio import AudioInputError, float_to_int16, read_wav, to_mono_float
 from ..engines.local_tts import split_speakable
 from ..errors import AlgorithmFailure, ConfigError, WiringError

@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from ..config import VideoMessageMakerConfig
+from .._component_configs import VideoMessageMakerConfig
 from ..errors import AlgorithmFailure
 from ..messages import ImageMsg, VideoMsg
 from ..supported_types import Image, Video

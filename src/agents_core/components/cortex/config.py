@@ -11,7 +11,7 @@ from typing import Any
 from attrs import define, field
 
 from ... import base_validators
-from ...config import LLMConfig
+from ..._component_configs import LLMConfig
 
 __all__ = ["CortexConfig"]
 

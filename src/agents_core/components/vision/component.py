@@ -34,9 +34,9 @@ import numpy as np
 import numpy.typing as npt
 
 from ... import supported_types as st
+from ..._component_configs import VisionConfig
 from ...actions import component_action
 from ...clients.model_base import ModelClient
-from ...config import VisionConfig
 from ...errors import AlgorithmFailure, ConfigError, WiringError
 from ...messages import CompressedImageMsg, DetectionsMsg, Header, ImageMsg, TrackingsMsg
 from ...supported_types import (

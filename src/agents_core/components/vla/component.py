@@ -33,7 +33,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ...config import VLAConfig
+from ..._component_configs import VLAConfig
 from ...errors import AlgorithmFailure, ComponentError, ConfigError, ModelClientError, WiringError
 from ...events import Event
 from ...messages import JointJogMsg, JointStateMsg, JointTrajectoryMsg, JointTrajectoryPointMsg
