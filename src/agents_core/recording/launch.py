@@ -11,6 +11,7 @@ status topics, which needs no discovery and so works on the memory transport too
 from __future__ import annotations
 
 import logging
+import os
 from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -49,7 +50,7 @@ class RecipeRecording:
     :param recorder_options: further :class:`~.recorder.Recorder` keywords (``queue_depth``, ``encoding``, ...).
     """
 
-    def __init__(self, path: str | Path, *, topics: Sequence[Topic | str] | None = None,
+    def __init__(self, path: str | os.PathLike[str], *, topics: Sequence[Topic | str] | None = None,
                  limits: RecordingLimits | None = None, **recorder_options: Any) -> None:
         require_mcap()  # fail in record(), where the user wrote it, not at start
         unknown = set(recorder_options) - {"include_status", "queue_depth", "queue_bytes", "encoding",

@@ -73,7 +73,7 @@ class McapSeriesWriter:
     """Writes messages into a series of MCAP files (see the module docstring); thread-safe."""
 
     def __init__(self, path: str | Path, limits: RecordingLimits, *, chunk_size: int = 1024 * 1024,
-                 compression: Compression = "zstd", fsync: bool = False) -> None:
+                 compression: Compression = "lz4", fsync: bool = False) -> None:
         self._mcap = require_mcap()
         self._path = Path(path)
         self._limits = limits
