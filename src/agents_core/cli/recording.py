@@ -43,12 +43,16 @@ def record(output: Annotated[Path, typer.Argument(help="the MCAP file to write (
                                                                        "out")] = False,
            encoding: Annotated[str, typer.Option("--encoding", help="cdr (ROS 2 CDR where a type has a ROS form) "
                                                                     "or msgpack")] = "cdr",
+           compression: Annotated[str, typer.Option("--compression", help="each chunk's compression: lz4, zstd "
+                                                                          "(smaller, more CPU) or none")] = "lz4",
            ) -> None:
     """Record topics of a running recipe into MCAP until Ctrl-C, SIGTERM or --duration."""
     from ..recording import Recorder, RecordingLimits  # noqa: PLC0415 - needs the record extra only here
 
     if encoding not in ("cdr", "msgpack"):
         raise ConfigError(f"unknown encoding {encoding!r}; use cdr or msgpack")
+    if compression not in ("lz4", "zstd", "none"):
+        raise ConfigError(f"unknown compression {compression!r}; use lz4, zstd or none")
     limits = RecordingLimits(max_file_bytes=None if max_file_mb is None else int(max_file_mb * 2**20),
                              max_total_bytes=None if max_total_mb is None else int(max_total_mb * 2**20))
     names = [_topic_name(t) for t in topics] if topics else None
@@ -56,7 +60,7 @@ def record(output: Annotated[Path, typer.Argument(help="the MCAP file to write (
     _stop_on_signals(stop)
     with open_transport(transport, connect) as t:
         recorder = Recorder(t, output, topics=names, include_status=not no_status, limits=limits,
-                            encoding=encoding)  # type: ignore[arg-type]  # checked above
+                            encoding=encoding, compression=compression)  # type: ignore[arg-type]  # checked above
         recorder.start()
         if not json_out:
             say(f"recording to {output} (Ctrl-C to stop)")

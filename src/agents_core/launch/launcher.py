@@ -140,6 +140,7 @@ class Launcher:
         self._ui: Any = None
         self._foxglove_options: dict[str, Any] | None = None
         self._foxglove: Any = None
+        self._recording: Any = None
         self._live_status: LiveStatus | None = None
 
     # -- recipe -------------------------------------------------------------------------------
@@ -214,6 +215,12 @@ class Launcher:
     def foxglove(self) -> Any:
         """The running :class:`agents_core.foxglove.FoxgloveBridge` (its ``url``, ``port``), or None."""
         return self._foxglove
+
+    def record(self, path: str | os.PathLike[str], **options: Any) -> Any:
+        """Record the recipe's topics into MCAP while it runs: :class:`agents_core.recording.launch.RecipeRecording`."""
+        from ..recording.launch import RecipeRecording  # noqa: PLC0415  (recording is optional)
+        self._recording = RecipeRecording(path, **options)
+        return self._recording
 
     def on_process_fail(self, max_retries: int = 3, on_giveup: Action | None = None) -> None:
         """Respawn a crashed component process up to ``max_retries`` times (multiprocessing runs).
@@ -467,6 +474,9 @@ class Launcher:
         return reply.get("result")
 
     def _watch_events(self) -> None:
+        """The launcher's own subscribers on the transport: its events' topics, and the recording if any."""
+        if self._recording is not None:
+            self._recording.start(self.components, self.transport)
         events = set(self.events_actions)
         events.update(c.trigger for c in self.components if isinstance(c.trigger, Event))
         for event in events:
@@ -529,6 +539,8 @@ class Launcher:
                 self._action_worker.stop(timeout=2.0, abort=self._hurry)
                 self._action_worker = None
         finally:
+            if self._recording is not None:
+                self._recording.stop()
             if self._transport is not None and self._owns_transport:
                 self._transport.close()
             if self._stopped_supervisor is not None:

@@ -104,7 +104,9 @@ def read_recording(path: str | Path, *, summary: ReadSummary | None = None, topi
         except (exceptions.EndOfFile, struct.error):
             # A short read happens only at the end of the file: a record cut in the middle.
             summary.truncated = True
-        except (exceptions.McapError, ValueError, KeyError, IndexError, OverflowError, MemoryError) as exc:
+        # lz4.frame reports a damaged chunk as a bare RuntimeError (zstandard as a ZstdError, a ValueError).
+        except (exceptions.McapError, ValueError, KeyError, IndexError, OverflowError, MemoryError,
+                RuntimeError) as exc:
             if isinstance(exc, RecordingError):
                 raise
             raise RecordingError(f"{path}: not a readable MCAP recording ({type(exc).__name__}: {exc})") from None

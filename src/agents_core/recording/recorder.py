@@ -36,7 +36,7 @@ from ..transport.contract import Subscription, Transport
 from ..transport.core import status_topic
 from ..types.base import SupportedType, get_type
 from .encodings import Encoding, Preference, encoding_for
-from .writer import McapSeriesWriter, RecordingLimits
+from .writer import Compression, McapSeriesWriter, RecordingLimits
 
 if TYPE_CHECKING:
     from typing import Self
@@ -100,6 +100,9 @@ class Recorder:
     :param encoding: ``cdr`` (ROS 2 CDR where the type has a ROS form) or ``msgpack``.
     :param flush_interval_s: how often the open chunk is closed and flushed.
     :param discover_every_s: how often discovery looks for new topics and components.
+    :param chunk_size: the bytes of a chunk before it is closed (and compressed).
+    :param compression: each chunk's compression: ``lz4`` (the default: about half the CPU of ``zstd``, see
+        ``docs/recording.md``), ``zstd`` (smaller files) or ``none``.
 
     Use as a context manager, or :meth:`start` then :meth:`stop`.
     """
@@ -108,7 +111,7 @@ class Recorder:
                  include_status: bool = True, limits: RecordingLimits | None = None, queue_depth: int = 10_000,
                  queue_bytes: int = 256 * 2**20,
                  encoding: Preference = "cdr", flush_interval_s: float = 1.0, discover_every_s: float = 2.0,
-                 chunk_size: int = 1024 * 1024) -> None:
+                 chunk_size: int = 1024 * 1024, compression: Compression = "lz4") -> None:
         if flush_interval_s <= 0 or discover_every_s <= 0:
             raise ConfigError("flush_interval_s and discover_every_s must be positive")
         self._transport = transport
@@ -117,7 +120,8 @@ class Recorder:
         self._prefer: Preference = encoding
         self._flush_interval = flush_interval_s
         self._discover_every = discover_every_s
-        self._writer = McapSeriesWriter(path, limits or RecordingLimits(), chunk_size=chunk_size)
+        self._writer = McapSeriesWriter(path, limits or RecordingLimits(), chunk_size=chunk_size,
+                                          compression=compression)
         self._queue: DrainQueue[_Item] = DrainQueue(self._write, depth=queue_depth, policy="drop_newest",
                                                     name="recorder-writer")
         self._subscriptions: dict[str, Subscription] = {}

@@ -20,14 +20,17 @@ import os
 import threading
 import time
 from pathlib import Path
-from typing import Any, BinaryIO
+from typing import Any, BinaryIO, Literal
 
 from attrs import define, field, validators
 
 from ..errors import ConfigError
 from .encodings import Encoding
 
-__all__ = ["McapSeriesWriter", "RecordingLimits", "require_mcap"]
+__all__ = ["Compression", "McapSeriesWriter", "RecordingLimits", "require_mcap"]
+
+#: How each chunk is compressed.
+Compression = Literal["zstd", "lz4", "none"]
 
 _positive = validators.optional(validators.gt(0))
 #: The bytes an MCAP message record adds to its payload (opcode, length, channel, sequence, two times).
@@ -70,7 +73,7 @@ class McapSeriesWriter:
     """Writes messages into a series of MCAP files (see the module docstring); thread-safe."""
 
     def __init__(self, path: str | Path, limits: RecordingLimits, *, chunk_size: int = 1024 * 1024,
-                 compression: str = "zstd", fsync: bool = False) -> None:
+                 compression: Compression = "lz4", fsync: bool = False) -> None:
         self._mcap = require_mcap()
         self._path = Path(path)
         self._limits = limits
