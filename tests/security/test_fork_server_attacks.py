@@ -106,7 +106,7 @@ def _sockets(pid: int) -> list[int]:
 
 
 def test_nobody_else_can_connect_to_the_server(server: Server) -> None:
-    pid, stdin_write, report_read = server.fork(1)  # the server is up and serving
+    _, stdin_write, report_read = server.fork(1)  # the server is up and serving
     names = _unix_paths()
     inodes = _sockets(server.proc.pid)
     assert inodes, "the server holds its socket"

@@ -21,14 +21,19 @@ from typing import Any
 import pytest
 
 pytest.importorskip("mcap.writer", reason="pip install 'agents-core[record]'")
-zstandard = pytest.importorskip("zstandard")
-lz4_frame = pytest.importorskip("lz4.frame")
-
+pytest.importorskip("zstandard")
+pytest.importorskip("lz4.frame")
+import lz4.frame as lz4_frame
+import zstandard
 from mcap import records
 from mcap.data_stream import RecordBuilder
 
 from agents_core.recording import ReadSummary, RecordingError, read_recording
-from agents_core.recording.encodings import MSGPACK
+from agents_core.recording.encodings import MSGPACK, encoding_for
+from agents_core.supported_types import Int64
+from agents_core.testing.helpers import free_tcp_port
+from agents_core.testing.recipes import recipe_environment
+from agents_core.transport.registry import resolve_transport
 
 REPO = Path(__file__).resolve().parents[2]
 MAGIC = b"\x89MCAP0\r\n"
@@ -107,9 +112,6 @@ def test_a_chunk_shorter_than_it_says_is_refused(tmp_path: Path) -> None:
 
 
 def test_an_honest_compressed_chunk_still_reads(tmp_path: Path) -> None:
-    from agents_core.recording.encodings import encoding_for
-    from agents_core.supported_types import Int64
-
     inner = RecordBuilder()
     _channel().write(inner)
     records.Message(channel_id=1, log_time=5, publish_time=5, sequence=0,
@@ -163,10 +165,6 @@ def test_a_record_length_past_the_limit_is_refused_without_reading_it(tmp_path: 
 @pytest.mark.zenoh
 def test_agentsctl_play_and_record_refuse_hostile_files_and_paths_with_a_message(tmp_path: Path) -> None:
     pytest.importorskip("zenoh", reason="pip install 'agents-core[zenoh]'")
-    from agents_core.testing.helpers import free_tcp_port
-    from agents_core.testing.recipes import recipe_environment
-    from agents_core.transport.registry import resolve_transport
-
     bomb = _file(tmp_path / "bomb.mcap", _chunk("zstd", zstandard.ZstdCompressor().compress(b"\x00" * BOMB), 100))
     passwd = tmp_path / "not.mcap"
     passwd.write_text("root:x:0:0:root:/root:/bin/bash\n")

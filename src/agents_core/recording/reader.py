@@ -4,9 +4,9 @@
 file without its summary (a recorder that was killed) reads up to its last complete chunk, and
 reports ``truncated``. A file is untrusted input: a record or a chunk larger than
 ``max_record_bytes`` (before or after decompression: a chunk is inflated by at most the size it
-declares, plus one byte, so a compression bomb or a lying header allocates no more), a bad magic, a checksum that does not match
-or a record that does not parse raise :class:`RecordingError`; one message that does not decode
-is counted in :attr:`ReadSummary.decode_errors` and skipped.
+declares, plus one byte, so a compression bomb or a lying header allocates no more), a bad magic,
+a checksum that does not match or a record that does not parse raise :class:`RecordingError`;
+one message that does not decode is counted in :attr:`ReadSummary.decode_errors` and skipped.
 """
 
 from __future__ import annotations
@@ -101,7 +101,7 @@ def _decompress(compression: str, data: bytes, most: int) -> bytes:
             got += len(part)
         return b"".join(parts)
     if compression == "lz4":
-        import lz4.frame  # noqa: PLC0415 - with the 'record' extra
+        import lz4.frame  # type: ignore[import-untyped]  # noqa: PLC0415 - with the 'record' extra
 
         return bytes(lz4.frame.LZ4FrameDecompressor().decompress(data, max_length=most))
     return data[:most]

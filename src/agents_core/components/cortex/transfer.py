@@ -45,7 +45,8 @@ def _action_function(data: Any) -> Any:
     func: Any = module
     for part in qualname.split("."):
         func = getattr(func, part, None)
-    if not inspect.isfunction(func) or func.__module__ != module_name or func.__qualname__ != qualname:
+    # Defined in that very module (its globals are the module's): the recipe runs under its own name.
+    if not inspect.isfunction(func) or func.__globals__ is not vars(module) or func.__qualname__ != qualname:
         raise ConfigError(f"Action function {path[:200]!r} is not a function defined under that name")
     return func
 
