@@ -74,6 +74,9 @@ def set_parent_death_signal(signum: int = signal.SIGTERM) -> bool:
 
 class _Reporter:
     def __init__(self, fd: int) -> None:
+        # Inherited (pass_fds) or received (SCM_RIGHTS) without close-on-exec: a program the component
+        # runs must not get the launcher's report pipe (it could forge states, and keep it open).
+        os.set_inheritable(fd, False)
         self._file: IO[str] = os.fdopen(fd, "w", buffering=1)
         self._lock = threading.Lock()
 

@@ -361,9 +361,17 @@ def serve(sock: socket.socket, baseline_threads: int) -> tuple[int, int, str] | 
             data, fds = b"", []
         if not data:
             return None  # the launcher is gone or done: the component processes see their pipes end
-        request = json.loads(data)
+        try:
+            request = json.loads(data)
+        except ValueError:
+            request = None
+        if not isinstance(request, dict) or not isinstance(request.get("id", 0), (int, type(None))):
+            for fd in fds:  # a packet that is not a request: dropped, with what came with it
+                os.close(fd)
+            continue
         if request.get("op") == "preload":
-            _preload(request)
+            with contextlib.suppress(TypeError):
+                _preload(request)
             continue
         reply: dict[str, Any] = {"id": request.get("id")}
         if len(fds) != 2:

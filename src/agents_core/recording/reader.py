@@ -3,13 +3,16 @@
 :func:`read_recording` reads records in file order with the ``mcap`` package's stream reader, so a
 file without its summary (a recorder that was killed) reads up to its last complete chunk, and
 reports ``truncated``. A file is untrusted input: a record or a chunk larger than
-``max_record_bytes`` (before or after decompression), a bad magic, a checksum that does not match
-or a record that does not parse raise :class:`RecordingError`; one message that does not decode
-is counted in :attr:`ReadSummary.decode_errors` and skipped.
+``max_record_bytes`` (before or after decompression: a chunk is inflated by at most the size it
+declares, plus one byte, so a compression bomb or a lying header allocates no more), a bad magic,
+a checksum that does not match or a record that does not parse raise :class:`RecordingError`;
+one message that does not decode is counted in :attr:`ReadSummary.decode_errors` and skipped.
 """
 
 from __future__ import annotations
 
+import dataclasses
+import io
 import struct
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -65,6 +68,45 @@ def _channel_decoder(channel: Any, schema: Any) -> tuple[type[SupportedType], Ca
     return msg_type, decoder_for(msg_type, channel.message_encoding)
 
 
+def _inflated(chunk: Any, limit: int) -> Any:
+    """``chunk`` with its data decompressed, reading no more than it declares (RecordingError otherwise).
+
+    The ``mcap`` package trusts the chunk: lz4 inflates whatever the data holds, and zstandard
+    allocates the content size the frame header declares. Here both stop one byte past the size.
+    """
+    size = chunk.uncompressed_size
+    if size > limit:
+        raise RecordingError(f"a chunk of {size} bytes is over the limit ({limit})")
+    if chunk.compression not in ("zstd", "lz4", ""):
+        raise RecordingError(f"a chunk compressed as {chunk.compression[:40]!r}, which is not zstd or lz4")
+    try:
+        data = _decompress(chunk.compression, chunk.data, size + 1)
+    except Exception as exc:  # each library has its own errors for corrupt data
+        raise RecordingError(f"a chunk that does not decompress ({type(exc).__name__}: {str(exc)[:200]})") from None
+    if len(data) != size:
+        raise RecordingError(f"a chunk that declares {size} bytes decompresses to "
+                             f"{'more' if len(data) > size else len(data)}")
+    return dataclasses.replace(chunk, compression="", data=data)
+
+
+def _decompress(compression: str, data: bytes, most: int) -> bytes:
+    """At most ``most`` bytes of ``data`` decompressed as ``compression`` (zstd, lz4 or none)."""
+    if compression == "zstd":
+        import zstandard  # noqa: PLC0415 - with the 'record' extra
+
+        reader = zstandard.ZstdDecompressor().stream_reader(io.BytesIO(data), read_across_frames=True)
+        parts, got = [], 0
+        while got < most and (part := reader.read(most - got)):
+            parts.append(part)
+            got += len(part)
+        return b"".join(parts)
+    if compression == "lz4":
+        import lz4.frame  # type: ignore[import-untyped]  # noqa: PLC0415 - with the 'record' extra
+
+        return bytes(lz4.frame.LZ4FrameDecompressor().decompress(data, max_length=most))
+    return data[:most]
+
+
 def read_recording(path: str | Path, *, summary: ReadSummary | None = None, topics: set[str] | None = None,
                    max_record_bytes: int = DEFAULT_MAX_RECORD_BYTES) -> Iterator[RecordedMessage]:
     """The messages of the MCAP file ``path`` in file order (see the module docstring).
@@ -85,10 +127,7 @@ def read_recording(path: str | Path, *, summary: ReadSummary | None = None, topi
     def flat(reader: StreamReader) -> Iterator[Any]:
         for record in reader.records:
             if isinstance(record, records.Chunk):
-                if record.uncompressed_size > max_record_bytes:
-                    raise RecordingError(f"a chunk of {record.uncompressed_size} bytes is over the limit "
-                                         f"({max_record_bytes})")
-                yield from breakup_chunk(record, validate_crc=True)
+                yield from breakup_chunk(_inflated(record, max_record_bytes), validate_crc=True)
             else:
                 yield record
 
@@ -126,7 +165,7 @@ def _handle(record: Any, records: Any, schemas: dict[int, Any],
         try:
             msg_type, decode = _channel_decoder(record, schemas.get(record.schema_id))
         except (ConfigError, LookupError) as exc:
-            summary.skipped_channels[topic] = str(exc)
+            summary.skipped_channels[topic] = str(exc)[:500]  # the file chose the name
             return None
         channels[record.id] = (topic, msg_type, decode)
     elif isinstance(record, records.Message):
