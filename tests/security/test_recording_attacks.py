@@ -178,3 +178,15 @@ def test_agentsctl_play_and_record_refuse_hostile_files_and_paths_with_a_message
                                   timeout=60, check=False)
             assert done.returncode != 0, (args, done.stdout[-2000:])
             assert "Traceback" not in done.stderr and "error" in done.stderr.lower(), (args, done.stderr[-3000:])
+
+
+@pytest.mark.parametrize("where", ["under_a_file", "a_folder"])
+def test_a_destination_that_cannot_be_written_is_refused_at_once(tmp_path: Path, where: str) -> None:
+    from agents_core.errors import ConfigError  # noqa: PLC0415
+    from agents_core.recording.writer import McapSeriesWriter, RecordingLimits  # noqa: PLC0415
+
+    blocker = tmp_path / "not_a_folder"
+    blocker.write_text("x")
+    path = blocker / "run.mcap" if where == "under_a_file" else tmp_path
+    with pytest.raises(ConfigError, match="cannot record to"):
+        McapSeriesWriter(path, RecordingLimits())

@@ -233,18 +233,20 @@ class ForkServer:
                 break
             try:
                 message = json.loads(data)
-            except json.JSONDecodeError:
+                exit_of = (int(message["exit"]), int(message["status"])) if "exit" in message else None
+                reply_to = int(message["id"]) if exit_of is None and "id" in message else None
+            except (ValueError, TypeError, KeyError):  # not a message of the server's: ignored
                 continue
             with self._changed:
-                if "exit" in message:
-                    pid, status = int(message["exit"]), int(message["status"])
+                if exit_of is not None:
+                    pid, status = exit_of
                     child = self._children.pop(pid, None)
                     if child is not None:
                         child.set_exit(status)
                     else:
                         self._early_exits[pid] = status
-                elif "id" in message:
-                    self._replies[int(message["id"])] = message
+                elif reply_to is not None:
+                    self._replies[reply_to] = message
                 self._changed.notify_all()
         with self._changed:
             self.gone = True

@@ -102,6 +102,10 @@ def _segments_since(started: float) -> set[str]:
     return found
 
 
+#: The longest report line a child may write (a state and an error of at most 2000 characters fit).
+MAX_REPORT_CHARS = 16_384
+
+
 class ChildProcess:
     """One component's process, its reports and its history."""
 
@@ -175,11 +179,19 @@ class ChildProcess:
             return False
 
     def _read_reports(self, pipe: IO[str]) -> None:
+        # The child (and anything it runs) writes here: a line is read at most MAX_REPORT_CHARS at a
+        # time, a longer one skipped whole, and only a JSON object counts as a report.
         with pipe:
-            for line in pipe:
+            while line := pipe.readline(MAX_REPORT_CHARS):
+                if not line.endswith("\n"):
+                    while line and not line.endswith("\n"):
+                        line = pipe.readline(MAX_REPORT_CHARS)
+                    continue
                 try:
                     report = json.loads(line)
-                except json.JSONDecodeError:
+                except ValueError:
+                    continue
+                if not isinstance(report, dict):
                     continue
                 with self.state_changed:
                     if "state" in report:

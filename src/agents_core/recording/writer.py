@@ -25,6 +25,7 @@ from typing import Any, BinaryIO, Literal
 from attrs import define, field, validators
 
 from ..errors import ConfigError
+from ..install_hint import install_hint
 from .encodings import Encoding
 
 __all__ = ["Compression", "McapSeriesWriter", "RecordingLimits", "require_mcap"]
@@ -60,8 +61,20 @@ def require_mcap() -> Any:
     try:
         import mcap.writer  # noqa: PLC0415 - the 'record' extra
     except ImportError as exc:
-        raise ConfigError(f"recording needs the 'record' extra ({exc}); pip install 'agents-core[record]'") from None
+        raise ConfigError(f"recording needs the 'record' extra ({exc}); {install_hint('record')}") from None
     return mcap.writer
+
+
+def _check_writable(path: Path) -> None:
+    """Refuse at once a recording whose folder cannot be made or written (not at the first message)."""
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ConfigError(f"cannot record to {path}: its folder cannot be made ({exc.strerror or exc})") from None
+    if path.is_dir():
+        raise ConfigError(f"cannot record to {path}: it is a folder; give a file name such as {path / 'run.mcap'}")
+    if not os.access(path.parent, os.W_OK | os.X_OK):
+        raise ConfigError(f"cannot record to {path}: its folder {path.parent} is not writable")
 
 
 def series_path(path: Path, index: int) -> Path:
@@ -76,6 +89,7 @@ class McapSeriesWriter:
                  compression: Compression = "lz4", fsync: bool = False) -> None:
         self._mcap = require_mcap()
         self._path = Path(path)
+        _check_writable(self._path)
         self._limits = limits
         self._chunk_size = chunk_size
         self._compression = {"zstd": self._mcap.CompressionType.ZSTD, "lz4": self._mcap.CompressionType.LZ4,
