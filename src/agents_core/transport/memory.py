@@ -180,6 +180,8 @@ class MemoryDriver(DriverBase):
     """The memory transport's driver: subscribers, services and components in dictionaries."""
 
     name = "memory"
+    #: Its services are this object's: an ``inline`` one may answer on the caller's thread.
+    local_requests = True
 
     def __init__(self) -> None:
         self._lock = threading.Lock()
