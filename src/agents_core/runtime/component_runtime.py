@@ -171,8 +171,10 @@ class ComponentRuntime:
         self._presence = transport.declare_component(self._name, on_transition=self._external_transition,
                                                      pending=lambda: self.worker_statistics().pending)
         for service in SERVICE_NAMES:
+            # inline: each handler returns by its caller's deadline and runs the component's code only
+            # on its worker (run_on_worker), so a local caller may run the handler itself.
             self._served.append(transport.create_service(f"{self._name}/{service}", self._services.handler(service),
-                                                         owner=self._name))
+                                                         owner=self._name, inline=True))
         self.report_status()
 
     def submit_action(self, func: Callable[[], Any]) -> Future[Any]:

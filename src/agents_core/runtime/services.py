@@ -47,8 +47,9 @@ class ComponentServices:
 
     def describe(self, request: dict[str, Any]) -> dict[str, Any]:
         """What the component is (see :meth:`Component.component_description`)."""
-        # Answered on the request lane, not the worker: a component busy with a long step can
-        # still say what it is (the fields read are each updated atomically).
+        # Answered where the request is served (its lane, or the caller's thread), not on the
+        # worker: a component busy with a long step can still say what it is (the fields read are
+        # each updated atomically).
         return self._component.component_description()
 
     def execute_method(self, request: dict[str, Any]) -> dict[str, Any]:

@@ -57,7 +57,7 @@ from .goal_serving import CoreActionServer, GoalAccept, GoalExecute, abort_local
 from .goal_serving import send_goal as _send_goal
 from .goals import ActionType, GoalClient, action_type
 from .graph import Graph
-from .requests import RequestLanes, check_timeout, serve_with_caller_deadline, with_caller_timeout
+from .requests import RequestLanes, answer_here, check_timeout, on_lane, serve_with_caller_deadline, with_caller_timeout
 
 if TYPE_CHECKING:
     from typing import Self
@@ -169,6 +169,7 @@ class CoreService(_DriverHandle):
     def __init__(self, transport: DriverTransport, name: str) -> None:
         super().__init__(transport, f"service {name!r}")
         self.name = name
+        self.inline_handler: ServiceHandler | None = None  # set when a request may run it on the caller's thread
 
     def close(self) -> None:
         """Stop serving; idempotent."""
@@ -391,8 +392,10 @@ class DriverTransport:
 
     # -- request / reply ----------------------------------------------------------------------
 
-    def create_service(self, name: str, handler: ServiceHandler, *, owner: str | None = None) -> CoreService:
-        """Serve requests on ``name`` with ``handler``, on ``owner``'s request lane."""
+    def create_service(self, name: str, handler: ServiceHandler, *, owner: str | None = None,
+                       inline: bool = False) -> CoreService:
+        """Serve requests on ``name`` with ``handler``, on ``owner``'s request lane; ``inline=True``: ``handler``
+        returns by the caller's deadline, and a local request may run it on its own thread (:mod:`.requests`)."""
         validate_topic_name(name, "service")
         what = f"request to {name!r}"
 
@@ -405,6 +408,7 @@ class DriverTransport:
                 raise WiringError(f"service {name!r} is already served on this transport")
             service = CoreService(self, name)
             service.attach(self.driver.serve(name, serve, owner, self._lane(owner)))
+            service.inline_handler = serve if inline and self.capabilities.local_requests else None
             self._services[name] = service
             self._open[id(service)] = service
         return service
@@ -418,7 +422,11 @@ class DriverTransport:
         """
         timeout = check_timeout(timeout, f"request to {name!r}")
         self._check_open(f"request {name!r}")
-        reply = self.driver.call(name, with_caller_timeout(payload, timeout), timeout)
+        service = self._services.get(name)
+        if service is not None and service.inline_handler is not None and not on_lane():
+            reply = answer_here(name, service.inline_handler, payload, timeout)
+        else:
+            reply = self.driver.call(name, with_caller_timeout(payload, timeout), timeout)
         self._check_open(f"request {name!r}")
         return reply
 

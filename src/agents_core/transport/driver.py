@@ -11,7 +11,7 @@ and the goal bookkeeping (:mod:`agents_core.transport.goal_serving`).
 
 What a driver offers is data, derived from the class (:func:`capabilities_of`): ``actions`` when
 it overrides both goal primitives, ``discovery`` when it overrides :meth:`~TransportDriver.discover`;
-``cross_process`` and ``discovery_settle_s`` are declared as class attributes.
+``cross_process``, ``discovery_settle_s`` and ``local_requests`` are declared as class attributes.
 
 Errors: a driver raises the core's errors (:class:`~agents_core.errors.RequestTimeoutError`,
 :class:`~agents_core.errors.ServiceUnavailableError`, :class:`~agents_core.errors.RemoteError`,
@@ -78,6 +78,9 @@ class TransportCapabilities:
     discovery: bool = False
     #: Seconds a fresh observer waits by default for the middleware's discovery to settle.
     discovery_settle_s: float = 1.0
+    #: Every service it serves lives in this process, on this transport: a request to an ``inline``
+    #: service may be answered on the caller's thread (read by ``DriverTransport.request``).
+    local_requests: bool = False
 
 
 @runtime_checkable
@@ -422,14 +425,15 @@ def capabilities_of(driver: object) -> TransportCapabilities:
 
     ``actions``: it overrides both :meth:`~TransportDriver.serve_goals` and
     :meth:`~TransportDriver.send_goal`; ``discovery``: it overrides
-    :meth:`~TransportDriver.discover`; ``cross_process`` and ``discovery_settle_s``: its class
-    attributes (default False and 1 s).
+    :meth:`~TransportDriver.discover`; ``cross_process``, ``discovery_settle_s`` and
+    ``local_requests``: its class attributes (default False, 1 s and False).
     """
     return TransportCapabilities(
         cross_process=bool(getattr(driver, "cross_process", False)),
         actions=_overrides(driver, "serve_goals") and _overrides(driver, "send_goal"),
         discovery=_overrides(driver, "discover"),
         discovery_settle_s=float(getattr(driver, "discovery_settle_s", 1.0)),
+        local_requests=bool(getattr(driver, "local_requests", False)),
     )
 
 

@@ -10,7 +10,9 @@ its queue is full the **oldest** queued value is dropped and counted
 (:attr:`SubscriptionStatistics.dropped`, and per topic in :meth:`MemoryTransport.statistics`).
 Component inputs (``inline=True``) skip that queue: the publisher's thread hands the value to
 the component's worker. With ``durability="transient_local"`` the last ``depth`` values of a
-topic are replayed to a subscriber that joins late.
+topic are replayed to a subscriber that joins late. Its services all live in this process
+(``local_requests``), so a request to an ``inline`` one (a component's own services) may run its
+handler on the caller's thread (:mod:`agents_core.transport.requests`).
 """
 
 from __future__ import annotations
@@ -180,6 +182,8 @@ class MemoryDriver(DriverBase):
     """The memory transport's driver: subscribers, services and components in dictionaries."""
 
     name = "memory"
+    #: Its services are this object's: an ``inline`` one may answer on the caller's thread.
+    local_requests = True
 
     def __init__(self) -> None:
         self._lock = threading.Lock()

@@ -13,6 +13,14 @@ lifecycle transitions asked from outside):
   with an error instead of running, and a handler that runs can read the remaining time with
   :func:`request_deadline` (``Component.run_on_worker`` does, so an action queued behind a
   long step is skipped once its caller has stopped waiting).
+
+A service created ``inline`` (a component's own services) promises that its handler returns by the
+caller's deadline and does nothing slow itself (a component's action goes to the component's
+worker, and the handler waits for it no longer than :func:`request_deadline`). Where the driver
+serves requests in the caller's process (``local_requests``: memory), such a request from a thread
+that is not serving a request already is answered on the caller's thread (:func:`answer_here`):
+it then blocks only its caller, for no longer than the caller would have waited for the reply,
+and saves a hand-off each way.
 """
 
 from __future__ import annotations
@@ -25,12 +33,14 @@ from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor
 from typing import Any, TypeVar
 
-from ..errors import ConfigError, RequestTimeoutError
+from ..errors import ConfigError, RemoteError, RequestTimeoutError
 
 __all__ = [
     "CALLER_TIMEOUT_KEY",
     "RequestLanes",
+    "answer_here",
     "check_timeout",
+    "on_lane",
     "request_deadline",
     "serve_with_caller_deadline",
     "with_caller_timeout",
@@ -66,6 +76,30 @@ def with_caller_timeout(payload: dict[str, Any], timeout: float) -> dict[str, An
 def request_deadline() -> float | None:
     """The monotonic time by which the caller of the request being served stops waiting, if known."""
     return _deadline.get()
+
+
+def on_lane() -> bool:
+    """True on a request lane's thread while it serves a request (a transport thread)."""
+    return _received_at.get() is not None
+
+
+def answer_here(name: str, serve: Callable[[dict[str, Any]], dict[str, Any]], payload: dict[str, Any],
+                timeout: float) -> dict[str, Any]:
+    """Serve a request to the ``inline`` service ``name`` on this thread (see the module docstring).
+
+    ``serve`` is the service's handler wrapped by :func:`serve_with_caller_deadline`. Its errors
+    reach the caller as a driver's ``call`` raises them: :class:`~agents_core.errors.RemoteError`
+    for the handler's own failure, :class:`~agents_core.errors.RequestTimeoutError` for one that
+    came once the caller's time was up (a lane's caller would have stopped waiting by then).
+    """
+    request = with_caller_timeout(payload, timeout)
+    deadline = time.monotonic() + timeout
+    try:
+        return serve(request)
+    except Exception as exc:
+        if time.monotonic() >= deadline:
+            raise RequestTimeoutError(f"request to {name!r} got no reply within {timeout:g} s") from exc
+        raise RemoteError(f"{name!r} failed: {type(exc).__name__}: {exc}") from exc
 
 
 def serve_with_caller_deadline(handler: Callable[[dict[str, Any]], R], request: dict[str, Any], what: str) -> R:
