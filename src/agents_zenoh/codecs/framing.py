@@ -123,6 +123,14 @@ def unpack(payload: bytes | bytearray | memoryview, limits: DecodeLimits | None 
     :func:`decode_value` passes the type's own). Raises :class:`CodecError` naming what is wrong.
     """
     limits = DEFAULT_DECODE_LIMITS if limits is None else limits
+    if type(payload) is bytes and 0 < len(payload) < limits._uncounted_below and payload[0] in _SCALAR_HEADS:
+        # A small scalar document (a String, a number: what most topics carry): one C call,
+        # no object hook needed. Anything else it meets (trailing arrays, a limit, bad bytes)
+        # goes down the full path, which decides and names what is wrong.
+        try:
+            return msgpack.unpackb(payload, **limits._options)
+        except Exception:
+            pass
     buf = memoryview(payload).cast("B")
     if not buf:
         raise CodecError("the payload is empty")
@@ -177,6 +185,11 @@ def unpack(payload: bytes | bytearray | memoryview, limits: DecodeLimits | None 
 
 
 _NO_DOCUMENT: Any = object()
+
+#: msgpack's first bytes of a scalar: positive and negative fixint, nil, false, true, bin 8/16/32,
+#: float 32/64, (u)int 8-64, fixstr and str 8/16/32 (no map, array or ext).
+_SCALAR_HEADS = frozenset((*range(0x00, 0x80), *range(0xE0, 0x100), 0xC0, 0xC2, 0xC3, 0xC4, 0xC5, 0xC6,
+                           *range(0xCA, 0xD4), *range(0xA0, 0xC0), 0xD9, 0xDA, 0xDB))
 
 
 class _BadArray:
