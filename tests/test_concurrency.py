@@ -106,6 +106,30 @@ def test_items_are_handled_in_order_on_the_named_thread() -> None:
     assert q.statistics() == DrainStatistics(offered=500, started=500, handled=500)
 
 
+def test_a_busy_drain_thread_takes_the_next_items_without_being_woken_for_each() -> None:
+    # What keeps a component's worker cheap under a stream of values: while the handler runs,
+    # puts only append (at most one wake-up token is ever pending), and the thread takes every
+    # waiting item in turn before it sleeps again.
+    gate = Gate()
+    q = Recording(gate, depth=100, name="drain:busy")
+    q.put(-1)
+    gate.wait_entered()
+    for i in range(50):
+        assert q.put(i)
+    assert q._wake.qsize() <= 1
+    gate.open()
+    wait_for(lambda: q.statistics().handled == 51)
+    assert gate.seen == [-1, *range(50)] and q.hook_handled == gate.seen
+    assert q._wake.qsize() <= 1
+    # Asleep again, it is woken by the next put.
+    wait_for(lambda: not q.statistics().busy)
+    assert q.put(50)
+    wait_for(lambda: q.statistics().handled == 52)
+    q.stop()
+    assert q.join(WAIT_S)
+    assert q.statistics() == DrainStatistics(offered=52, started=52, handled=52)
+
+
 @pytest.mark.parametrize("policy", ["drop_oldest", "drop_newest"])
 def test_a_full_queue_drops_by_its_policy_and_counts_the_drops(policy: Any) -> None:
     gate = Gate()

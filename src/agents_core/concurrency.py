@@ -122,11 +122,13 @@ class DrainQueue(Generic[T]):
         self._item_done = threading.Condition(self._lock)
         self._done_waiters = 0
         # The drain thread sleeps in SimpleQueue.get, whose wake-up is C code, cheaper than a
-        # Condition's. A token is put only while fewer tokens wait than items (plus one to stop),
-        # so a stuck handler cannot make them pile up; a token whose item was dropped or
+        # Condition's. It says so in ``_sleeping`` (under the lock) before it sleeps, and only
+        # the producer that finds it sleeping puts a token: at most one token is ever pending,
+        # and a thread that is busy takes the next waiting item without sleeping or being woken
+        # (one lock round per item, no token per item). A token whose item was dropped or
         # discarded meanwhile wakes the thread for nothing, which is harmless.
         self._wake: queue.SimpleQueue[None] = queue.SimpleQueue()
-        self._tokens = 0
+        self._sleeping = False
         self._stats = DrainStatistics()
         self._stopping = False
         self._running = _IDLE
@@ -156,15 +158,13 @@ class DrainQueue(Generic[T]):
                     items.popleft()
                     items.append(item)
                     queued = True
-                wake = False  # as many items wait as before, each with its token
+                wake = False  # the lane was not empty, so the thread is awake or woken already
             else:
                 items.append(item)
                 queued = True
-                # Inline (no method call): this runs for every item. One more token only if fewer
-                # wait than items (see __init__).
-                wake = self._tokens < len(items) + len(self._urgent)
-                if wake:
-                    self._tokens += 1
+                # Inline (no method call): this runs for every item (see __init__).
+                wake = self._sleeping
+                self._sleeping = False
         if wake:
             self._wake.put(None)
         if full:
@@ -181,9 +181,8 @@ class DrainQueue(Generic[T]):
             if self._stopping or len(self._urgent) >= self._urgent_limit:
                 return False
             self._urgent.append(item)
-            wake = self._tokens < len(self._items) + len(self._urgent)
-            if wake:
-                self._tokens += 1
+            wake = self._sleeping
+            self._sleeping = False
         if wake:
             self._wake.put(None)
         return True
@@ -257,8 +256,10 @@ class DrainQueue(Generic[T]):
                 count = len(self._items)
                 self._items.clear()
                 self._stats.discarded += count
-            self._tokens += 1  # the stop token: wakes a thread that waits for items
-        self._wake.put(None)
+            wake = self._sleeping  # a thread that is awake sees _stopping before it sleeps again
+            self._sleeping = False
+        if wake:
+            self._wake.put(None)
         if count:
             self._discarded(count)
         return count
@@ -335,10 +336,23 @@ class DrainQueue(Generic[T]):
         handler = self._handler
         # The no-op default hook is not called at all: this runs for every item.
         on_handled = None if type(self)._handled is DrainQueue._handled else self._handled
+        lane = _IDLE  # the lane of the item just handled (_IDLE: none)
+        failed = False
+        item: T | None = None
         while True:
-            get()
             with lock:
-                self._tokens -= 1
+                # One lock round per item: the end of the previous item and the start of the
+                # next one (a busy queue drains without sleeping; see __init__).
+                if lane != _IDLE:
+                    self._running = _IDLE
+                    if lane == _BOUNDED:
+                        if failed:
+                            stats.errors += 1
+                        else:
+                            stats.handled += 1
+                    if self._done_waiters:
+                        self._item_done.notify_all()
+                done, done_lane, done_failed = item, lane, failed
                 if urgent:
                     item = urgent.popleft()
                     lane = _URGENT
@@ -349,27 +363,24 @@ class DrainQueue(Generic[T]):
                     # thread it handed a value to may be waiting for the GIL meanwhile.
                     stats.started += 1
                 elif self._stopping:
-                    return
+                    lane = _IDLE
                 else:
-                    continue  # the token of an item dropped or discarded meanwhile
+                    lane = _IDLE
+                    self._sleeping = True
                 self._running = lane
+            if on_handled is not None and done_lane == _BOUNDED and not done_failed:
+                on_handled(done)  # type: ignore[arg-type]  # a bounded-lane item, never None
+            if lane == _IDLE:
+                if self._stopping:
+                    return
+                get()
+                continue
             failed = False
             try:
-                handler(item)
+                handler(item)  # type: ignore[arg-type]  # set with lane, never None here
             except Exception as exc:
                 failed = True
-                self._failed(item, exc)
-            with lock:
-                self._running = _IDLE
-                if lane == _BOUNDED:
-                    if failed:
-                        stats.errors += 1
-                    else:
-                        stats.handled += 1
-                if self._done_waiters:
-                    self._item_done.notify_all()
-            if on_handled is not None and lane == _BOUNDED and not failed:
-                on_handled(item)
+                self._failed(item, exc)  # type: ignore[arg-type]
 
 
 def _check_limits(depth: int, policy: str) -> None:

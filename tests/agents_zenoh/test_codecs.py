@@ -162,3 +162,26 @@ def test_the_wire_format_document_schema_list_is_generated_from_the_registry(tmp
     copy = tmp_path / "doc.md"
     copy.write_text(doc.read_text().replace("- **Bool**: `bool`\n", "- **Bool**: `old`\n- **Gone**: `x`\n"))
     assert update_schema_doc(str(copy)) and copy.read_text() == doc.read_text()
+
+
+@pytest.mark.parametrize("document", ["x" * 64, "", 0, -1, 2**63, 1.5, True, None, b"\x00raw"])
+def test_plain_scalars_take_one_msgpack_call_both_ways_with_the_same_bytes(document: Any) -> None:
+    # The fast paths for what most topics carry must not change the wire or the decoded value.
+    payload = pack(document)
+    assert payload == msgpack.packb(document, use_bin_type=True)
+    assert unpack(payload) == document and type(unpack(payload)) is type(document)
+    assert encode_value(get_type("String"), "hi") == msgpack.packb("hi")
+
+
+def test_a_scalar_head_with_anything_after_it_takes_the_full_path() -> None:
+    from agents_zenoh.codecs import DecodeLimits  # noqa: PLC0415
+
+    # Trailing bytes after a string document: refused, named as the full path names them.
+    with pytest.raises(CodecError):
+        unpack(msgpack.packb("abc") + b"\xc1")
+    # A string over the type's limit: the full path's message, naming the limit.
+    with pytest.raises(CodecError, match="max_str_len"):
+        unpack(msgpack.packb("x" * 50), DecodeLimits(max_str_len=8))
+    # Too large for a scalar: the full path's error too.
+    with pytest.raises(CodecError, match=r"out of range|Integer"):
+        pack(2**70)

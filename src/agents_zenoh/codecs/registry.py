@@ -38,6 +38,7 @@ __all__ = [
     "decoder_for",
     "derive_codec",
     "encode_value",
+    "encoder_for",
     "plain_codec",
     "register_codec",
     "registered_codecs",
@@ -229,6 +230,22 @@ def encode_value(msg_type: type[SupportedType], value: Any, into: bytearray | No
         return pack(codec.encode(value), into)
     except Exception as exc:
         raise CodecError(f"cannot encode the value as {msg_type.type_name()}: {exc}") from exc
+
+
+def encoder_for(msg_type: type[SupportedType]) -> Callable[[Any, bytearray | None], bytes | bytearray]:
+    """:func:`encode_value` for one type, with its codec looked up once (a publisher's hot path).
+
+    The codec is the one registered when this is called.
+    """
+    encode, name = codec_for(msg_type).encode, msg_type.type_name()
+
+    def encode_payload(value: Any, into: bytearray | None = None) -> bytes | bytearray:
+        try:
+            return pack(encode(value), into)
+        except Exception as exc:
+            raise CodecError(f"cannot encode the value as {name}: {exc}") from exc
+
+    return encode_payload
 
 
 def decoder_for(msg_type: type[SupportedType]) -> Callable[[bytes | bytearray | memoryview], Any]:
