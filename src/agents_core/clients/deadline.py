@@ -382,6 +382,11 @@ class BoundedHTTP:
                 exchange.release()
                 if not ended:
                     ended = True
+                    if self._closing and exchange.socket is not None:
+                        # Connected after close() emptied the pool: httpcore no longer lists this
+                        # connection, so closing the pool again would not reach its socket.
+                        shutdown_socket(exchange.socket)
+                        exchange.socket.close()
                     self._end()
 
         response.close = close  # type: ignore[method-assign]
