@@ -85,7 +85,7 @@ def main(argv: list[str] | None = None) -> None:
     def ask(running: Launcher) -> None:
         def show(prefix: str) -> Any:
             def line(text: Any) -> None:
-                print(f"{prefix}: {text}", flush=True)
+                print(f"{prefix}: {text}\n", end="", flush=True)  # one write: callbacks run on several threads
                 if prefix in ("navigator", "assistant"):
                     handled.append(str(text))
                     if len(handled) >= len(args.ask):

@@ -61,7 +61,7 @@ class Monitor(Component):
         charge = self.trig_callbacks["battery"].get_output()
         if charge is None:
             return
-        print(f"operator got battery {float(charge):.1f}%", flush=True)
+        print(f"operator got battery {float(charge):.1f}%\n", end="", flush=True)
         if charge < LOW:
             self.publishers_dict["alerts"].publish(f"battery low: {float(charge):.0f}%")
         self.count += 1

@@ -75,12 +75,12 @@ def main(argv: list[str] | None = None) -> None:
 
     def converse(running: Launcher) -> None:
         transport = running.transport
-        transport.create_subscription(HEARD, lambda text: print(f"heard: {text}", flush=True))
+        transport.create_subscription(HEARD, lambda text: print(f"heard: {text}\n", end="", flush=True))
 
         def on_answer(chunk: Any) -> None:
             answer.append(chunk.data)
             if chunk.done:
-                print(f"answer: {''.join(answer).strip()}", flush=True)
+                print(f"answer: {''.join(answer).strip()}\n", end="", flush=True)
                 answered.set()
 
         transport.create_subscription(ANSWER, on_answer)
@@ -108,7 +108,7 @@ def main(argv: list[str] | None = None) -> None:
         if spoken:
             audio = np.concatenate([msg.data for msg in spoken])
             rate = spoken[0].sample_rate
-            print(f"spoken: {audio.size / rate:.1f} s of audio at {rate} Hz", flush=True)
+            print(f"spoken: {audio.size / rate:.1f} s of audio at {rate} Hz\n", end="", flush=True)
             if args.out is not None:
                 from agents_core.engines.audio import write_wav  # noqa: PLC0415
 
