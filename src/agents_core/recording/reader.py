@@ -101,7 +101,7 @@ def _decompress(compression: str, data: bytes, most: int) -> bytes:
             got += len(part)
         return b"".join(parts)
     if compression == "lz4":
-        import lz4.frame  # type: ignore[import-untyped]  # noqa: PLC0415 - with the 'record' extra
+        import lz4.frame  # noqa: PLC0415 - with the 'record' extra (untyped; listed in mypy's overrides)
 
         return bytes(lz4.frame.LZ4FrameDecompressor().decompress(data, max_length=most))
     return data[:most]
