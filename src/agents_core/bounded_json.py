@@ -251,7 +251,8 @@ def _int_hook(limits: JsonLimits) -> Any:
         value = int(digits) if len(digits) <= longest else None
         if value is None or not limits.min_int <= value <= limits.max_int:
             shown = digits if len(digits) <= 24 else f"{digits[:12]}...({len(digits)} digits)"
-            raise JsonLimitError(f"the JSON document holds the integer {shown}, outside "
+            bits = ", which does not fit 64 bits" if (limits.min_int, limits.max_int) == (-(2**63), 2**64 - 1) else ""
+            raise JsonLimitError(f"the JSON document holds the integer {shown}{bits}, outside "
                                  f"[{limits.min_int}, {limits.max_int}] (JsonLimits.min_int / max_int)",
                                  limit="max_int")
         return value

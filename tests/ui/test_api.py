@@ -126,7 +126,7 @@ def test_numbers_are_checked_against_the_topic_type(running: Launcher) -> None:
 @pytest.mark.parametrize(("topic", "kwargs", "status", "words"), [
     ("words", {"json": {"value": 42}}, 422, "expects text"),
     ("words", {"json": {"text": "hi"}}, 422, "'value' field"),
-    ("words", {"content": b"{not json", "headers": {"content-type": "application/json"}}, 400, "not JSON"),
+    ("words", {"content": b"{not json", "headers": {"content-type": "application/json"}}, 400, "invalid JSON"),
     ("words", {"content": b"hi", "headers": {"content-type": "text/plain"}}, 415, "send JSON"),
     ("camera", {"json": {"value": "a picture"}}, 422, "uploaded file"),
     ("camera", {"files": {"file": ("x.png", b"GIF89a....", "image/png")}}, 422, "not a PNG or JPEG"),
