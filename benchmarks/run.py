@@ -43,7 +43,7 @@ SETTINGS: dict[str, dict[str, Any]] = {
     "full": {"string_warmup": 200, "string_count": 2000, "image_warmup": 30, "image_count": 300,
              "throughput_seconds": 5.0, "latency_max_seconds": 120.0, "startup_reps": 5,
              "model_reps": 8, "model_max_tokens": 64, "model_threads": 1, "rounds": 3, "import_reps": 15,
-             "vision_frames": 100, "vision_seconds": 10.0, "voice_reps": 3, "map_values": 300,
+             "vision_frames": 100, "vision_seconds": 10.0, "voice_reps": 5, "map_values": 300,
              "map_reps": 3, "processes_reps": 5, "processes_respawns": 10, "ui_count": 1000, "ui_warmup": 50,
              "goal_count": 200, "goal_feedbacks": 10, "vla_reps": 200, "vla_warmup": 10,
              "cli_rates": (10.0, 100.0, 1000.0), "cli_window": 3.0, "e2e_reps": 5, "e2e_max_tokens": 24,
