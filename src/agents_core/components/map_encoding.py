@@ -39,7 +39,7 @@ import itertools
 import math
 import threading
 import time
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
 from attrs import define, field
@@ -54,6 +54,7 @@ from ..status import HealthStatus
 from ..supported_types import Detections, OccupancyGrid, Odometry, Pose, String, Trackings
 from ..topics import Topic
 from .component_base import Component, TriggerType
+from .layer_points import convert_points, position_of, pre_defined_validator
 
 __all__ = ["MapEncoding", "MapLayer"]
 
@@ -76,40 +77,8 @@ def _check_multiple(instance: Any, attribute: Any, value: Any) -> None:
         raise ConfigError(f"MapLayer.resolution_multiple must be an int >= 1, got {value!r}")
 
 
-def _xy(position: Any, what: str) -> tuple[float, float]:
-    """``position`` ((x, y) or (x, y, z)) as two finite floats, else ConfigError naming ``what``."""
-    try:
-        values = [float(v) for v in position]
-    except (TypeError, ValueError):
-        raise ConfigError(f"{what} must be a sequence (x, y[, z]) of numbers, got {position!r:.100}") from None
-    if len(values) not in (2, 3) or not all(math.isfinite(v) for v in values):
-        raise ConfigError(f"{what} must be (x, y) or (x, y, z) of finite numbers, got {position!r:.100}")
-    return values[0], values[1]
-
-
 def _points(value: Any) -> list[tuple[Any, str]]:
-    if isinstance(value, str | bytes) or not isinstance(value, Iterable):
-        raise ConfigError(f"MapLayer.pre_defined must be a list of (position, text), got {value!r:.100}")
-    # Positions become tuples of floats (an array too, as upstream's recipes give), so a layer can be sent
-    # to a component process; a malformed point is left as it is for the validator to name.
-    return [_as_float_point(point) for point in value]
-
-
-def _as_float_point(point: Any) -> Any:
-    if not (isinstance(point, tuple | list) and len(point) == 2 and isinstance(point[0], Iterable)
-            and not isinstance(point[0], str | bytes)):
-        return point
-    try:
-        return (tuple(float(v) for v in point[0]), point[1])
-    except (TypeError, ValueError):
-        return point
-
-
-def _check_pre_defined(instance: Any, attribute: Any, value: Any) -> None:
-    for i, point in enumerate(value):
-        if not (isinstance(point, tuple | list) and len(point) == 2 and isinstance(point[1], str) and point[1]):
-            raise ConfigError(f"MapLayer.pre_defined[{i}] must be (position, non-empty text), got {point!r:.100}")
-        _xy(point[0], f"MapLayer.pre_defined[{i}] position")
+    return convert_points("MapLayer", value)
 
 
 @define(kw_only=True)
@@ -129,7 +98,8 @@ class MapLayer(BaseAttrs):  # BaseAttrs: a layer can be sent to the component's 
     subscribes_to: Topic = field(validator=_check_layer_topic)
     temporal_change: bool = field(default=False)
     resolution_multiple: int = field(default=1, validator=_check_multiple)
-    pre_defined: list[tuple[Any, str]] = field(factory=list, converter=_points, validator=_check_pre_defined)
+    pre_defined: list[tuple[Any, str]] = field(factory=list, converter=_points,
+                                               validator=pre_defined_validator("MapLayer"))
     template: str | None = field(default=None)
     _compiled: Any = field(default=None, init=False, repr=False)
 
@@ -368,7 +338,8 @@ class MapEncoding(Component):
         if not self._pre_defined_written and self._grid is not None:
             for layer in self.layers.values():
                 for position, text in layer.pre_defined:
-                    self._enqueue(layer.name, text, _xy(position, "pre_defined position"), time.time(), pre=True)
+                    xy = position_of(position, "pre_defined position")[:2]
+                    self._enqueue(layer.name, text, xy, time.time(), pre=True)
             self._pre_defined_written = True
 
     # -- the worker's side --------------------------------------------------------------------
@@ -455,7 +426,7 @@ class MapEncoding(Component):
         if not isinstance(text, str) or not text.strip():
             raise ComponentError(f"component {self.component_name!r}: add_point needs a non-empty text")
         try:
-            xy = _xy(position, "add_point position")
+            xy = position_of(position, "add_point position")[:2]
         except ConfigError as exc:
             raise ComponentError(str(exc)) from exc
         entry_id = self._enqueue(layer, text.strip(), xy, time.time())

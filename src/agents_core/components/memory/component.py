@@ -47,6 +47,7 @@ from ...status import HealthStatus
 from ...supported_types import Odometry, Pose, SupportedType
 from ...topics import Topic
 from ..component_base import Component, TriggerType
+from ..layer_points import position_of
 from .config import MemoryConfig
 from .engine import (
     ClientEmbedder,
@@ -57,7 +58,7 @@ from .engine import (
     open_engine,
     require_emem,
 )
-from .layers import Fix, MemLayer, position_of
+from .layers import Fix, MemLayer
 from .tools import TOOL_NAMES, action_description, check_arguments, tool_description
 
 if TYPE_CHECKING:

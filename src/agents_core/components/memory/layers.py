@@ -7,8 +7,6 @@ joint health) takes any type whose values have a text form (see :func:`text_form
 
 from __future__ import annotations
 
-import math
-from collections.abc import Iterable
 from typing import Any
 
 import attrs
@@ -18,6 +16,7 @@ from ...errors import ComponentError, ConfigError, WiringError
 from ...messages import DetectionsMsg, TrackingsMsg
 from ...supported_types import Detections, String, Trackings
 from ...topics import Topic
+from ..layer_points import convert_points, pre_defined_validator
 
 __all__ = ["PERCEPTION_TYPES", "MemLayer", "text_form"]
 
@@ -70,23 +69,6 @@ def _check_multiple(instance: Any, attribute: Any, value: Any) -> None:
         raise ConfigError(f"MemLayer.resolution_multiple must be a number in (0, 100], got {value!r}")
 
 
-def _points(value: Any) -> list[tuple[Any, str]]:
-    if isinstance(value, str | bytes) or not isinstance(value, Iterable):
-        raise ConfigError(f"MemLayer.pre_defined must be a list of (position, text), got {value!r:.100}")
-    return [tuple(p) if isinstance(p, list) else p for p in value]
-
-
-def position_of(point: Any, what: str) -> tuple[float, float, float]:
-    """``point`` ((x, y) or (x, y, z)) as three finite floats, else ConfigError naming ``what``."""
-    try:
-        values = [float(v) for v in point]
-    except (TypeError, ValueError):
-        raise ConfigError(f"{what} must be (x, y[, z]) numbers, got {point!r:.100}") from None
-    if len(values) not in (2, 3) or not all(math.isfinite(v) for v in values):
-        raise ConfigError(f"{what} must be (x, y) or (x, y, z) finite numbers, got {point!r:.100}")
-    return values[0], values[1], values[2] if len(values) == 3 else 0.0
-
-
 @define(frozen=True)
 class Fix:
     """The robot's position (m, world frame) and when it arrived (``time.monotonic()``)."""
@@ -97,11 +79,8 @@ class Fix:
     received: float
 
 
-def _check_pre_defined(instance: Any, attribute: Any, value: Any) -> None:
-    for i, point in enumerate(value):
-        if not (isinstance(point, tuple) and len(point) == 2 and isinstance(point[1], str) and point[1].strip()):
-            raise ConfigError(f"MemLayer.pre_defined[{i}] must be (position, non-empty text), got {point!r:.100}")
-        position_of(point[0], f"MemLayer.pre_defined[{i}] position")
+def _points(value: Any) -> list[tuple[Any, str]]:
+    return convert_points("MemLayer", value)
 
 
 @define(kw_only=True)
@@ -124,7 +103,8 @@ class MemLayer:
     subscribes_to: Topic = field(validator=_check_topic)
     temporal_change: bool = field(default=False)
     resolution_multiple: float = field(default=1, validator=_check_multiple)
-    pre_defined: list[tuple[Any, str]] = field(factory=list, converter=_points, validator=_check_pre_defined)
+    pre_defined: list[tuple[Any, str]] = field(factory=list, converter=_points,
+                                               validator=pre_defined_validator("MemLayer"))
     is_internal_state: bool = field(default=False)
     template: str | None = field(default=None)
     _compiled: Any = field(default=None, init=False, repr=False, eq=False)
