@@ -180,6 +180,52 @@ def test_ui_attaches_to_the_running_recipe(recipe: Running, tmp_path: Path) -> N
         stop(process)
 
 
+def test_foxglove_serves_the_running_recipe(recipe: Running, tmp_path: Path) -> None:
+    """``agentsctl foxglove`` in its own process: a Foxglove client sees the recipe's image and text."""
+    pytest.importorskip("foxglove", reason="needs the 'foxglove' extra")
+    pytest.importorskip("google.protobuf", reason="the test client decodes protobuf payloads")
+    import asyncio  # noqa: PLC0415
+
+    from tests.foxglove.ws_client import FoxgloveClient  # noqa: PLC0415 - needs websockets + protobuf
+
+    port = free_tcp_port()
+    log = tmp_path / "foxglove.log"
+    process = start("foxglove", *recipe.options, "--port", str(port), "--seconds", "120", env=cli_env(), log=log)
+
+    async def watch() -> dict[str, object]:
+        client = None
+        for _ in range(300):  # until the server listens (discovery first): at most ~60 s
+            assert process.poll() is None, log.read_text()
+            try:
+                client = await FoxgloveClient.connect(f"ws://127.0.0.1:{port}")
+                break
+            except OSError:
+                await asyncio.sleep(0.2)
+        assert client is not None, log.read_text()
+        try:
+            await client.wait_for_channels(["/camera", "/chatter"], timeout=30.0)
+            for topic in ("/camera", "/chatter"):
+                await client.subscribe(topic)
+            got: dict[str, object] = {"channels": dict(client.channels)}
+            for topic in ("/camera", "/chatter"):
+                got[topic] = (await client.next_message(topic, timeout=30.0))[1]
+            return got
+        finally:
+            await client.close()
+
+    try:
+        got = asyncio.run(watch())
+    finally:
+        stop(process)
+    channels = got["channels"]
+    assert channels["/camera"]["schemaName"] == "foxglove.RawImage"  # type: ignore[index]
+    assert channels["/chatter"]["schemaName"] == "foxglove.Log"  # type: ignore[index]
+    image = got["/camera"]
+    assert (image.width, image.height, image.encoding) == (64, 48, "rgb8")  # type: ignore[attr-defined]
+    word, count = got["/chatter"].message.split(" ")  # type: ignore[attr-defined]  # "<word> <n>"
+    assert word and int(count) >= 0
+
+
 def test_ui_refuses_the_memory_transport() -> None:
     done = cli("ui", "--transport", "memory")
     assert done.returncode == 1 and done.stderr.count("\n") == 1 and "zenoh or ros2" in done.stderr
