@@ -115,6 +115,32 @@ def test_plain_import_loads_nothing_but_the_package() -> None:
     assert "numpy" not in loaded
 
 
+def test_recipe_import_loads_no_numpy() -> None:
+    # numpy costs more than the rest of a relay recipe's imports together: the types import it at first use.
+    loaded = _fresh("from agents_core.ros import Topic, Launcher, String")["loaded"]
+    assert "numpy" not in loaded, [m for m in loaded if m.startswith("numpy")][:5]
+
+
+def test_numpy_loads_at_first_use_and_values_stay_numpy() -> None:
+    code = textwrap.dedent("""
+        import sys
+        from agents_core.ros import Float32, Float32MultiArray, Image, String
+        from agents_core.supported_types import get_type
+        from agents_core.messages import IMAGE_ENCODINGS
+        assert String.validate("hi") == "hi" and Float32.validate(0.5) == 0.5
+        assert "rgb8" in IMAGE_ENCODINGS and "numpy" not in sys.modules
+        import numpy as np
+        assert Float32MultiArray.value_class is np.ndarray and Float32MultiArray.dtype is np.float32
+        assert get_type("Float64MultiArray").validate([[1, 2]]).dtype == np.float64
+        assert IMAGE_ENCODINGS["16UC1"] == (np.uint16, 1)
+        assert Float32.validate(np.float32(2.0)) == 2.0
+        msg = Image.validate(np.zeros((2, 3, 3), np.uint8))
+        assert type(msg.data) is np.ndarray and msg.encoding == "rgb8"
+        assert type(Image.to_output(msg)) is np.ndarray
+    """)
+    _fresh(code)
+
+
 @pytest.mark.parametrize(("package", "name", "module"), LAZY_NAMES)
 def test_lazy_name_is_the_defining_modules_object(package: str, name: str, module: str) -> None:
     code = textwrap.dedent(f"""

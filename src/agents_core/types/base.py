@@ -20,8 +20,7 @@ import math
 from collections.abc import Iterable
 from typing import Any, ClassVar
 
-import numpy as np
-
+from .._numpy import is_ndarray, is_np_bool, is_np_integer, is_np_number
 from ..errors import ConfigError, TypeValidationError, UnknownTypeError
 from ..registry import DuplicateNameError, Registry
 
@@ -135,7 +134,8 @@ def _short(value: Any) -> str:
 
 _ROS_INT_BITS = {"int8": 8, "int16": 16, "int32": 32, "int64": 64, "char": 8}
 _ROS_UINT_BITS = {"uint8": 8, "uint16": 16, "uint32": 32, "uint64": 64, "octet": 8, "byte": 8}
-_F32_MAX = float(np.finfo(np.float32).max)
+#: The largest finite float32, float(numpy.finfo(numpy.float32).max), written out: this module imports no numpy.
+FLOAT32_MAX = 3.4028234663852886e38
 
 
 def check_ros_message(message: Any, where: str) -> None:
@@ -152,7 +152,7 @@ def _check_ros_field(value: Any, kind: str, where: str) -> None:
     elif not bound:
         _check_ros_scalar(value, kind, where)
         return
-    if isinstance(value, array.array | np.ndarray | bytes):
+    if isinstance(value, array.array | bytes) or is_ndarray(value):
         return  # typed storage: rosidl built it for the field's type
     if not isinstance(value, list | tuple):
         raise TypeValidationError(f"{where}: expected a sequence of {base}, got {type(value).__name__}")
@@ -168,11 +168,11 @@ def _check_ros_scalar(value: Any, kind: str, where: str) -> None:
     if kind.startswith(("string", "wstring")):
         problem = "" if isinstance(value, str) else "str"
     elif kind == "boolean":
-        problem = "" if isinstance(value, bool | np.bool_) else "bool"
+        problem = "" if isinstance(value, bool) or is_np_bool(value) else "bool"
     elif kind in ("float", "double"):
-        if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating):
+        if isinstance(value, bool) or not (isinstance(value, int | float) or is_np_number(value)):
             problem = "a number"
-        elif kind == "float" and math.isfinite(float(value)) and abs(float(value)) > _F32_MAX:
+        elif kind == "float" and math.isfinite(float(value)) and abs(float(value)) > FLOAT32_MAX:
             problem = "a number within float32's range"
     elif kind in _ROS_INT_BITS or kind in _ROS_UINT_BITS:
         signed = kind in _ROS_INT_BITS
@@ -180,7 +180,8 @@ def _check_ros_scalar(value: Any, kind: str, where: str) -> None:
         low, high = (-(2 ** (bits - 1)), 2 ** (bits - 1)) if signed else (0, 2**bits)
         if isinstance(value, bytes) and len(value) == 1:
             return
-        if isinstance(value, bool) or not isinstance(value, int | np.integer) or not low <= int(value) < high:
+        if isinstance(value, bool) or not (isinstance(value, int) or is_np_integer(value)) \
+                or not low <= int(value) < high:
             problem = f"an int in [{low}, {high - 1}]"
     elif hasattr(value, "get_fields_and_field_types"):
         check_ros_message(value, where)
