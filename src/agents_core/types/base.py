@@ -8,8 +8,8 @@ array for an Image) and what a component's callback hands to ``_execution_step``
 
 Types are looked up by name through the registry; :func:`add_additional_datatypes` registers
 user-defined ones so that ``Topic(msg_type="MyType")`` resolves everywhere. The built-in types
-live in the family modules of :mod:`agents_core.types`, which registers them; this module imports
-none of them.
+live in the family modules of :mod:`agents_core.types`, which registers them at the registry's first
+use (:func:`install_builtin_types`); this module imports none of them.
 """
 
 from __future__ import annotations
@@ -17,7 +17,8 @@ from __future__ import annotations
 import array
 import importlib
 import math
-from collections.abc import Iterable
+import threading
+from collections.abc import Callable, Iterable
 from typing import Any, ClassVar
 
 from .._numpy import is_ndarray, is_np_bool, is_np_integer, is_np_number
@@ -29,6 +30,7 @@ __all__ = [
     "add_additional_datatypes",
     "check_ros_message",
     "get_type",
+    "install_builtin_types",
     "registered_types",
     "ros_message_class",
     "shares_value_class",
@@ -232,6 +234,39 @@ _registry: Registry[type[SupportedType]] = Registry(
 )
 
 
+class _BuiltinTypes:
+    """Registers the built-in types at the registry's first use (the family modules are imported then, not before)."""
+
+    def __init__(self) -> None:
+        self.register: Callable[[], None] | None = None
+        self.ready = False
+        self.loading = False
+        self.lock = threading.RLock()
+
+    def ensure(self) -> None:
+        if self.ready:
+            return
+        with self.lock:
+            # loading: add_additional_datatypes, called by the registration itself, on this thread.
+            if self.ready or self.loading or self.register is None:
+                return
+            self.loading = True
+            try:
+                self.register()
+                self.ready = True
+            finally:
+                self.loading = False
+
+
+_builtin_types = _BuiltinTypes()
+
+
+def install_builtin_types(register: Callable[[], None]) -> None:
+    """Set what registers the built-in types (:mod:`agents_core.types` does, on import) before the registry's
+    first use: their names then come before any user type's, in their own order."""
+    _builtin_types.register = register
+
+
 def add_additional_datatypes(types: Iterable[type[SupportedType]]) -> None:
     """Register message types so that ``Topic(msg_type="Name")`` resolves to them.
 
@@ -239,6 +274,7 @@ def add_additional_datatypes(types: Iterable[type[SupportedType]]) -> None:
     that is taken raises :class:`ConfigError` (silently shadowing a type would change the
     wiring of every recipe that names it).
     """
+    _builtin_types.ensure()
     for t in types:
         if not (isinstance(t, type) and issubclass(t, SupportedType)):
             raise ConfigError(f"{t!r} is not a SupportedType subclass")
@@ -258,6 +294,7 @@ def get_type(name_or_type: str | type[SupportedType]) -> type[SupportedType]:
         raise UnknownTypeError(f"{name_or_type.__name__} is not a SupportedType")
     if not isinstance(name_or_type, str):
         raise UnknownTypeError(f"msg_type must be a SupportedType or its name, got {type(name_or_type).__name__}")
+    _builtin_types.ensure()
     found = _registry.get(name_or_type)
     found.message_class()  # a _ros_type from a package that is not installed fails here, at topic creation
     return found
@@ -265,4 +302,5 @@ def get_type(name_or_type: str | type[SupportedType]) -> type[SupportedType]:
 
 def registered_types() -> dict[str, type[SupportedType]]:
     """A snapshot of the registry: name -> type."""
+    _builtin_types.ensure()
     return _registry.snapshot()
