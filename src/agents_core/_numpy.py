@@ -51,9 +51,12 @@ class _NumpyAttribute:
 
     def __init__(self, name: str) -> None:
         self._name = name
+        self._value: Any = None
 
     def __get__(self, instance: Any, owner: type | None = None) -> Any:
-        return getattr(np, self._name)
+        if self._value is None:  # kept: validation reads it for every value
+            self._value = getattr(np, self._name)
+        return self._value
 
 
 def numpy_attribute(name: str) -> Any:
@@ -62,31 +65,39 @@ def numpy_attribute(name: str) -> Any:
     return _NumpyAttribute(name)
 
 
-def _loaded() -> Any:
+#: (ndarray, bool_, integer, (integer, floating)) once numpy is loaded; None before.
+_classes: tuple[Any, Any, Any, Any] | None = None
+
+
+def _numpy_classes() -> tuple[Any, Any, Any, Any] | None:
+    global _classes  # noqa: PLW0603 - filled once, when numpy is first seen loaded
     module = sys.modules.get("numpy")
-    # A module that is still being imported (by another thread) has no ndarray yet: nothing can be one.
-    return module if module is not None and hasattr(module, "generic") else None
+    # A module that is still being imported (by another thread) is not complete yet: nothing can be its array.
+    if module is None or not hasattr(module, "floating"):
+        return None
+    _classes = (module.ndarray, module.bool_, module.integer, (module.integer, module.floating))
+    return _classes
 
 
 def is_ndarray(value: Any) -> TypeGuard[npt.NDArray[Any]]:
     """``isinstance(value, numpy.ndarray)``, without importing numpy (False when it is not loaded)."""
-    module = _loaded()
-    return module is not None and isinstance(value, module.ndarray)
+    classes = _classes or _numpy_classes()
+    return classes is not None and isinstance(value, classes[0])
 
 
 def is_np_bool(value: Any) -> bool:
     """``isinstance(value, numpy.bool_)``, without importing numpy."""
-    module = _loaded()
-    return module is not None and isinstance(value, module.bool_)
+    classes = _classes or _numpy_classes()
+    return classes is not None and isinstance(value, classes[1])
 
 
 def is_np_integer(value: Any) -> bool:
     """``isinstance(value, numpy.integer)``, without importing numpy."""
-    module = _loaded()
-    return module is not None and isinstance(value, module.integer)
+    classes = _classes or _numpy_classes()
+    return classes is not None and isinstance(value, classes[2])
 
 
 def is_np_number(value: Any) -> bool:
     """``isinstance(value, numpy.integer | numpy.floating)``, without importing numpy."""
-    module = _loaded()
-    return module is not None and isinstance(value, module.integer | module.floating)
+    classes = _classes or _numpy_classes()
+    return classes is not None and isinstance(value, classes[3])
