@@ -115,6 +115,74 @@ def test_plain_import_loads_nothing_but_the_package() -> None:
     assert "numpy" not in loaded
 
 
+def test_recipe_import_loads_no_numpy() -> None:
+    # numpy costs more than the rest of a relay recipe's imports together: the types import it at first use.
+    loaded = _fresh("from agents_core.ros import Topic, Launcher, String")["loaded"]
+    assert "numpy" not in loaded, [m for m in loaded if m.startswith("numpy")][:5]
+
+
+def test_numpy_loads_at_first_use_and_values_stay_numpy() -> None:
+    code = textwrap.dedent("""
+        import sys
+        from agents_core.ros import Float32, Float32MultiArray, Image, String
+        from agents_core.supported_types import get_type
+        from agents_core.messages import IMAGE_ENCODINGS
+        assert String.validate("hi") == "hi" and Float32.validate(0.5) == 0.5
+        assert "rgb8" in IMAGE_ENCODINGS and "numpy" not in sys.modules
+        import numpy as np
+        assert Float32MultiArray.value_class is np.ndarray and Float32MultiArray.dtype is np.float32
+        assert get_type("Float64MultiArray").validate([[1, 2]]).dtype == np.float64
+        assert IMAGE_ENCODINGS["16UC1"] == (np.uint16, 1)
+        assert Float32.validate(np.float32(2.0)) == 2.0
+        msg = Image.validate(np.zeros((2, 3, 3), np.uint8))
+        assert type(msg.data) is np.ndarray and msg.encoding == "rgb8"
+        assert type(Image.to_output(msg)) is np.ndarray
+    """)
+    _fresh(code)
+
+
+def test_recipe_import_builds_only_the_types_it_names() -> None:
+    # The image, perception, sensor... classes are built when the registry is first used, not on import.
+    loaded = _fresh("from agents_core.ros import Topic, Launcher, String")["loaded"]
+    families = [m for m in loaded if m.startswith("agents_core.types.")
+                and m.rsplit(".", 1)[1] not in ("base", "fields", "text", "component_status")]
+    assert not families, families
+
+
+def test_builtin_types_register_at_first_use_before_user_types() -> None:
+    code = textwrap.dedent("""
+        import sys, threading
+        from agents_core.supported_types import SupportedType, add_additional_datatypes, get_type, registered_types
+        assert "agents_core.types.media" not in sys.modules
+        class Mine(SupportedType):
+            value_class = str
+        add_additional_datatypes([Mine])
+        from agents_core.types import BUILTIN_TYPES
+        names = list(registered_types())
+        assert names == [t.__name__ for t in BUILTIN_TYPES] + ["Mine"], names
+        assert get_type("Image").__module__ == "agents_core.types.media"
+    """)
+    _fresh(code)
+
+
+def test_types_looked_up_by_name_from_two_threads_at_once() -> None:
+    code = textwrap.dedent("""
+        import threading
+        from agents_core.supported_types import get_type
+        found, start = [], threading.Barrier(4)
+        def look(name):
+            start.wait(timeout=10)
+            found.append(get_type(name).__name__)
+        threads = [threading.Thread(target=look, args=(n,)) for n in ("CameraInfo", "Image", "Pose", "JointState")]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join(timeout=30)
+        assert sorted(found) == ["CameraInfo", "Image", "JointState", "Pose"], found
+    """)
+    _fresh(code)
+
+
 @pytest.mark.parametrize(("package", "name", "module"), LAZY_NAMES)
 def test_lazy_name_is_the_defining_modules_object(package: str, name: str, module: str) -> None:
     code = textwrap.dedent(f"""
@@ -226,3 +294,17 @@ def test_lazy_table_type_checking_imports_and_all_agree(module: str) -> None:
     exported = {n for names in table.values() for n in names} | {n for names in modules.values() for n in names}
     assert exported == set(mod.__all__) - {"__version__"}
     assert len(mod.__all__) == len(set(mod.__all__))
+
+
+@pytest.mark.parametrize("module", ["agents_core.supported_types", "agents_core.messages"])
+def test_type_facades_lazy_table_agrees_with_type_checking_imports(module: str) -> None:
+    # The façades re-export the families' names lazily: the table, the imports type checkers read and
+    # __all__ must name the same things, and every exported name must resolve.
+    mod = importlib.import_module(module)
+    assert mod.__file__ is not None
+    typed = _type_checking_imports(Path(mod.__file__))
+    assert typed == {k: set(v) for k, v in mod._EXPORTS.items()}
+    lazy = {n for names in mod._EXPORTS.values() for n in names}
+    assert lazy <= set(mod.__all__)
+    assert all(getattr(mod, name) is not None for name in mod.__all__)
+    assert set(mod.__all__) <= set(dir(mod))

@@ -22,8 +22,8 @@ from collections.abc import Callable, Iterable, Mapping
 from typing import TYPE_CHECKING, Any
 
 import attrs
-import numpy as np
 
+from ._numpy import is_ndarray, np
 from .errors import ConfigError
 
 if TYPE_CHECKING:
@@ -173,7 +173,7 @@ def _listed(items: Iterable[Any]) -> list[Any]:
 def _items(value: Any) -> Any:
     """The field as a container: arrays as lists (``in`` on an array compares element-wise), a scalar as a list
     of one (as upstream)."""
-    if isinstance(value, np.ndarray):
+    if is_ndarray(value):
         return value.tolist()
     if isinstance(value, str | list | tuple | set | frozenset | dict):
         return value
@@ -181,7 +181,7 @@ def _items(value: Any) -> Any:
 
 
 def _equal(a: Any, b: Any) -> bool:
-    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+    if is_ndarray(a) or is_ndarray(b):
         return bool(np.array_equal(a, b))
     return bool(a == b)
 

@@ -9,30 +9,52 @@ Values are delivered zero-copy on the memory transport: every subscriber receive
 object, so treat received values (and their numpy arrays) as read-only.
 
 The classes live in :mod:`agents_core.types`, each in its family's module beside its type
-(``ImageMsg`` in :mod:`agents_core.types.media`); this module re-exports them all.
+(``ImageMsg`` in :mod:`agents_core.types.media`); this module re-exports them all (each family's at its
+first access).
 """
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
+from ._lazy import lazy_exports
 from .types.component_status import ComponentStatusMsg
 from .types.fields import MAX_ARRAY_DIM, Header, Wire, as_numeric_array, values_equal, wire
-from .types.geometry import OdometryMsg, PathMsg, PointMsg, PoseArrayMsg, PoseMsg, TwistMsg
-from .types.joints import JointJogMsg, JointStateMsg, JointTrajectoryMsg, JointTrajectoryPointMsg
-from .types.maps import MapMetaDataMsg, OccupancyGridMsg
-from .types.media import (
-    DEPTH_ENCODINGS,
-    IMAGE_ENCODINGS,
-    MAX_IMAGE_SIDE,
-    AudioMsg,
-    CompressedImageMsg,
-    ImageMsg,
-    RGBDMsg,
-    VideoMsg,
-    image_array,
-)
-from .types.perception import DetectionsMsg, PointsOfInterestMsg, TrackingsMsg
-from .types.sensors import POINT_FIELD_DTYPES, CameraInfoMsg, ImuMsg, LaserScanMsg, NavSatFixMsg, PointCloud2Msg
-from .types.text import StreamingStringMsg
+
+#: module -> the names re-exported from it, imported at first access: naming ``String`` does not build the
+#: image, perception and sensor classes (see :mod:`agents_core.types`).
+_EXPORTS: dict[str, tuple[str, ...]] = {
+    ".types.geometry": ("OdometryMsg", "PathMsg", "PointMsg", "PoseArrayMsg", "PoseMsg", "TwistMsg"),
+    ".types.joints": ("JointJogMsg", "JointStateMsg", "JointTrajectoryMsg", "JointTrajectoryPointMsg"),
+    ".types.maps": ("MapMetaDataMsg", "OccupancyGridMsg"),
+    ".types.media": ("DEPTH_ENCODINGS", "IMAGE_ENCODINGS", "MAX_IMAGE_SIDE", "AudioMsg", "CompressedImageMsg",
+        "ImageMsg", "RGBDMsg", "VideoMsg", "image_array"),
+    ".types.perception": ("DetectionsMsg", "PointsOfInterestMsg", "TrackingsMsg"),
+    ".types.sensors": ("POINT_FIELD_DTYPES", "CameraInfoMsg", "ImuMsg", "LaserScanMsg", "NavSatFixMsg",
+        "PointCloud2Msg"),
+    ".types.text": ("StreamingStringMsg",),
+}
+
+if TYPE_CHECKING:
+    from .types.geometry import OdometryMsg, PathMsg, PointMsg, PoseArrayMsg, PoseMsg, TwistMsg
+    from .types.joints import JointJogMsg, JointStateMsg, JointTrajectoryMsg, JointTrajectoryPointMsg
+    from .types.maps import MapMetaDataMsg, OccupancyGridMsg
+    from .types.media import (
+        DEPTH_ENCODINGS,
+        IMAGE_ENCODINGS,
+        MAX_IMAGE_SIDE,
+        AudioMsg,
+        CompressedImageMsg,
+        ImageMsg,
+        RGBDMsg,
+        VideoMsg,
+        image_array,
+    )
+    from .types.perception import DetectionsMsg, PointsOfInterestMsg, TrackingsMsg
+    from .types.sensors import POINT_FIELD_DTYPES, CameraInfoMsg, ImuMsg, LaserScanMsg, NavSatFixMsg, PointCloud2Msg
+    from .types.text import StreamingStringMsg
+else:
+    __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
 
 __all__ = [
     "DEPTH_ENCODINGS",

@@ -11,11 +11,14 @@ user-defined ones so that ``Topic(msg_type="MyType")`` resolves everywhere.
 
 The types live in :mod:`agents_core.types`, each in its family's module beside its value class
 (``Image`` in :mod:`agents_core.types.media`), the base class and the registry in
-:mod:`agents_core.types.base`; this module re-exports them all.
+:mod:`agents_core.types.base`; this module re-exports them all (each family's at its first access).
 """
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
+from ._lazy import lazy_exports
 from .types.base import (
     SupportedType,
     _registry,  # noqa: F401 - re-exported: tests and plugins undo their registrations through it
@@ -26,15 +29,34 @@ from .types.base import (
     ros_message_class,
     shares_value_class,
 )
-from .types.component_status import ComponentStatus
-from .types.geometry import Odometry, Path, Point, PointStamped, Pose, PoseArray, PoseStamped, Twist
-from .types.joints import JointJog, JointState, JointTrajectory, JointTrajectoryPoint
-from .types.maps import MapMetaData, OccupancyGrid
-from .types.media import RGBD, Audio, CompressedImage, Image, Video
-from .types.perception import Detections, DetectionsMultiSource, PointsOfInterest, Trackings, TrackingsMultiSource
-from .types.scalars import Bool, Float32, Float32MultiArray, Float64, Float64MultiArray, Int32, Int64
-from .types.sensors import CameraInfo, Imu, LaserScan, NavSatFix, PointCloud2
-from .types.text import StreamingString, String
+
+#: module -> the names re-exported from it, imported at first access: naming ``String`` does not build the
+#: image, perception and sensor classes (see :mod:`agents_core.types`).
+_EXPORTS: dict[str, tuple[str, ...]] = {
+    ".types.component_status": ("ComponentStatus",),
+    ".types.geometry": ("Odometry", "Path", "Point", "PointStamped", "Pose", "PoseArray", "PoseStamped", "Twist"),
+    ".types.joints": ("JointJog", "JointState", "JointTrajectory", "JointTrajectoryPoint"),
+    ".types.maps": ("MapMetaData", "OccupancyGrid"),
+    ".types.media": ("RGBD", "Audio", "CompressedImage", "Image", "Video"),
+    ".types.perception": ("Detections", "DetectionsMultiSource", "PointsOfInterest", "Trackings",
+        "TrackingsMultiSource"),
+    ".types.scalars": ("Bool", "Float32", "Float32MultiArray", "Float64", "Float64MultiArray", "Int32", "Int64"),
+    ".types.sensors": ("CameraInfo", "Imu", "LaserScan", "NavSatFix", "PointCloud2"),
+    ".types.text": ("StreamingString", "String"),
+}
+
+if TYPE_CHECKING:
+    from .types.component_status import ComponentStatus
+    from .types.geometry import Odometry, Path, Point, PointStamped, Pose, PoseArray, PoseStamped, Twist
+    from .types.joints import JointJog, JointState, JointTrajectory, JointTrajectoryPoint
+    from .types.maps import MapMetaData, OccupancyGrid
+    from .types.media import RGBD, Audio, CompressedImage, Image, Video
+    from .types.perception import Detections, DetectionsMultiSource, PointsOfInterest, Trackings, TrackingsMultiSource
+    from .types.scalars import Bool, Float32, Float32MultiArray, Float64, Float64MultiArray, Int32, Int64
+    from .types.sensors import CameraInfo, Imu, LaserScan, NavSatFix, PointCloud2
+    from .types.text import StreamingString, String
+else:
+    __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
 
 __all__ = [
     "RGBD",

@@ -12,8 +12,9 @@ the process and lives until the launcher process ends (like ``multiprocessing``'
 Forking is safe only in a process with no thread that may hold a lock and no middleware
 session: the server runs no recipe code (the recipe file itself is still imported by each
 component process, cheaply, since everything it imports is loaded) and counts its threads
-(``/proc/self/task``) after each import. The framework's own imports leave numpy's OpenBLAS
-pool, which stops its threads around a fork (``pthread_atfork``); that count is the baseline. A
+(``/proc/self/task``) after each import. The server imports numpy first (the framework imports it
+at first use): its OpenBLAS pool stops its threads around a fork (``pthread_atfork``), and the count
+after the base imports is the baseline. A
 preloaded module that starts more threads makes the server refuse to fork, and the launcher
 falls back to a fresh interpreter per component. ROS 2's client library starts threads when it
 is loaded, so it is never preloaded: a ROS 2 component process loads it after the fork.
@@ -73,8 +74,9 @@ logger = logging.getLogger(__name__)
 
 #: ``fork`` (the default where available) or ``spawn``: how component processes start.
 PROCESS_START_ENV = "AGENTS_PROCESS_START"
-#: Always imported by the server: what every component process needs.
-BASE_MODULES = ("agents_core.launch.child", "agents_core.launch.spec", "agents_core.launch.recipe_import",
+#: Always imported by the server: what every component process needs. numpy comes first, by name: the
+#: message types import it only at first use, and its OpenBLAS pool must be in the thread baseline.
+BASE_MODULES = ("numpy", "agents_core.launch.child", "agents_core.launch.spec", "agents_core.launch.recipe_import",
                 "agents_core.transport.registry", "agents_core.components.component_base")
 #: Never imported by the server: they start threads when loaded (rclpy's middleware libraries).
 NOT_PRELOADED = ("agents_ros2", "rclpy")

@@ -9,42 +9,72 @@
 Users import these names from :mod:`agents_core.messages` (the value classes) and
 :mod:`agents_core.supported_types` (the types and the registry), which re-export them.
 
-Importing any module of this package registers every built-in type (this ``__init__`` runs first),
-in :data:`BUILTIN_TYPES` order: codecs, the schema document and the conformance suite list the
-types in that order. To add a built-in type: put its value class and type in their family's
-module, then append the type to :data:`BUILTIN_TYPES`.
+The built-in types are registered when the registry is first used (a name looked up, the
+registry listed, a type added), all of them at once, in :data:`BUILTIN_TYPES` order: codecs, the
+schema document and the conformance suite list the types in that order. Importing the package
+imports no family module: a relay recipe that names ``String`` does not pay for building the
+image, perception and sensor classes. To add a built-in type: put its value class and type in
+their family's module, then append ``(name, family)`` to :data:`_BUILTINS`.
 """
 
 from __future__ import annotations
 
+import importlib
+import threading
+from typing import TYPE_CHECKING, Any
+
+from . import base
 from .base import SupportedType, add_additional_datatypes
-from .component_status import ComponentStatus
-from .geometry import Odometry, Path, Point, PointStamped, Pose, PoseArray, PoseStamped, Twist
-from .joints import JointJog, JointState, JointTrajectory, JointTrajectoryPoint
-from .maps import MapMetaData, OccupancyGrid
-from .media import RGBD, Audio, CompressedImage, Image, Video
-from .perception import Detections, DetectionsMultiSource, PointsOfInterest, Trackings, TrackingsMultiSource
-from .scalars import Bool, Float32, Float32MultiArray, Float64, Float64MultiArray, Int32, Int64
-from .sensors import CameraInfo, Imu, LaserScan, NavSatFix, PointCloud2
-from .text import StreamingString, String
 
 __all__ = ["BUILTIN_TYPES", "is_builtin_type"]
 
 #: The framework's own message types, in registration order (the order predates the families:
-#: types added later come last, whatever their family).
-BUILTIN_TYPES: tuple[type[SupportedType], ...] = (
-    String, StreamingString, Bool, Int32, Int64, Float32, Float64, Float32MultiArray,
-    Float64MultiArray, Image, CompressedImage, Audio, Video, Detections, DetectionsMultiSource,
-    Trackings, TrackingsMultiSource, PointsOfInterest, Point, PointStamped, Pose, PoseStamped,
-    Twist, Odometry, JointState, JointTrajectoryPoint, JointTrajectory, JointJog, OccupancyGrid,
-    LaserScan, ComponentStatus, RGBD, PointCloud2, Imu, NavSatFix, Path, PoseArray, MapMetaData,
-    CameraInfo,
+#: types added later come last, whatever their family), each with its family module.
+_BUILTINS: tuple[tuple[str, str], ...] = (
+    ("String", "text"), ("StreamingString", "text"), ("Bool", "scalars"), ("Int32", "scalars"),
+    ("Int64", "scalars"), ("Float32", "scalars"), ("Float64", "scalars"), ("Float32MultiArray", "scalars"),
+    ("Float64MultiArray", "scalars"), ("Image", "media"), ("CompressedImage", "media"), ("Audio", "media"),
+    ("Video", "media"), ("Detections", "perception"), ("DetectionsMultiSource", "perception"),
+    ("Trackings", "perception"), ("TrackingsMultiSource", "perception"), ("PointsOfInterest", "perception"),
+    ("Point", "geometry"), ("PointStamped", "geometry"), ("Pose", "geometry"), ("PoseStamped", "geometry"),
+    ("Twist", "geometry"), ("Odometry", "geometry"), ("JointState", "joints"),
+    ("JointTrajectoryPoint", "joints"), ("JointTrajectory", "joints"), ("JointJog", "joints"),
+    ("OccupancyGrid", "maps"), ("LaserScan", "sensors"), ("ComponentStatus", "component_status"),
+    ("RGBD", "media"), ("PointCloud2", "sensors"), ("Imu", "sensors"), ("NavSatFix", "sensors"),
+    ("Path", "geometry"), ("PoseArray", "geometry"), ("MapMetaData", "maps"), ("CameraInfo", "sensors"),
 )
+
+_builtin_types: tuple[type[SupportedType], ...] | None = None
+_builtin_lock = threading.RLock()
+
+if TYPE_CHECKING:
+    #: The framework's own message types, in registration order (imports every family module when read).
+    BUILTIN_TYPES: tuple[type[SupportedType], ...]
+
+
+def _builtins() -> tuple[type[SupportedType], ...]:
+    global _builtin_types  # noqa: PLW0603 - built once, at first use
+    if _builtin_types is None:
+        with _builtin_lock:
+            if _builtin_types is None:
+                _builtin_types = tuple(getattr(importlib.import_module(f"{__name__}.{family}"), name)
+                                       for name, family in _BUILTINS)
+    return _builtin_types
+
+
+def __getattr__(name: str) -> Any:
+    if name == "BUILTIN_TYPES":
+        return _builtins()
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def is_builtin_type(msg_type: type) -> bool:
     """True for the framework's own message types (:data:`BUILTIN_TYPES`), False for user-registered ones."""
-    return msg_type in BUILTIN_TYPES
+    return msg_type in _builtins()
 
 
-add_additional_datatypes(BUILTIN_TYPES)
+def _register_builtins() -> None:
+    add_additional_datatypes(_builtins())
+
+
+base.install_builtin_types(_register_builtins)

@@ -8,8 +8,8 @@ array for an Image) and what a component's callback hands to ``_execution_step``
 
 Types are looked up by name through the registry; :func:`add_additional_datatypes` registers
 user-defined ones so that ``Topic(msg_type="MyType")`` resolves everywhere. The built-in types
-live in the family modules of :mod:`agents_core.types`, which registers them; this module imports
-none of them.
+live in the family modules of :mod:`agents_core.types`, which registers them at the registry's first
+use (:func:`install_builtin_types`); this module imports none of them.
 """
 
 from __future__ import annotations
@@ -17,11 +17,11 @@ from __future__ import annotations
 import array
 import importlib
 import math
-from collections.abc import Iterable
+import threading
+from collections.abc import Callable, Iterable
 from typing import Any, ClassVar
 
-import numpy as np
-
+from .._numpy import is_ndarray, is_np_bool, is_np_integer, is_np_number
 from ..errors import ConfigError, TypeValidationError, UnknownTypeError
 from ..registry import DuplicateNameError, Registry
 
@@ -30,6 +30,7 @@ __all__ = [
     "add_additional_datatypes",
     "check_ros_message",
     "get_type",
+    "install_builtin_types",
     "registered_types",
     "ros_message_class",
     "shares_value_class",
@@ -135,7 +136,8 @@ def _short(value: Any) -> str:
 
 _ROS_INT_BITS = {"int8": 8, "int16": 16, "int32": 32, "int64": 64, "char": 8}
 _ROS_UINT_BITS = {"uint8": 8, "uint16": 16, "uint32": 32, "uint64": 64, "octet": 8, "byte": 8}
-_F32_MAX = float(np.finfo(np.float32).max)
+#: The largest finite float32, float(numpy.finfo(numpy.float32).max), written out: this module imports no numpy.
+FLOAT32_MAX = 3.4028234663852886e38
 
 
 def check_ros_message(message: Any, where: str) -> None:
@@ -152,7 +154,7 @@ def _check_ros_field(value: Any, kind: str, where: str) -> None:
     elif not bound:
         _check_ros_scalar(value, kind, where)
         return
-    if isinstance(value, array.array | np.ndarray | bytes):
+    if isinstance(value, array.array | bytes) or is_ndarray(value):
         return  # typed storage: rosidl built it for the field's type
     if not isinstance(value, list | tuple):
         raise TypeValidationError(f"{where}: expected a sequence of {base}, got {type(value).__name__}")
@@ -168,11 +170,11 @@ def _check_ros_scalar(value: Any, kind: str, where: str) -> None:
     if kind.startswith(("string", "wstring")):
         problem = "" if isinstance(value, str) else "str"
     elif kind == "boolean":
-        problem = "" if isinstance(value, bool | np.bool_) else "bool"
+        problem = "" if isinstance(value, bool) or is_np_bool(value) else "bool"
     elif kind in ("float", "double"):
-        if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating):
+        if isinstance(value, bool) or not (isinstance(value, int | float) or is_np_number(value)):
             problem = "a number"
-        elif kind == "float" and math.isfinite(float(value)) and abs(float(value)) > _F32_MAX:
+        elif kind == "float" and math.isfinite(float(value)) and abs(float(value)) > FLOAT32_MAX:
             problem = "a number within float32's range"
     elif kind in _ROS_INT_BITS or kind in _ROS_UINT_BITS:
         signed = kind in _ROS_INT_BITS
@@ -180,7 +182,8 @@ def _check_ros_scalar(value: Any, kind: str, where: str) -> None:
         low, high = (-(2 ** (bits - 1)), 2 ** (bits - 1)) if signed else (0, 2**bits)
         if isinstance(value, bytes) and len(value) == 1:
             return
-        if isinstance(value, bool) or not isinstance(value, int | np.integer) or not low <= int(value) < high:
+        if isinstance(value, bool) or not (isinstance(value, int) or is_np_integer(value)) \
+                or not low <= int(value) < high:
             problem = f"an int in [{low}, {high - 1}]"
     elif hasattr(value, "get_fields_and_field_types"):
         check_ros_message(value, where)
@@ -231,6 +234,39 @@ _registry: Registry[type[SupportedType]] = Registry(
 )
 
 
+class _BuiltinTypes:
+    """Registers the built-in types at the registry's first use (the family modules are imported then, not before)."""
+
+    def __init__(self) -> None:
+        self.register: Callable[[], None] | None = None
+        self.ready = False
+        self.loading = False
+        self.lock = threading.RLock()
+
+    def ensure(self) -> None:
+        if self.ready:
+            return
+        with self.lock:
+            # loading: add_additional_datatypes, called by the registration itself, on this thread.
+            if self.ready or self.loading or self.register is None:
+                return
+            self.loading = True
+            try:
+                self.register()
+                self.ready = True
+            finally:
+                self.loading = False
+
+
+_builtin_types = _BuiltinTypes()
+
+
+def install_builtin_types(register: Callable[[], None]) -> None:
+    """Set what registers the built-in types (:mod:`agents_core.types` does, on import) before the registry's
+    first use: their names then come before any user type's, in their own order."""
+    _builtin_types.register = register
+
+
 def add_additional_datatypes(types: Iterable[type[SupportedType]]) -> None:
     """Register message types so that ``Topic(msg_type="Name")`` resolves to them.
 
@@ -238,6 +274,7 @@ def add_additional_datatypes(types: Iterable[type[SupportedType]]) -> None:
     that is taken raises :class:`ConfigError` (silently shadowing a type would change the
     wiring of every recipe that names it).
     """
+    _builtin_types.ensure()
     for t in types:
         if not (isinstance(t, type) and issubclass(t, SupportedType)):
             raise ConfigError(f"{t!r} is not a SupportedType subclass")
@@ -257,6 +294,7 @@ def get_type(name_or_type: str | type[SupportedType]) -> type[SupportedType]:
         raise UnknownTypeError(f"{name_or_type.__name__} is not a SupportedType")
     if not isinstance(name_or_type, str):
         raise UnknownTypeError(f"msg_type must be a SupportedType or its name, got {type(name_or_type).__name__}")
+    _builtin_types.ensure()
     found = _registry.get(name_or_type)
     found.message_class()  # a _ros_type from a package that is not installed fails here, at topic creation
     return found
@@ -264,4 +302,5 @@ def get_type(name_or_type: str | type[SupportedType]) -> type[SupportedType]:
 
 def registered_types() -> dict[str, type[SupportedType]]:
     """A snapshot of the registry: name -> type."""
+    _builtin_types.ensure()
     return _registry.snapshot()

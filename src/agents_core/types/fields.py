@@ -15,10 +15,9 @@ from collections.abc import Callable
 from typing import Any, TypeVar
 
 import attrs
-import numpy as np
-import numpy.typing as npt
 from attrs import define, field
 
+from .._numpy import is_ndarray, is_np_bool, is_np_integer, is_np_number, np, npt
 from ..errors import TypeValidationError
 
 __all__ = [
@@ -52,10 +51,10 @@ MAX_ARRAY_DIM = 2**32 - 1
 
 def values_equal(a: Any, b: Any) -> bool:
     """Deep equality for message values (numpy arrays compared by dtype, shape and content)."""
-    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+    if is_ndarray(a) or is_ndarray(b):
         return (
-            isinstance(a, np.ndarray)
-            and isinstance(b, np.ndarray)
+            is_ndarray(a)
+            and is_ndarray(b)
             and a.dtype == b.dtype
             and a.shape == b.shape
             and bool(np.array_equal(a, b, equal_nan=a.dtype.kind == "f"))
@@ -130,7 +129,7 @@ def as_numeric_array(value: Any, dtype: type[np.generic] | None, name: str) -> n
     float32's), rather than letting numpy wrap them round or turn them into inf.
     """
     try:
-        arr = value if isinstance(value, np.ndarray) else np.asarray(value)
+        arr = value if is_ndarray(value) else np.asarray(value)
     except (TypeError, ValueError) as exc:  # ragged nesting: "inhomogeneous shape"
         raise TypeValidationError(f"field {name!r}: not a rectangular array ({exc})") from exc
     check_holds(arr, name)
@@ -196,13 +195,13 @@ def is_str(_: Any, attribute: attrs.Attribute[Any], value: Any) -> None:
 
 def is_bool(_: Any, attribute: attrs.Attribute[Any], value: Any) -> None:
     """Validator: a ``bool`` (numpy's too)."""
-    if not isinstance(value, bool | np.bool_):
+    if not (isinstance(value, bool) or is_np_bool(value)):
         raise field_error(attribute, "bool", value)
 
 
 def is_number(_: Any, attribute: attrs.Attribute[Any], value: Any) -> None:
     """Validator: an int or a float, Python's or numpy's (not a bool)."""
-    if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating):
+    if isinstance(value, bool) or not (isinstance(value, int | float) or is_np_number(value)):
         raise field_error(attribute, "a number", value)
 
 
@@ -226,7 +225,8 @@ def int_in(low: int, high: int) -> Callable[[Any, attrs.Attribute[Any], Any], No
     """Validator: an int (not a bool) from ``low`` to ``high`` inclusive."""
 
     def check(_: Any, attribute: attrs.Attribute[Any], value: Any) -> None:
-        if isinstance(value, bool) or not isinstance(value, int | np.integer) or not low <= int(value) <= high:
+        if isinstance(value, bool) or not (isinstance(value, int) or is_np_integer(value)) \
+                or not low <= int(value) <= high:
             raise TypeValidationError(f"field {attribute.name!r}: expected an int from {low} to {high}, got {value!r}")
 
     return check
@@ -285,8 +285,8 @@ class Header(Message):
     frame_id: str = field(default="", validator=is_str)
 
     @stamp_ns.validator
-    def _check_stamp(self, _: attrs.Attribute[int], value: int) -> None:
-        if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 0:
+    def _check_stamp(self, _: attrs.Attribute[int], value: Any) -> None:
+        if isinstance(value, bool) or not (isinstance(value, int) or is_np_integer(value)) or value < 0:
             raise TypeValidationError(f"field 'stamp_ns': expected a non-negative int, got {value!r}")
 
     @property

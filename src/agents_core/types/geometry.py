@@ -4,10 +4,9 @@ from __future__ import annotations
 
 from typing import Any
 
-import numpy as np
-import numpy.typing as npt
 from attrs import define, field
 
+from .._numpy import is_ndarray, np, npt
 from ..errors import TypeValidationError
 from .base import SupportedType
 from .fields import Header, Message, header_field, instance_of, is_number, is_str, named, to_array, unstamped, wire
@@ -155,7 +154,7 @@ class Pose(SupportedType):
         """A PoseMsg as it is, or one from upstream's array form (see the class docstring)."""
         if isinstance(output, PoseMsg):
             return output
-        if isinstance(output, str | bytes | dict) or not isinstance(output, list | tuple | np.ndarray):
+        if isinstance(output, str | bytes | dict) or not (isinstance(output, list | tuple) or is_ndarray(output)):
             raise TypeValidationError(f"expects PoseMsg or an array [x, y, z(, qw, qx, qy, qz)], "
                                       f"got {type(output).__name__}")
         try:

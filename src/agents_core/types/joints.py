@@ -4,10 +4,9 @@ from __future__ import annotations
 
 from typing import Any
 
-import numpy as np
-import numpy.typing as npt
 from attrs import define, field
 
+from .._numpy import np, npt
 from ..errors import TypeValidationError
 from .base import SupportedType
 from .fields import FLOATS, Header, Message, empty_f64, header_field, is_number, is_str_list, named, to_array, wire

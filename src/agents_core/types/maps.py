@@ -4,10 +4,9 @@ from __future__ import annotations
 
 from typing import Any
 
-import numpy as np
-import numpy.typing as npt
 from attrs import define, field
 
+from .._numpy import np, npt
 from .base import SupportedType
 from .fields import Header, Message, header_field, instance_of, int_in, is_number, named, to_array, unstamped, wire
 from .geometry import PoseMsg

@@ -3,12 +3,12 @@ of frames; each value class beside its type."""
 
 from __future__ import annotations
 
+from collections.abc import Iterator, Mapping
 from typing import Any, ClassVar
 
-import numpy as np
-import numpy.typing as npt
 from attrs import define, field
 
+from .._numpy import is_ndarray, np, npt
 from ..errors import TypeValidationError
 from .base import SupportedType
 from .fields import Header, Message, as_numeric_array, check_holds, header_field, instance_of, is_str, named, wire
@@ -31,17 +31,41 @@ __all__ = [
 ]
 
 
+class _EncodingTable(Mapping[str, tuple["type[np.generic]", int]]):
+    """A read-only table of encoding -> (numpy scalar type, channel count), the numpy type named in the
+    table and looked up when an entry is read: the names can be listed and tested without numpy."""
+
+    def __init__(self, entries: dict[str, tuple[str, int]]) -> None:
+        self._entries = entries
+
+    def __getitem__(self, encoding: str) -> tuple[type[np.generic], int]:
+        dtype_name, channels = self._entries[encoding]
+        return getattr(np, dtype_name), channels
+
+    def __contains__(self, encoding: object) -> bool:
+        return encoding in self._entries  # Mapping's own would read the entry, importing numpy
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._entries)
+
+    def __len__(self) -> int:
+        return len(self._entries)
+
+    def __repr__(self) -> str:
+        return repr(dict(self))
+
+
 #: Image encodings the core understands: name -> (numpy dtype, channel count).
-IMAGE_ENCODINGS: dict[str, tuple[type[np.generic], int]] = {
-    "rgb8": (np.uint8, 3),
-    "bgr8": (np.uint8, 3),
-    "rgba8": (np.uint8, 4),
-    "bgra8": (np.uint8, 4),
-    "mono8": (np.uint8, 1),
-    "mono16": (np.uint16, 1),
-    "16UC1": (np.uint16, 1),
-    "32FC1": (np.float32, 1),
-}
+IMAGE_ENCODINGS: Mapping[str, tuple[type[np.generic], int]] = _EncodingTable({
+    "rgb8": ("uint8", 3),
+    "bgr8": ("uint8", 3),
+    "rgba8": ("uint8", 4),
+    "bgra8": ("uint8", 4),
+    "mono8": ("uint8", 1),
+    "mono16": ("uint16", 1),
+    "16UC1": ("uint16", 1),
+    "32FC1": ("float32", 1),
+})
 
 #: The largest height or width an :class:`ImageMsg` may have (pixels). Far beyond any sensor or
 #: stitched panorama, and small enough that a row of it fits ROS 2's uint32 ``step``.
@@ -51,7 +75,7 @@ MAX_IMAGE_SIDE = 1 << 20
 def image_array(value: Any, name: str = "data") -> npt.NDArray[Any]:
     """Pixels as a numpy array: an array as is, an array-like (nested lists, as a model server's JSON
     reply gives them) converted, integers from 0 to 255 as uint8, other numbers as their numpy dtype."""
-    if isinstance(value, np.ndarray):
+    if is_ndarray(value):
         return value
     if not isinstance(value, list | tuple):
         raise TypeValidationError(f"field {name!r}: expected a numpy array or nested lists, got {type(value).__name__}")
@@ -145,7 +169,7 @@ class CompressedImageMsg(Message):
 def _pcm(value: Any) -> npt.NDArray[Any]:
     if isinstance(value, bytes | bytearray):
         value = np.frombuffer(bytes(value), dtype=np.int16)
-    if not isinstance(value, np.ndarray) or value.dtype not in (np.int16, np.float32):
+    if not is_ndarray(value) or value.dtype not in (np.int16, np.float32):
         raise TypeValidationError("field 'data': expected PCM as a numpy int16 or float32 array (or int16 bytes)")
     if value.ndim != 1:
         raise TypeValidationError(f"field 'data': expected interleaved 1-D samples, got shape {value.shape}")
@@ -255,7 +279,7 @@ class Image(SupportedType):
 
     @classmethod
     def validate(cls, value: Any) -> Any:
-        if isinstance(value, np.ndarray | list):
+        if isinstance(value, list) or is_ndarray(value):
             try:
                 return ImageMsg.from_array(value)
             except TypeValidationError as exc:
@@ -319,7 +343,7 @@ class Audio(SupportedType):
 
     @classmethod
     def validate(cls, value: Any) -> Any:
-        if isinstance(value, bytes | bytearray | np.ndarray):
+        if isinstance(value, bytes | bytearray) or is_ndarray(value):
             return AudioMsg(data=value)
         return super().validate(value)
 

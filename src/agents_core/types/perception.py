@@ -4,10 +4,9 @@ from __future__ import annotations
 
 from typing import Any, ClassVar
 
-import numpy as np
-import numpy.typing as npt
 from attrs import define, field
 
+from .._numpy import np, npt
 from ..errors import TypeValidationError
 from .base import SupportedType
 from .fields import Header, Message, header_field, instance_of, is_str_list, named, to_array, wire

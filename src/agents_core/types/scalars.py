@@ -7,11 +7,9 @@ import math
 from collections.abc import Sequence
 from typing import Any, ClassVar
 
-import numpy as np
-import numpy.typing as npt
-
+from .._numpy import is_ndarray, is_np_bool, is_np_integer, is_np_number, np, npt, numpy_attribute
 from ..errors import TypeValidationError
-from .base import SupportedType
+from .base import FLOAT32_MAX, SupportedType
 from .fields import as_numeric_array
 
 __all__ = ["Bool", "Float32", "Float32MultiArray", "Float64", "Float64MultiArray", "Int32", "Int64"]
@@ -24,7 +22,7 @@ class Bool(SupportedType):
 
     @classmethod
     def validate(cls, value: Any) -> Any:
-        if isinstance(value, bool | np.bool_):
+        if isinstance(value, bool) or is_np_bool(value):
             return bool(value)
         raise TypeValidationError(f"Bool expects bool, got {type(value).__name__}")
 
@@ -34,7 +32,7 @@ class Bool(SupportedType):
 
 
 def _integer(name: str, value: Any, bits: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, int | np.integer):
+    if isinstance(value, bool) or not (isinstance(value, int) or is_np_integer(value)):
         raise TypeValidationError(f"{name} expects int, got {type(value).__name__}")
     if not -(2 ** (bits - 1)) <= int(value) < 2 ** (bits - 1):
         raise TypeValidationError(f"{name} value {value} does not fit in {bits} bits")
@@ -42,11 +40,11 @@ def _integer(name: str, value: Any, bits: int) -> int:
 
 
 def _real(name: str, value: Any, single: bool) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating):
+    if isinstance(value, bool) or not (isinstance(value, int | float) or is_np_number(value)):
         raise TypeValidationError(f"{name} expects a number, got {type(value).__name__}")
-    if single and math.isfinite(float(value)) and abs(float(value)) > float(np.finfo(np.float32).max):
+    if single and math.isfinite(float(value)) and abs(float(value)) > FLOAT32_MAX:
         raise TypeValidationError(f"{name} value {value} overflows float32 (out of range: "
-                                  f"|value| <= {float(np.finfo(np.float32).max):.8g})")
+                                  f"|value| <= {FLOAT32_MAX:.8g})")
     return float(value)
 
 
@@ -105,14 +103,16 @@ class Float64(Float32):
 class Float32MultiArray(SupportedType):
     """An n-dimensional float32 numpy array; array-likes (nested lists) are converted."""
 
-    value_class = np.ndarray
-    dtype: ClassVar[type[np.generic]] = np.float32
+    # numpy.ndarray and numpy.float32, looked up when first read: registering the type imports no numpy.
+    value_class = numpy_attribute("ndarray")
+    dtype: ClassVar[type[np.generic]] = numpy_attribute("float32")
 
     @classmethod
     def validate(cls, value: Any) -> Any:
-        if isinstance(value, np.ndarray) and value.dtype == cls.dtype:
+        ndarray = is_ndarray(value)
+        if ndarray and value.dtype == cls.dtype:
             return value
-        if isinstance(value, np.ndarray | Sequence) and not isinstance(value, str | bytes):
+        if (ndarray or isinstance(value, Sequence)) and not isinstance(value, str | bytes):
             try:
                 arr: npt.NDArray[Any] = as_numeric_array(value, None, "data")
                 if arr.dtype.kind != "b":  # booleans are not numbers here, as before
@@ -129,4 +129,4 @@ class Float32MultiArray(SupportedType):
 class Float64MultiArray(Float32MultiArray):
     """An n-dimensional float64 numpy array."""
 
-    dtype = np.float64
+    dtype = numpy_attribute("float64")

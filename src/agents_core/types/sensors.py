@@ -7,10 +7,9 @@ from __future__ import annotations
 
 from typing import Any
 
-import numpy as np
-import numpy.typing as npt
 from attrs import define, field
 
+from .._numpy import is_ndarray, np, npt
 from ..errors import TypeValidationError
 from .base import SupportedType
 from .fields import (
@@ -76,11 +75,11 @@ POINT_FIELD_DTYPES = ("i1", "u1", "i2", "u2", "i4", "u4", "f4", "f8")
 
 
 def _cloud_points(value: Any) -> npt.NDArray[Any]:
-    if not isinstance(value, np.ndarray) or value.dtype.fields is None:
+    if not is_ndarray(value) or value.dtype.fields is None:
         raise TypeValidationError(
             "field 'points': expected a numpy structured array with float fields x, y, z (e.g. "
             "np.zeros(n, dtype=[('x', '<f4'), ('y', '<f4'), ('z', '<f4')])), got "
-            f"{type(value).__name__}{'' if not isinstance(value, np.ndarray) else ' of dtype ' + str(value.dtype)}"
+            f"{type(value).__name__}{'' if not is_ndarray(value) else ' of dtype ' + str(value.dtype)}"
         )
     fields = value.dtype.fields
     for axis in ("x", "y", "z"):
@@ -267,7 +266,7 @@ class PointCloud2(SupportedType):
 
     @classmethod
     def validate(cls, value: Any) -> Any:
-        if isinstance(value, np.ndarray):
+        if is_ndarray(value):
             return PointCloud2Msg(points=value)
         return super().validate(value)
 
