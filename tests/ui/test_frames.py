@@ -21,7 +21,7 @@ from agents_core.messages import (
     StreamingStringMsg,
     TrackingsMsg,
 )
-from agents_core.ui.frames import MAX_LIST_ITEMS, frame_for
+from agents_core.ui.frames import MAX_LIST_ITEMS, encode_jpeg, frame_for
 
 
 def _decoded(frame: dict) -> np.ndarray:
@@ -47,6 +47,28 @@ def test_raw_images_become_jpeg_or_png_and_compressed_ones_pass_through() -> Non
     assert depth["mime"] == "image/jpeg" and _decoded(depth).shape == (4, 4)
     packed = frame_for("c", "CompressedImage", CompressedImageMsg(data=b"\x89PNG....", format="png"))
     assert packed["mime"] == "image/png" and base64.b64decode(packed["data"]) == b"\x89PNG...."
+
+
+@pytest.mark.parametrize("fast", [True, False], ids=["simplejpeg", "pillow"])
+def test_both_jpeg_encoders_give_the_picture_back(fast: bool) -> None:
+    """simplejpeg (the ui extra's, when its wheel installed) and the Pillow fallback: the same picture, colour
+    and grey, in the same size class (quality 85, 4:2:0 both)."""
+    if fast:
+        pytest.importorskip("simplejpeg", reason="simplejpeg (the ui extra's fast JPEG) is not installed")
+    from PIL import Image  # noqa: PLC0415
+
+    ramp = np.linspace(0, 255, 160, dtype=np.uint8)
+    colour = np.stack([np.tile(ramp, (120, 1)), np.tile(ramp[::-1], (120, 1)), np.full((120, 160), 60, np.uint8)],
+                      axis=2)
+    for pixels, mode in ((colour, "RGB"), (colour[:, :, 0], "L"), (colour[::2, ::3], "RGB")):  # a strided view too
+        data = encode_jpeg(pixels, fast=fast)
+        assert data[:2] == b"\xff\xd8"
+        picture = Image.open(io.BytesIO(data))
+        assert picture.mode == mode and picture.size == (pixels.shape[1], pixels.shape[0])
+        assert np.abs(np.asarray(picture).astype(int) - pixels).mean() < 4
+    if fast:  # the two encoders agree on what they were asked for
+        slow = encode_jpeg(colour, fast=False)
+        assert 0.7 < len(encode_jpeg(colour)) / len(slow) < 1.4
 
 
 def test_detections_and_trackings_carry_boxes_labels_and_their_image() -> None:
