@@ -4,9 +4,10 @@ In one process on the memory transport: a value is published on a topic, and the
 arrives is measured, one value at a time, two ways, on separate publishes interleaved in one run (each
 round times one of each, alternating which goes first):
 
-- ``framework``: through the UI (``agents_core.ui``, a real uvicorn server on 127.0.0.1): the
-  hub's subscription encodes the frame (JSON; a JPEG for an image), the event loop fans it out,
-  and a WebSocket client (the ``websockets`` library) receives and parses it;
+- ``framework``: through the UI (``agents_core.ui``, a real uvicorn server on 127.0.0.1, its default
+  settings: no WebSocket compression): the hub's subscription encodes the frame (JSON; a JPEG for an
+  image, by simplejpeg when installed), the event loop fans it out, and a WebSocket client (the
+  ``websockets`` library) receives and parses it;
 - ``raw``: a plain transport subscription's callback receives the value, on a second topic that the UI
   does not show (on the same topic the UI's own encode could run first on the delivery path and
   inflate the raw side).
