@@ -135,11 +135,11 @@ def encode_jpeg(pixels: np.ndarray[Any, Any], quality: int = JPEG_QUALITY, *, fa
     """``pixels`` (HxW grey or HxWx3 RGB, uint8) as a JPEG.
 
     With ``simplejpeg`` installed (and ``fast``), it encodes: 20 % less time than Pillow's save for a
-    640x480 frame here (no PIL image or file object in between, and the GIL released throughout;
-    benchmarks/README.md); otherwise Pillow does, with the same quality and subsampling.
+    640x480 frame here (no PIL image or file object in between; benchmarks/README.md); otherwise, or for
+    another shape or dtype, Pillow does, with the same quality and subsampling.
     """
     encoder = _simplejpeg() if fast else None
-    if encoder is not None and pixels.ndim in (2, 3):
+    if encoder is not None and pixels.dtype == np.uint8 and (pixels.ndim == 2 or pixels.shape[2:] == (3,)):
         grey = pixels.ndim == 2
         data = np.ascontiguousarray(pixels.reshape(*pixels.shape[:2], 1) if grey else pixels)
         return bytes(encoder.encode_jpeg(data, quality=quality, colorspace="GRAY" if grey else "RGB",
