@@ -13,7 +13,8 @@ round times one of each, alternating which goes first):
   inflate the raw side).
 
 Payloads: ``string`` (a short String) and ``image`` (a 640x480 rgb8 Image, sent to the client as
-JPEG). The ratio shows what serving a browser costs over reading the topic in-process.
+JPEG; ``image_bgr8``: the same in a camera's bgr8). The ratio shows what serving a browser costs over
+reading the topic in-process.
 
 ``image_encode_floor``: the UI's JPEG encode of the same image alone (``frames.image_bytes``, timed in
 the same rounds as a third measurement) against the same raw hops: the least the ``image`` figure can
@@ -36,7 +37,8 @@ from .common import available, emit, image_pixels, percentile
 
 #: payload -> (value, the client's frames, the server's image_format)
 PAYLOADS = {"string": ("string", "json", "jpeg"), "image": ("image", "binary", "jpeg"),
-            "image_json": ("image", "json", "jpeg"), "image_raw": ("image", "binary", "raw")}
+            "image_json": ("image", "json", "jpeg"), "image_raw": ("image", "binary", "raw"),
+            "image_bgr8": ("image_bgr8", "binary", "jpeg")}
 
 
 def _value(payload: str, seq: int) -> Any:
@@ -44,6 +46,10 @@ def _value(payload: str, seq: int) -> Any:
         return f"hello robot {seq}"
     pixels = image_pixels().copy()
     pixels[0, 0, 0] = seq % 256
+    if payload == "image_bgr8":  # a camera's (OpenCV's, many ROS drivers') channel order
+        from agents_core.messages import ImageMsg  # noqa: PLC0415
+
+        return ImageMsg(data=pixels[:, :, ::-1].copy(), encoding="bgr8")
     return pixels
 
 

@@ -21,7 +21,8 @@ from agents_core.messages import (
     StreamingStringMsg,
     TrackingsMsg,
 )
-from agents_core.ui.frames import MAX_LIST_ITEMS, encode_jpeg, frame_for
+from agents_core.ui import frames
+from agents_core.ui.frames import MAX_LIST_ITEMS, encode_jpeg, frame_for, image_bytes
 
 
 def _decoded(frame: dict) -> np.ndarray:
@@ -69,6 +70,31 @@ def test_both_jpeg_encoders_give_the_picture_back(fast: bool) -> None:
     if fast:  # the two encoders agree on what they were asked for
         slow = encode_jpeg(colour, fast=False)
         assert 0.7 < len(encode_jpeg(colour)) / len(slow) < 1.4
+
+
+@pytest.mark.parametrize("fast", [True, False], ids=["simplejpeg", "pillow"])
+def test_camera_encodings_keep_their_colours(fast: bool, monkeypatch: pytest.MonkeyPatch) -> None:
+    """bgr8 / bgra8 / rgba8 / mono8 frames: simplejpeg takes their pixels as they are, Pillow (the fallback,
+    or simplejpeg absent) gets them as RGB; either way the picture is the same, and raw frames carry exact RGB."""
+    if fast:
+        pytest.importorskip("simplejpeg", reason="simplejpeg (the ui extra's fast JPEG) is not installed")
+    else:
+        monkeypatch.setattr(frames, "_simplejpeg", lambda: None)  # as if simplejpeg were not installed
+    ramp = np.linspace(0, 255, 80, dtype=np.uint8)
+    rgb = np.stack([np.tile(ramp, (60, 1)), np.full((60, 80), 200, np.uint8), np.tile(ramp[::-1], (60, 1))], axis=2)
+    alpha = np.full((60, 80, 1), 7, np.uint8)
+    cases = {"rgb8": rgb, "bgr8": rgb[:, :, ::-1].copy(), "rgba8": np.concatenate([rgb, alpha], axis=2),
+             "bgra8": np.concatenate([rgb[:, :, ::-1], alpha], axis=2), "mono8": rgb[:, :, 1].copy()}
+    for encoding, data in cases.items():
+        image = ImageMsg(data=data, encoding=encoding)
+        expected = rgb[:, :, 1] if encoding == "mono8" else rgb
+        mime, jpeg, width, height, _ = image_bytes(image, "jpeg")
+        decoded = _decoded({"data": base64.b64encode(jpeg).decode()})
+        assert (mime, width, height) == ("image/jpeg", 80, 60)
+        assert decoded.shape == expected.shape and np.abs(decoded.astype(int) - expected).mean() < 4, encoding
+        _, raw, _, _, _ = image_bytes(image, "raw")
+        shown = np.frombuffer(raw, np.uint8).reshape(60, 80, 3)
+        assert np.array_equal(shown, np.repeat(expected[:, :, None], 3, axis=2) if expected.ndim == 2 else rgb)
 
 
 def test_detections_and_trackings_carry_boxes_labels_and_their_image() -> None:
