@@ -4,15 +4,21 @@ In one process on the memory transport: a value is published on a topic, and the
 arrives is measured, one value at a time, two ways, on separate publishes interleaved in one run (each
 round times one of each, alternating which goes first):
 
-- ``framework``: through the UI (``agents_core.ui``, a real uvicorn server on 127.0.0.1): the
-  hub's subscription encodes the frame (JSON; a JPEG for an image), the event loop fans it out,
-  and a WebSocket client (the ``websockets`` library) receives and parses it;
+- ``framework``: through the UI (``agents_core.ui``, a real uvicorn server on 127.0.0.1, its default
+  settings: no WebSocket compression): the hub's subscription encodes the frame (JSON; a JPEG for an
+  image, by simplejpeg when installed), the event loop fans it out, and a WebSocket client (the
+  ``websockets`` library) receives and parses it;
 - ``raw``: a plain transport subscription's callback receives the value, on a second topic that the UI
   does not show (on the same topic the UI's own encode could run first on the delivery path and
   inflate the raw side).
 
 Payloads: ``string`` (a short String) and ``image`` (a 640x480 rgb8 Image, sent to the client as
-JPEG). The ratio shows what serving a browser costs over reading the topic in-process.
+JPEG; ``image_bgr8``: the same in a camera's bgr8). The ratio shows what serving a browser costs over
+reading the topic in-process.
+
+``image_encode_floor``: the UI's JPEG encode of the same image alone (``frames.image_bytes``, timed in
+the same rounds as a third measurement) against the same raw hops: the least the ``image`` figure can
+be, whatever the rest of the path costs.
 
 ``python -m benchmarks.ui --count N`` prints the records.
 """
@@ -31,7 +37,8 @@ from .common import available, emit, image_pixels, percentile
 
 #: payload -> (value, the client's frames, the server's image_format)
 PAYLOADS = {"string": ("string", "json", "jpeg"), "image": ("image", "binary", "jpeg"),
-            "image_json": ("image", "json", "jpeg"), "image_raw": ("image", "binary", "raw")}
+            "image_json": ("image", "json", "jpeg"), "image_raw": ("image", "binary", "raw"),
+            "image_bgr8": ("image_bgr8", "binary", "jpeg")}
 
 
 def _value(payload: str, seq: int) -> Any:
@@ -39,6 +46,10 @@ def _value(payload: str, seq: int) -> Any:
         return f"hello robot {seq}"
     pixels = image_pixels().copy()
     pixels[0, 0, 0] = seq % 256
+    if payload == "image_bgr8":  # a camera's (OpenCV's, many ROS drivers') channel order
+        from agents_core.messages import ImageMsg  # noqa: PLC0415
+
+        return ImageMsg(data=pixels[:, :, ::-1].copy(), encoding="bgr8")
     return pixels
 
 
@@ -50,8 +61,10 @@ def _latencies(payload: str, count: int, warmup: int, frames: str = "json",
     from websockets.sync.client import connect  # noqa: PLC0415
 
     from agents_core import Topic  # noqa: PLC0415
+    from agents_core.messages import ImageMsg  # noqa: PLC0415
     from agents_core.transport import MemoryTransport  # noqa: PLC0415
     from agents_core.ui import LocalRecipe, UISettings  # noqa: PLC0415
+    from agents_core.ui.frames import image_bytes  # noqa: PLC0415
     from agents_core.ui.server import UIServer  # noqa: PLC0415
 
     type_name = "String" if payload == "string" else "Image"
@@ -63,6 +76,9 @@ def _latencies(payload: str, count: int, warmup: int, frames: str = "json",
                       settings=UISettings(port=0, image_format=image_format)).start()
     publisher, raw_publisher = transport.create_publisher(shown), transport.create_publisher(raw_topic)
     out: dict[str, list[float]] = {"framework": [], "raw": []}
+    floor = payload == "image" and image_format == "jpeg"
+    if floor:
+        out["encode"] = []
     query = "topics=bench" + ("&frames=binary" if frames == "binary" else "")
     try:
         with connect(f"ws://127.0.0.1:{server.port}/api/outputs?{query}", max_size=None, open_timeout=10) as ws:
@@ -83,12 +99,20 @@ def _latencies(payload: str, count: int, warmup: int, frames: str = "json",
                     raise RuntimeError("the raw subscription got nothing in 10 s")
                 return time.perf_counter() - start
 
+            def encode(value: Any) -> float:
+                image = ImageMsg.from_array(value)
+                start = time.perf_counter()
+                image_bytes(image, image_format)
+                return time.perf_counter() - start
+
             for seq in range(warmup + count):
                 first, second = (through_ui, raw) if seq % 2 else (raw, through_ui)
-                times = {f: f(_value(payload, seq)) for f in (first, second)}
+                times = {f: f(_value(payload, seq)) for f in (first, second, *([encode] if floor else []))}
                 if seq >= warmup:
                     out["raw"].append(times[raw] * 1000)
                     out["framework"].append(times[through_ui] * 1000)
+                    if floor:
+                        out["encode"].append(times[encode] * 1000)
     finally:
         server.stop()
         raw_sub.close()
@@ -102,8 +126,12 @@ def measure(count: int, warmup: int, progress: Callable[[str], None]) -> list[di
     for payload, (value, frames, image_format) in PAYLOADS.items():
         samples = _latencies(value, count if payload == "string" else max(5, count // 4), warmup, frames,
                              image_format)
-        for mode, values in samples.items():
-            records.append({"suite": "ui", "transport": "memory", "mode": mode, "payload": payload,
+        encode = samples.pop("encode", None)
+        figures = [(payload, mode, values) for mode, values in samples.items()]
+        if encode is not None:  # the floor: the encode alone against the same raw hops
+            figures += [("image_encode_floor", "framework", encode), ("image_encode_floor", "raw", samples["raw"])]
+        for name, mode, values in figures:
+            records.append({"suite": "ui", "transport": "memory", "mode": mode, "payload": name,
                             "n": len(values), "latency_ms": {"p50": percentile(values, 50),
                                                              "p99": percentile(values, 99)}})
         fw, raw = (next(r for r in records if r["mode"] == m and r["payload"] == payload)

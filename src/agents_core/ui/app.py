@@ -400,11 +400,14 @@ def _outputs_socket(state: UIState) -> Callable[[WebSocket], Awaitable[None]]:
             async with anyio.create_task_group() as group:
 
                 async def pump() -> None:
-                    while (frame := await client.next_frame()) is not None:
-                        if isinstance(frame, bytes):
-                            await websocket.send_bytes(frame)
-                        else:
-                            await websocket.send_text(frame)
+                    try:
+                        while (frame := await client.next_frame()) is not None:
+                            if isinstance(frame, bytes):
+                                await websocket.send_bytes(frame)
+                            else:
+                                await websocket.send_text(frame)
+                    except (WebSocketDisconnect, RuntimeError):
+                        pass  # the client went away during a send: the end, not an error to log
                     group.cancel_scope.cancel()
 
                 async def listen() -> None:

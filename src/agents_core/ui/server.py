@@ -109,8 +109,9 @@ class UIServer:
         # websockets-sansio: no deprecated legacy code path; access log off (paths only, but quiet).
         # ws_max_size: the page sends nothing on its output socket, so a client's message past it is
         # hostile (closed with 1009) rather than read into memory (uvicorn's default allows 16 MiB).
+        # ws_per_message_deflate: uvicorn's default (on) deflated each image frame on the event loop.
         config = uvicorn.Config(self.app, log_level="warning", access_log=False, ws="websockets-sansio", loop="asyncio",
-                                ws_max_size=MAX_CLIENT_MESSAGE,
+                                ws_max_size=MAX_CLIENT_MESSAGE, ws_per_message_deflate=self.settings.compress_frames,
                                 lifespan="on", timeout_graceful_shutdown=2, ssl_certfile=self.settings.tls_certfile,
                                 ssl_keyfile=self.settings.tls_keyfile)
         try:

@@ -51,6 +51,10 @@ class UISettings:
     :param tls_certfile: a PEM certificate to serve HTTPS with (give ``tls_keyfile`` too); meant for
         binding off loopback, where the token would otherwise cross the network in clear.
     :param tls_keyfile: the certificate's PEM private key.
+    :param compress_frames: negotiate WebSocket compression (permessage-deflate) with clients that offer
+        it. Off by default: it deflates every frame on the event loop, and images (JPEG, or raw pixels on
+        loopback) gain little from it for ~5 ms a 640x480 frame on each side (benchmarks/README.md); on
+        for a slow link that carries mostly text.
     """
 
     host: str = "127.0.0.1"
@@ -69,6 +73,7 @@ class UISettings:
     session_seconds: float = 12 * 3600.0
     tls_certfile: str | None = None
     tls_keyfile: str | None = None
+    compress_frames: bool = False
 
     def __attrs_post_init__(self) -> None:
         if self.token is None:
