@@ -347,6 +347,8 @@ def _thread_count() -> int:
 
 
 _fork_supports: list[Any] = []
+#: Those of NOT_PRELOADED that a fork support loaded (and vouches for): importing them is safe now.
+_vouched: set[str] = set()
 
 
 def _load_fork_support(adapter: str) -> int:
@@ -369,6 +371,7 @@ def _load_fork_support(adapter: str) -> int:
         logger.debug("fork support %s failed: %s", name, exc)
         return 0
     _fork_supports.append(support)
+    _vouched.update(name for name in NOT_PRELOADED if name in sys.modules)
     return _thread_count() - before
 
 
@@ -381,7 +384,7 @@ def _preload(request: dict[str, Any]) -> int:
     vouched = _load_fork_support(adapter) if isinstance(adapter, str) and adapter else 0
     for name in map(str, request.get("modules", [])):
         top = name.partition(".")[0]
-        if top in NOT_PRELOADED and top not in sys.modules:
+        if top in NOT_PRELOADED and top not in _vouched:
             continue  # unless an adapter's fork support has loaded it, with hooks for its threads
         with contextlib.suppress(Exception):  # the component process reports the error, with context
             importlib.import_module(name)

@@ -43,19 +43,28 @@ logger = logging.getLogger(__name__)
 
 _POLL_S = 0.01
 _SHM_DIR = "/dev/shm/"
+_SHM_BYTES = _SHM_DIR.encode()
 
 
 def _mapped_shm(pid: int) -> set[str]:
     """The /dev/shm files process ``pid`` maps now (empty when it is gone)."""
-    found: set[str] = set()
+    # Read whole and searched as bytes: a middleware process maps thousands of regions, and
+    # splitting every line of every process's maps made a scan cost ~0.15 s of CPU.
     try:
-        with open(f"/proc/{pid}/maps", encoding="utf-8", errors="replace") as maps:
-            for line in maps:
-                path = line.rstrip("\n").split(maxsplit=5)[-1]
-                if path.startswith(_SHM_DIR) and "/" not in path[len(_SHM_DIR):]:
-                    found.add(path.removesuffix(" (deleted)"))
+        with open(f"/proc/{pid}/maps", "rb") as maps:
+            data = maps.read()
     except OSError:
-        pass
+        return set()
+    found: set[str] = set()
+    start = data.find(_SHM_BYTES)
+    while start != -1:
+        end = data.find(b"\n", start)
+        end = len(data) if end == -1 else end
+        if data[start - 1:start] == b" ":  # the pathname field starts here (not a path merely containing it)
+            path = data[start:end].decode("utf-8", "replace").rstrip()
+            if "/" not in path[len(_SHM_DIR):]:
+                found.add(path.removesuffix(" (deleted)"))
+        start = data.find(_SHM_BYTES, end)
     return found
 
 
