@@ -163,3 +163,16 @@ def test_a_ros2_respawn_is_forked_by_the_server_and_answers(ros2_started: Launch
     assert child.crashes == 1 and child.restarts == 1
     assert isinstance(child.proc, ForkedProcess) and _ppid(child.pid) == fork_server().pid
     assert _answer(ros2_started)[1] == child.pid
+
+
+def test_the_adapter_module_is_found_for_names_and_transport_objects() -> None:
+    assert fs.adapter_module("ros2") == "agents_ros2.transport"
+    assert fs.adapter_module("zenoh") == "agents_zenoh.transport"
+    assert fs.adapter_module("no-such-transport") is None
+    # A transport object: its own class's module, or its driver's when the class is the core's wrapper.
+    assert fs.adapter_module(WhereAmI.__new__(WhereAmI)) == "tests.launch.forked_components"
+    from agents_core.transport.core import DriverTransport  # noqa: PLC0415
+
+    wrapper = DriverTransport.__new__(DriverTransport)
+    wrapper.driver = _support("x", [])  # type: ignore[assignment]  # any object from another module
+    assert fs.adapter_module(wrapper) == "types"

@@ -313,11 +313,20 @@ def _close_server() -> None:
 def adapter_module(transport: object) -> str | None:
     """The module of the transport adapter ``transport`` (a name or a transport object) names, if known."""
     if transport is None or isinstance(transport, str):
-        from ..transport.registry import TRANSPORT_ALIASES, TRANSPORT_ENV_VAR  # noqa: PLC0415
+        from ..transport.registry import ENTRY_POINT_GROUP, TRANSPORT_ALIASES, TRANSPORT_ENV_VAR  # noqa: PLC0415
 
         name = transport or os.environ.get(TRANSPORT_ENV_VAR, "").strip()
-        return TRANSPORT_ALIASES[name][0].partition(":")[0] if name in TRANSPORT_ALIASES else None
-    return type(transport).__module__
+        if name in TRANSPORT_ALIASES:
+            return TRANSPORT_ALIASES[name][0].partition(":")[0]
+        if not name:
+            return None
+        from importlib.metadata import entry_points  # noqa: PLC0415  # a third-party adapter's, by its name
+
+        found = [ep.value for ep in entry_points(group=ENTRY_POINT_GROUP) if ep.name == name]
+        return found[0].partition(":")[0].strip() if found else None
+    driver = getattr(transport, "driver", None)  # a DriverTransport around a third-party driver
+    module = type(transport).__module__
+    return type(driver).__module__ if driver is not None and module.startswith("agents_core.") else module
 
 
 def prepare(modules: Iterable[str], path: Iterable[str] = (), adapter: str | None = None) -> ForkServer | None:
