@@ -41,8 +41,9 @@ _hooks: tuple[Callable[[int], None], ...] | None = None
 _saved_mask = ctypes.create_string_buffer(_SIGSET_BYTES)
 
 
-def _lttng_library() -> str | None:
-    """The path of the LTTng-UST library this process has loaded, if any."""
+def _lttng_libraries() -> set[str]:
+    """The paths of the LTTng-UST libraries this process has loaded (one, or none, in practice)."""
+    found: set[str] = set()
     try:
         with open("/proc/self/maps", encoding="utf-8", errors="replace") as maps:
             for line in maps:
@@ -50,16 +51,19 @@ def _lttng_library() -> str | None:
                 name = os.path.basename(path)
                 if name.startswith("liblttng-ust") and ".so" in name and not name.startswith(
                         ("liblttng-ust-tracepoint", "liblttng-ust-fork", "liblttng-ust-common", "liblttng-ust-ctl")):
-                    return path
+                    found.add(path)
     except OSError:
         pass
-    return None
+    return found
 
 
 def _find_hooks() -> tuple[Callable[[int], None], ...] | None:
-    path = _lttng_library()
-    if path is None:
+    paths = _lttng_libraries()
+    if not paths:
         return None
+    if len(paths) > 1:  # each copy has its own threads and lock; the server refuses to vouch for them
+        raise RuntimeError(f"several LTTng-UST libraries are loaded ({sorted(paths)}): forking is unsafe")
+    path = paths.pop()
     library = ctypes.CDLL(path, mode=os.RTLD_NOLOAD | os.RTLD_GLOBAL)
     for prefix in ("lttng_ust_", "ust_"):
         try:
