@@ -37,8 +37,10 @@ METRICS: dict[str, list[tuple[str, str, str, str]]] = {
     "cortex": [("overhead_p50", "ms", "lower", "latency_ms.p50"), ("overhead_p99", "ms", "lower", "latency_ms.p99")],
     # framework: the five-stage recipe with multiprocessing=True; raw: the same recipe in one process.
     # respawn: SIGKILL of a component process -> its new process active (multiprocessing only).
+    # uss_per_process: memory only one component process holds (multiprocessing only; target <= 40 MB).
     "processes": [("start_to_active", "ms", "lower", "median_ms"),
-                  ("respawn_to_active", "ms", "lower", "respawn_median_ms")],
+                  ("respawn_to_active", "ms", "lower", "respawn_median_ms"),
+                  ("uss_per_process", "MB", "lower", "uss_median_mb")],
     # framework: a topic value -> the web UI's WebSocket client; raw: a plain subscription's callback.
     "ui": [("latency_p50", "ms", "lower", "latency_ms.p50"), ("latency_p99", "ms", "lower", "latency_ms.p99")],
     # a goal with N feedbacks, sent to its result: send_goal / create_action_server vs raw zenoh queryables

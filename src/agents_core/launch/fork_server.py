@@ -16,13 +16,25 @@ component process, cheaply, since everything it imports is loaded) and counts it
 at first use): its OpenBLAS pool stops its threads around a fork (``pthread_atfork``), and the count
 after the base imports is the baseline. A
 preloaded module that starts more threads makes the server refuse to fork, and the launcher
-falls back to a fresh interpreter per component. ROS 2's client library starts threads when it
-is loaded, so it is never preloaded: a ROS 2 component process loads it after the fork.
+falls back to a fresh interpreter per component.
+
+A transport adapter may declare what else the server imports, and how to fork safely with it,
+in a module of its package named ``fork_support`` (``agents_ros2.fork_support``; the core finds
+it by that name and never imports the middleware itself). The module must import no middleware
+when loaded; it provides ``preload()`` (import the adapter, the middleware's modules, its
+generated message types: no context, no session, nothing initialised) and may provide
+``before_fork()`` (raise to refuse the fork), ``after_fork_parent()`` and ``after_fork_child()``,
+called around each fork. The threads ``preload()`` starts are the adapter's to make safe with
+those hooks (ROS 2's tracing library starts two, and exports hooks for this very purpose); they
+join the baseline. Without such a module, the middleware packages named in
+:data:`NOT_PRELOADED` (ROS 2's client library starts threads when it is loaded) are never
+preloaded: a component process loads them after the fork.
 
 The protocol, on a ``SOCK_SEQPACKET`` Unix socket pair (one JSON object per packet):
 
-* launcher -> server ``{"op": "preload", "modules": [...], "path": [...]}``: import these (the
-  path entries go in front of ``sys.path``); errors are ignored (the component process reports them).
+* launcher -> server ``{"op": "preload", "modules": [...], "path": [...], "adapter": "..."}``: load
+  the adapter's ``fork_support`` (if it has one), then import the modules (the path entries go in
+  front of ``sys.path``); errors are ignored (the component process reports them).
 * launcher -> server ``{"op": "fork", "id": n, "name": ...}`` with two descriptors attached
   (``SCM_RIGHTS``): the read end of the component's command pipe (its stdin) and the write end
   of its report pipe. The reply is ``{"id": n, "pid": p}`` or ``{"id": n, "error": "..."}``.
@@ -45,6 +57,7 @@ import argparse
 import atexit
 import contextlib
 import importlib
+import importlib.util
 import json
 import logging
 import os
@@ -55,7 +68,7 @@ import subprocess
 import sys
 import threading
 import time
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from typing import IO, Any
 
 __all__ = [
@@ -78,8 +91,11 @@ PROCESS_START_ENV = "AGENTS_PROCESS_START"
 #: message types import it only at first use, and its OpenBLAS pool must be in the thread baseline.
 BASE_MODULES = ("numpy", "agents_core.launch.child", "agents_core.launch.spec", "agents_core.launch.recipe_import",
                 "agents_core.transport.registry", "agents_core.components.component_base")
-#: Never imported by the server: they start threads when loaded (rclpy's middleware libraries).
+#: Not imported by the server unless an adapter's fork support loaded them: they start threads when
+#: loaded (rclpy's tracing library).
 NOT_PRELOADED = ("agents_ros2", "rclpy")
+#: The module of an adapter's package that says what the server may preload for it (see above).
+FORK_SUPPORT_MODULE = "fork_support"
 #: How long a fork request may wait for its reply.
 FORK_TIMEOUT_S = 10.0
 _MAX_PACKET = 1 << 20
@@ -117,12 +133,16 @@ class ForkedProcess:
         self.pid = pid
         self.stdin: IO[bytes] | None = stdin
         self.returncode: int | None = None
+        #: Called (on the server's reader thread) once the process has ended.
+        self.on_exit: Callable[[], None] | None = None
         self._server = server
         self._exited = threading.Event()
 
     def set_exit(self, status: int) -> None:
         self.returncode = status
         self._exited.set()
+        if self.on_exit is not None:
+            self.on_exit()
 
     def poll(self) -> int | None:
         if self.returncode is None and self._server.gone and not _alive(self.pid):
@@ -193,9 +213,12 @@ class ForkServer:
             except OSError as exc:
                 raise ForkServerError(f"the fork server is gone: {exc}") from exc
 
-    def preload(self, modules: Iterable[str], path: Iterable[str] = ()) -> None:
-        """Have the server import ``modules`` (with ``path`` in front of its ``sys.path``); no reply."""
-        self._send({"op": "preload", "modules": sorted(set(modules)), "path": list(path)})
+    def preload(self, modules: Iterable[str], path: Iterable[str] = (), adapter: str | None = None) -> None:
+        """Have the server import ``modules`` (with ``path`` in front of its ``sys.path``); no reply.
+
+        ``adapter``: the transport adapter's module, whose package's ``fork_support`` is loaded first.
+        """
+        self._send({"op": "preload", "modules": sorted(set(modules)), "path": list(path), "adapter": adapter})
 
     def fork(self, name: str, stdin_read: int, report_write: int, stdin_write: int) -> ForkedProcess:
         """A new component process reading commands from ``stdin_read`` and reporting on ``report_write``.
@@ -292,18 +315,31 @@ def _close_server() -> None:
 def adapter_module(transport: object) -> str | None:
     """The module of the transport adapter ``transport`` (a name or a transport object) names, if known."""
     if transport is None or isinstance(transport, str):
-        from ..transport.registry import TRANSPORT_ALIASES, TRANSPORT_ENV_VAR  # noqa: PLC0415
+        from ..transport.registry import ENTRY_POINT_GROUP, TRANSPORT_ALIASES, TRANSPORT_ENV_VAR  # noqa: PLC0415
 
         name = transport or os.environ.get(TRANSPORT_ENV_VAR, "").strip()
-        return TRANSPORT_ALIASES[name][0].partition(":")[0] if name in TRANSPORT_ALIASES else None
-    return type(transport).__module__
+        if name in TRANSPORT_ALIASES:
+            return TRANSPORT_ALIASES[name][0].partition(":")[0]
+        if not name:
+            return None
+        from importlib.metadata import entry_points  # noqa: PLC0415  # a third-party adapter's, by its name
+
+        found = [ep.value for ep in entry_points(group=ENTRY_POINT_GROUP) if ep.name == name]
+        return found[0].partition(":")[0].strip() if found else None
+    driver = getattr(transport, "driver", None)  # a DriverTransport around a third-party driver
+    module = type(transport).__module__
+    return type(driver).__module__ if driver is not None and module.startswith("agents_core.") else module
 
 
-def prepare(modules: Iterable[str], path: Iterable[str] = ()) -> ForkServer | None:
-    """Start the fork server if needed and have it import ``modules``; None where it cannot run."""
+def prepare(modules: Iterable[str], path: Iterable[str] = (), adapter: str | None = None) -> ForkServer | None:
+    """Start the fork server if needed and have it import ``modules`` (and what ``adapter`` declares).
+
+    None where it cannot run.
+    """
     try:
         server = fork_server()
-        server.preload([*BASE_MODULES, *(m for m in modules if m and m != "__main__")], path)
+        server.preload([*BASE_MODULES, *(m for m in modules if m and m != "__main__"), *([adapter] if adapter else [])],
+                       path, adapter)
     except (OSError, ForkServerError) as exc:
         logger.warning("cannot use a fork server for component processes (%s): starting each in a fresh "
                        "interpreter", exc)
@@ -321,15 +357,71 @@ def _thread_count() -> int:
         return threading.active_count()
 
 
-def _preload(request: dict[str, Any]) -> None:
+_fork_supports: list[Any] = []
+#: Those of NOT_PRELOADED that a fork support loaded (and vouches for): importing them is safe now.
+_vouched: set[str] = set()
+
+
+def _load_fork_support(adapter: str) -> int:
+    """Load the ``fork_support`` of ``adapter``'s package and run its ``preload()``; the threads it started."""
+    name = f"{adapter.partition('.')[0]}.{FORK_SUPPORT_MODULE}"
+    if any(support.__name__ == name for support in _fork_supports):
+        return 0
+    try:
+        if importlib.util.find_spec(name) is None:
+            return 0
+    except (ImportError, ValueError):
+        return 0
+    before = _thread_count()
+    try:
+        support = importlib.import_module(name)
+        preload = getattr(support, "preload", None)
+        if callable(preload):
+            preload()
+    except Exception as exc:  # the adapter is unusable here: the component process reports why
+        logger.debug("fork support %s failed: %s", name, exc)
+        return 0
+    _fork_supports.append(support)
+    _vouched.update(name for name in NOT_PRELOADED if name in sys.modules)
+    return _thread_count() - before
+
+
+def _preload(request: dict[str, Any]) -> int:
+    """Import what ``request`` names; the threads the adapter's fork support started (it vouches for them)."""
     for entry in reversed([str(p) for p in request.get("path", [])]):
         if entry not in sys.path:
             sys.path.insert(0, entry)
+    adapter = request.get("adapter")
+    vouched = _load_fork_support(adapter) if isinstance(adapter, str) and adapter else 0
     for name in map(str, request.get("modules", [])):
-        if name.partition(".")[0] in NOT_PRELOADED:
-            continue
+        top = name.partition(".")[0]
+        if top in NOT_PRELOADED and top not in _vouched:
+            continue  # unless an adapter's fork support has loaded it, with hooks for its threads
         with contextlib.suppress(Exception):  # the component process reports the error, with context
             importlib.import_module(name)
+    return vouched
+
+
+def _run_hooks(supports: list[Any], step: str) -> None:
+    for support in supports:
+        hook = getattr(support, step, None)
+        if callable(hook):
+            hook()
+
+
+def _fork() -> int:
+    """``os.fork()`` between the adapters' hooks; raises when one refuses (or the fork fails)."""
+    prepared: list[Any] = []  # those whose before_fork ran: only they get an after_fork_*
+    try:
+        for support in _fork_supports:
+            _run_hooks([support], "before_fork")
+            prepared.append(support)
+        pid = os.fork()
+    except BaseException:
+        _run_hooks(prepared, "after_fork_parent")
+        raise
+    _run_hooks(prepared, "after_fork_child" if pid == 0 else "after_fork_parent")
+    return pid
 
 
 def _reap(sock: socket.socket) -> None:
@@ -375,7 +467,7 @@ def serve(sock: socket.socket, baseline_threads: int) -> tuple[int, int, str] | 
             continue
         if request.get("op") == "preload":
             with contextlib.suppress(TypeError):
-                _preload(request)
+                baseline_threads += _preload(request)
             continue
         reply: dict[str, Any] = {"id": request.get("id")}
         if len(fds) != 2:
@@ -383,7 +475,11 @@ def serve(sock: socket.socket, baseline_threads: int) -> tuple[int, int, str] | 
         elif _thread_count() > baseline_threads:
             reply["error"] = "an imported module started a thread in the fork server: forking is unsafe"
         else:
-            pid = os.fork()
+            try:
+                pid = _fork()
+            except Exception as exc:
+                pid = -1
+                reply["error"] = f"cannot fork: {exc}"
             if pid == 0:
                 signal.set_wakeup_fd(-1)
                 signal.signal(signal.SIGCHLD, signal.SIG_DFL)
@@ -391,7 +487,8 @@ def serve(sock: socket.socket, baseline_threads: int) -> tuple[int, int, str] | 
                     os.close(fd)
                 sock.close()
                 return fds[0], fds[1], str(request.get("name", ""))
-            reply["pid"] = pid
+            if pid > 0:
+                reply["pid"] = pid
         for fd in fds:
             os.close(fd)
         sock.send(json.dumps(reply).encode())

@@ -407,8 +407,8 @@ class Launcher:
         if not self._multiprocessing or self._process_start != "fork" or (
                 recipe_import is not None and recipe_import.importing_recipe()):
             return  # a component process importing its recipe never starts a server
-        modules = {type(c).__module__ for c in self.components} | {adapter_module(self._transport_spec) or ""}
-        self._fork_server = prepare(modules, sys.path)
+        modules = {type(c).__module__ for c in self.components}
+        self._fork_server = prepare(modules, sys.path, adapter_module(self._transport_spec))
 
     def _start_processes(self) -> None:
         from .spec import ComponentSpec, check_rebuild  # noqa: PLC0415
