@@ -53,6 +53,10 @@ if TYPE_CHECKING:
 
 __all__ = ["ComponentRuntime", "describe_trigger", "is_algorithm_failure"]
 
+# Read for every input value and every step: an enum member looked up once (a class attribute
+# lookup on an Enum costs ~0.1 µs on Python 3.11).
+_ACTIVE = LifecycleState.ACTIVE
+
 
 def is_algorithm_failure(exc: BaseException) -> bool:
     """Whether a step's exception is an ALGORITHM_FAILURE rather than a COMPONENT_FAILURE.
@@ -357,7 +361,7 @@ class ComponentRuntime:
         worker = self._worker
         if worker is None:
             return
-        if self.lifecycle.state != LifecycleState.ACTIVE or not self._accepting_steps:
+        if self.lifecycle.state != _ACTIVE or not self._accepting_steps:
             # Arrived while (de)activating: discarded, and counted as such.
             worker.count_discarded()
             return
@@ -376,7 +380,7 @@ class ComponentRuntime:
         self._logger.debug("discarded an output on %r: the component was deactivated during the step", topic_name)
 
     def _run_step(self, kwargs: dict[str, Any], snapshot: tuple[str, Any] | None, epoch: int) -> None:
-        if self.lifecycle.state != LifecycleState.ACTIVE or epoch != self._epoch:
+        if self.lifecycle.state != _ACTIVE or epoch != self._epoch:
             return
         c = self._component
         cb = None
