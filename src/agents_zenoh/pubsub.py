@@ -26,8 +26,11 @@ _ATTACHMENT = struct.Struct(">B4sBQ9sBQ")
 _SEQ_KEY, _STAMP_KEY = b"\xa3seq", b"\xa8stamp_ns"
 
 
+_PACK_ATTACHMENT = _ATTACHMENT.pack
+
+
 def _attachment(seq: int, stamp_ns: int) -> bytes:
-    return _ATTACHMENT.pack(0x82, _SEQ_KEY, 0xCF, seq, _STAMP_KEY, 0xCF, stamp_ns)
+    return _PACK_ATTACHMENT(0x82, _SEQ_KEY, 0xCF, seq, _STAMP_KEY, 0xCF, stamp_ns)
 
 
 _PUT = zenoh.SampleKind.PUT
@@ -63,6 +66,8 @@ class ZenohPublisher:
         else:
             self._pub = context.session.declare_publisher(key, **options)
             self._match_deadline = time.monotonic() + context.match_timeout
+        # Bound once: send() runs for every value.
+        self._put = self._pub.put
         # For graph discovery (agents_zenoh.graph): who publishes what, seen by any peer.
         self._token = EntityToken(context, "pub", topic)
 
@@ -75,10 +80,11 @@ class ZenohPublisher:
         with self._lock:
             # Under the lock: the reusable buffer is shared, and sequence numbers follow put order.
             payload = self._encode(value, self._buffer)
-            attachment = _attachment(self._seq, time.time_ns())
-            self._seq += 1
+            seq = self._seq
+            self._seq = seq + 1
             try:
-                self._pub.put(payload, attachment=attachment)
+                self._put(payload, attachment=_PACK_ATTACHMENT(0x82, _SEQ_KEY, 0xCF, seq, _STAMP_KEY, 0xCF,
+                                                               time.time_ns()))
             except zenoh.ZError as exc:
                 self._context.check_open(f"publish on {self.topic.name!r}")
                 raise TransportError(f"publishing on {self.topic.name!r} failed: {exc}") from exc

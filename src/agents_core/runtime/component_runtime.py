@@ -18,6 +18,7 @@ An ACTION_SERVER component whose class sets ``_action_type`` serves goals on
 
 from __future__ import annotations
 
+import functools
 import threading
 import time
 from collections.abc import Callable, Mapping
@@ -51,6 +52,10 @@ if TYPE_CHECKING:
     from .hooks import ComponentHooks
 
 __all__ = ["ComponentRuntime", "describe_trigger", "is_algorithm_failure"]
+
+# Read for every input value and every step: an enum member looked up once (a class attribute
+# lookup on an Enum costs ~0.1 µs on Python 3.11).
+_ACTIVE = LifecycleState.ACTIVE
 
 
 def is_algorithm_failure(exc: BaseException) -> bool:
@@ -353,14 +358,16 @@ class ComponentRuntime:
 
     def submit_step(self, kwargs: dict[str, Any], snapshot: tuple[str, Any] | None = None) -> None:
         """Queue one ``_execution_step(**kwargs)``; ``snapshot`` is (trigger topic, the value that fired)."""
-        if self._worker is None:
+        worker = self._worker
+        if worker is None:
             return
-        if self.state != LifecycleState.ACTIVE or not self._accepting_steps:
+        if self.lifecycle.state != _ACTIVE or not self._accepting_steps:
             # Arrived while (de)activating: discarded, and counted as such.
-            self._worker.count_discarded()
+            worker.count_discarded()
             return
-        epoch = self._epoch
-        self._worker.submit_step(lambda: self._run_step(kwargs, snapshot, epoch))
+        # A partial, not a lambda: this runs on the transport's thread for every input value, and
+        # the worker then calls _run_step without an extra Python frame.
+        worker.submit_step(functools.partial(self._run_step, kwargs, snapshot, self._epoch))
 
     def in_overtaken_step(self) -> bool:
         """True on the worker thread, in a step that a deactivate has overtaken."""
@@ -373,7 +380,7 @@ class ComponentRuntime:
         self._logger.debug("discarded an output on %r: the component was deactivated during the step", topic_name)
 
     def _run_step(self, kwargs: dict[str, Any], snapshot: tuple[str, Any] | None, epoch: int) -> None:
-        if self.state != LifecycleState.ACTIVE or epoch != self._epoch:
+        if self.lifecycle.state != _ACTIVE or epoch != self._epoch:
             return
         c = self._component
         cb = None

@@ -93,10 +93,33 @@ def header_from_ros(header: RosHeader) -> m.Header:
 
 def seq(typecode: str, values: npt.ArrayLike, dtype: type[np.generic]) -> array.array[Any]:
     """A numeric ROS sequence field: rclpy takes an ``array.array`` of the field's type without a per-item check."""
+    data = np.ascontiguousarray(values, dtype=dtype)
+    received = _received_sequence(data, typecode)
+    if received is not None:
+        return received
     out = array.array(typecode)
     # frombytes reads the array's buffer directly: one copy of the data (tobytes() would add one).
-    out.frombytes(np.ascontiguousarray(values, dtype=dtype).data.cast("B"))
+    out.frombytes(data.data.cast("B"))
     return out
+
+
+def _received_sequence(data: npt.NDArray[Any], typecode: str) -> array.array[Any] | None:
+    """The ``array.array`` of a received ROS message that ``data`` views whole, else None.
+
+    A value decoded from a ROS message views its sequence without a copy (:func:`as_numpy`); when
+    a component publishes it again unchanged (a relay, a filter that passes frames on), its
+    ``array.array`` is sent as it is instead of being copied (~0.9 MB for a 640x480 image).
+    rclpy only reads a message's sequences when it publishes.
+    """
+    base: Any = data
+    while isinstance(base, np.ndarray):
+        base = base.base
+    source = base.obj if isinstance(base, memoryview) else None
+    if (not isinstance(source, array.array) or source.typecode != typecode
+            or data.nbytes != len(source) * source.itemsize or not data.nbytes):
+        return None
+    # Same bytes: the view starts where the array's buffer starts and covers all of it.
+    return source if data.__array_interface__["data"][0] == source.buffer_info()[0] else None
 
 
 def as_numpy(values: Any, dtype: type[np.generic]) -> npt.NDArray[Any]:
