@@ -128,7 +128,8 @@ def test_a_client_that_goes_away_mid_goal_leaves_the_server_serving() -> None:
         gone.get(f"{ACTION}/@action/stream", on_reply, payload=msgpack.packb(request), encoding=MSGPACK, timeout=30.0,
                  consolidation=zenoh.ConsolidationMode.NONE)  # every reply as it comes, not the latest at the end
         assert first.wait(5.0)
-        assert replies[0] == {"kind": "goal", "accepted": True, "reason": ""}
+        # The acceptance carries the goal's first status (EXECUTING): one reply for both.
+        assert replies[0] == {"kind": "goal", "accepted": True, "reason": "", "status": int(GoalStatus.EXECUTING)}
         assert wait_for(lambda: any(r.get("kind") == "feedback" for r in replies), timeout=5.0)
         gone.close()
         assert wait_for(lambda: server.statistics().succeeded == 1, timeout=10.0)

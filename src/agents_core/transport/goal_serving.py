@@ -38,7 +38,7 @@ from .goal_threads import ReusedThreads
 from .goals import ActionType, GoalClient, GoalHandle, GoalStatus
 
 if TYPE_CHECKING:
-    from .driver import DriverActionServer, DriverGoal, TransportDriver
+    from .driver import DriverActionServer, DriverGoal, Lane, TransportDriver
 
 __all__ = [
     "ActionServerStatistics",
@@ -174,9 +174,11 @@ class CoreActionServer:
             handle = self._running.get(goal_id)
             if handle is None or goal_id in self._threads:
                 return
+            name = f"{self.name}:goal:{goal_id[:8]}"
+            # Decided on one of this server's threads (see lane()): the goal runs on it next.
+            thread = self._workers.then(lambda: self._run(handle), name)
             try:
-                self._threads[goal_id] = self._workers.run(lambda: self._run(handle),
-                                                           f"{self.name}:goal:{goal_id[:8]}")
+                self._threads[goal_id] = thread or self._workers.run(lambda: self._run(handle), name)
             except RuntimeError:  # closed meanwhile: close() aborts the goal
                 return
 
@@ -209,6 +211,25 @@ class CoreActionServer:
                 if left <= 0:
                     return None
                 self._lock.wait(left)
+
+    def lane(self, fallback: Lane) -> Lane:
+        """Where the driver runs this server's goal and cancel requests: on one of its goal threads.
+
+        A goal accepted there then runs on the same thread (no hand-off, see :meth:`on_accepted`).
+        The accept callback is user code, so it never runs on the middleware's thread either way.
+        While :data:`MAX_RUNNING_GOALS` threads are busy (goals, or a peer's flood of requests),
+        requests queue on ``fallback`` (the owner's request lane) instead of starting more threads.
+        """
+        def submit(job: Callable[[], None]) -> None:
+            if self._workers.busy < MAX_RUNNING_GOALS:
+                try:
+                    self._workers.run(job, f"{self.name}:goal-request")
+                    return
+                except RuntimeError:  # closed: the owner's lane drops it as it drops every late request
+                    pass
+            fallback(job)
+
+        return submit
 
     def reject(self, reason: object) -> None:
         """Count a request from the network that did not decode."""

@@ -10,11 +10,14 @@ long as it runs.
 
 from __future__ import annotations
 
+import logging
 import queue
 import threading
 from collections.abc import Callable
 
 __all__ = ["IDLE_S", "ReusedThreads"]
+
+logger = logging.getLogger(__name__)
 
 #: How long a thread with no job waits for the next before it ends.
 IDLE_S = 2.0
@@ -28,6 +31,8 @@ class _Worker:
     def __init__(self) -> None:
         self.mailbox: queue.SimpleQueue[tuple[Job, str] | None] = queue.SimpleQueue()
         self.thread: threading.Thread | None = None
+        # A job to run on this thread as soon as the current one returns (see ReusedThreads.then).
+        self.then: tuple[Job, str] | None = None
 
 
 class ReusedThreads:
@@ -42,7 +47,9 @@ class ReusedThreads:
         self._idle_s = idle_s
         self._lock = threading.Lock()
         self._idle: list[_Worker] = []
+        self._busy = 0
         self._closed = False
+        self._local = threading.local()
 
     def run(self, job: Job, name: str) -> threading.Thread:
         """Run ``job`` on an idle thread (renamed ``name`` while it runs) or a new one; returns that thread.
@@ -52,6 +59,7 @@ class ReusedThreads:
         with self._lock:
             if self._closed:
                 raise RuntimeError(f"threads {self._name!r} are closed")
+            self._busy += 1
             if self._idle:
                 worker = self._idle.pop()
                 # Put under the lock: a worker whose wait just ran out finds it (see _loop).
@@ -61,23 +69,53 @@ class ReusedThreads:
         worker = _Worker()
         worker.mailbox.put((job, name))
         worker.thread = threading.Thread(target=self._loop, args=(worker,), name=name, daemon=True)
-        worker.thread.start()
+        try:
+            worker.thread.start()
+        except BaseException:
+            with self._lock:
+                self._busy -= 1
+            raise
         return worker.thread
+
+    def then(self, job: Job, name: str) -> threading.Thread | None:
+        """Run ``job`` on the calling thread right after its current job returns (no hand-off).
+
+        Returns the thread, or None when the caller is not one of these threads (nothing is queued then).
+        """
+        worker: _Worker | None = getattr(self._local, "worker", None)
+        if worker is None or worker.then is not None:
+            return None
+        worker.then = (job, name)
+        return worker.thread
+
+    @property
+    def busy(self) -> int:
+        """How many threads run a job now."""
+        return self._busy
 
     def _loop(self, worker: _Worker) -> None:
         me = threading.current_thread()
+        self._local.worker = worker
         item = worker.mailbox.get()
         while item is not None:
-            job, name = item
-            me.name = name
             try:
-                job()
+                while item is not None:
+                    job, name = item
+                    me.name = name
+                    try:
+                        job()
+                    except Exception:  # a job's own error must not take the thread (and its count) down
+                        logger.exception("a job on thread %r raised", name)
+                    item, worker.then = worker.then, None
             finally:
                 me.name = self._name
-            with self._lock:
-                if self._closed:
-                    return
-                self._idle.append(worker)
+                with self._lock:
+                    self._busy -= 1
+                    closed = self._closed
+                    if not closed:
+                        self._idle.append(worker)
+            if closed:
+                return
             try:
                 item = worker.mailbox.get(timeout=self._idle_s)
             except queue.Empty:
