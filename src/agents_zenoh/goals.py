@@ -28,15 +28,16 @@ traffic out of ``<ns>/**`` topic subscriptions.
 
 The stream is the fast path (one round trip: the framework's client uses it): the goal's decision,
 feedback, status changes and result are replies to the one query, so they arrive in order and the
-result needs no second query. An accepted goal's decision waits for its first event (EXECUTING,
-sent as the goal's thread starts, right after the decision) and goes in the same reply; the
-terminal status sample goes after the result reply, off the client's path. The server keeps the
-query while the goal runs, until ``stream_s`` seconds (the client's query timeout, capped at an
-hour) after it came; past that the goal's feedback goes out as samples again and its client follows it with result queries. The two-query
-form (``goal`` then ``result`` queries, feedback as samples) stays for clients written for it and
-for a client whose stream ended before the result: a result query is held (one sweeper thread per
-server answers ``pending`` when its wait runs out, never a thread per query) and answered when the
-goal ends, with ``"feedback_sent": n``, the number of feedback messages the goal produced.
+result needs no second query. An accepted goal's decision waits for its first event (EXECUTING, sent
+as the goal's thread starts, right after the decision) and goes in the same reply; the terminal
+status sample goes after the result reply, off the client's path. The server keeps the query while
+the goal runs, until ``stream_s`` seconds (the client's query timeout, capped at an hour) after it
+came; past that the goal's feedback goes out as samples again and its client follows it with result
+queries. The two-query form (``goal`` then ``result`` queries, feedback as samples) stays for
+clients written for it and for a client whose stream ended before the result: a result query is held
+(one sweeper thread per server answers ``pending`` when its wait runs out, never a thread per query)
+and answered when the goal ends, with ``"feedback_sent": n``, the number of feedback messages the
+goal produced.
 
 Goal and cancel queries (stream ones included) are decided on the owner's request lane (the
 server's ``accept`` is user code). A cancel is its own query on ``cancel``: it must carry the
