@@ -39,8 +39,9 @@ clients written for it and for a client whose stream ended before the result: a 
 and answered when the goal ends, with ``"feedback_sent": n``, the number of feedback messages the
 goal produced.
 
-Goal and cancel queries (stream ones included) are decided on the owner's request lane (the
-server's ``accept`` is user code). A cancel is its own query on ``cancel``: it must carry the
+Goal and cancel queries (stream ones included) are decided on the lane the core gives (the server's
+``accept`` is user code): one of the action server's goal threads, which then runs the goal it
+accepted, or the owner's request lane while all of them are busy. A cancel is its own query on ``cancel``: it must carry the
 goal's ``cancel_token`` (known only to the client and the server, since goal ids travel in key
 expressions any peer can read); a goal sent without a token can be cancelled by its id alone.
 """
