@@ -41,9 +41,10 @@ goal produced.
 
 Goal and cancel queries (stream ones included) are decided on the lane the core gives (the server's
 ``accept`` is user code): one of the action server's goal threads, which then runs the goal it
-accepted, or the owner's request lane while all of them are busy. A cancel is its own query on ``cancel``: it must carry the
-goal's ``cancel_token`` (known only to the client and the server, since goal ids travel in key
-expressions any peer can read); a goal sent without a token can be cancelled by its id alone.
+accepted, or the owner's request lane while all of them are busy. A cancel is its own query on
+``cancel``: it must carry the goal's ``cancel_token`` (known only to the client and the server,
+since goal ids travel in key expressions any peer can read); a goal sent without a token can be
+cancelled by its id alone.
 """
 
 from __future__ import annotations
