@@ -106,6 +106,10 @@ class ZenohActionServer:
         self._wake = threading.Condition(self._lock)
         # The open stream query of each goal sent on one, with the time its client stops listening.
         self._streams: dict[str, tuple[zenoh.Query, float]] = {}
+        # Held while a stream query is replied to or ended: a goal's thread and a cancel's thread
+        # may reply on the same query at once, which zenoh refuses ("Already borrowed"). Taken
+        # after self._lock where both are held, never the other way round.
+        self._replying = threading.Lock()
         # The decision of each accepted stream goal, until its first event sends it (see _decide).
         self._undecided: dict[str, dict[str, Any]] = {}
         # Goals whose terminal status sample waits for their result reply (see status()).
@@ -196,9 +200,11 @@ class ZenohActionServer:
         if stream is None or decision is None:
             return False
         if status is None:
-            answer(stream, {"kind": KIND_GOAL, **decision})
+            with self._replying:
+                answer(stream, {"kind": KIND_GOAL, **decision})
             return False
-        answer(stream, {"kind": KIND_GOAL, **decision, "status": int(status)})
+        with self._replying:
+            answer(stream, {"kind": KIND_GOAL, **decision, "status": int(status)})
         return True
 
     def _stream_of(self, goal_id: str) -> zenoh.Query | None:
@@ -209,7 +215,8 @@ class ZenohActionServer:
         if time.monotonic() < entry[1]:
             return entry[0]
         del self._streams[goal_id]
-        finalize(entry[0])
+        with self._replying:
+            finalize(entry[0])
         return None
 
     def _on_cancel(self, query: zenoh.Query) -> None:
@@ -317,7 +324,8 @@ class ZenohActionServer:
                 self._sent.popitem(last=False)
             stream = self._stream_of(goal_id)
         if stream is not None:
-            answer(stream, {"kind": KIND_FEEDBACK, "feedback": feedback})
+            with self._replying:
+                answer(stream, {"kind": KIND_FEEDBACK, "feedback": feedback})
             return
         self._context.session.put(self._context.goal_key(self.name, "feedback", goal_id), pack(feedback),
                                   encoding=MSGPACK, priority=CONTROL_PRIORITY)
@@ -334,7 +342,8 @@ class ZenohActionServer:
             with self._lock:
                 stream = self._stream_of(goal_id)
             if stream is not None:
-                answer(stream, {"kind": KIND_STATUS, "status": int(status)})
+                with self._replying:
+                    answer(stream, {"kind": KIND_STATUS, "status": int(status)})
         # Also as a sample: peers watch ``status/*`` (the goal's own client reads its stream).
         self._put_status(goal_id, status)
 
@@ -358,8 +367,9 @@ class ZenohActionServer:
         if deferred and stream is None:  # its stream ended meanwhile: the samples go in their usual order
             self._put_status(goal_id, status)
         if stream is not None:
-            answer(stream, {"kind": KIND_RESULT, **doc}, express=True)
-            finalize(stream)
+            with self._replying:
+                answer(stream, {"kind": KIND_RESULT, **doc}, express=True)
+                finalize(stream)
             if deferred:
                 self._put_status(goal_id, status)
         else:
@@ -387,6 +397,7 @@ class ZenohActionServer:
             self._wake.notify_all()
         self._sweeper.join(2.0)
         for query in held:
-            finalize(query)
+            with self._replying:
+                finalize(query)
         for entity in reversed(self._entities):
             undeclare(entity)
