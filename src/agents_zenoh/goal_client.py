@@ -132,6 +132,11 @@ class ZenohGoal:
                 self._failure = RemoteError(f"{what} began with a {str(kind)[:40]!r} reply, not the decision")
             else:
                 self._decision = doc
+                if "status" in doc:  # the goal's first status (EXECUTING) rides on its decision
+                    try:
+                        self._events.status(GoalStatus(doc["status"]))
+                    except (ValueError, TypeError) as exc:
+                        self._events.reject(exc)
             self._answered.set()
             return
         if self._done.is_set():

@@ -5,7 +5,8 @@ Keys, under the action name (``<base>`` is ``<ns>/<action>``; see ``docs/zenoh-w
 ==========================================  =====================================================
 ``<base>/@action/stream``                   queryable: ``{"goal_id", "goal", "cancel_token",
                                             "stream_s"}`` -> several replies on the one query:
-                                            ``{"kind": "goal", "accepted", "reason"}``, then
+                                            ``{"kind": "goal", "accepted", "reason"}`` (with
+                                            ``"status"`` when the first status rides on it), then
                                             ``{"kind": "feedback", "feedback"}`` and
                                             ``{"kind": "status", "status"}`` while the goal runs,
                                             then ``{"kind": "result", "status", "result",
@@ -27,18 +28,23 @@ traffic out of ``<ns>/**`` topic subscriptions.
 
 The stream is the fast path (one round trip: the framework's client uses it): the goal's decision,
 feedback, status changes and result are replies to the one query, so they arrive in order and the
-result needs no second query. The server keeps the query while the goal runs, until ``stream_s``
-seconds (the client's query timeout, capped at an hour) after it came; past that the goal's
-feedback goes out as samples again and its client follows it with result queries. The two-query
-form (``goal`` then ``result`` queries, feedback as samples) stays for clients written for it and
-for a client whose stream ended before the result: a result query is held (one sweeper thread per
-server answers ``pending`` when its wait runs out, never a thread per query) and answered when the
-goal ends, with ``"feedback_sent": n``, the number of feedback messages the goal produced.
+result needs no second query. An accepted goal's decision waits for its first event (EXECUTING, sent
+as the goal's thread starts, right after the decision) and goes in the same reply; the terminal
+status sample goes after the result reply, off the client's path. The server keeps the query while
+the goal runs, until ``stream_s`` seconds (the client's query timeout, capped at an hour) after it
+came; past that the goal's feedback goes out as samples again and its client follows it with result
+queries. The two-query form (``goal`` then ``result`` queries, feedback as samples) stays for
+clients written for it and for a client whose stream ended before the result: a result query is held
+(one sweeper thread per server answers ``pending`` when its wait runs out, never a thread per query)
+and answered when the goal ends, with ``"feedback_sent": n``, the number of feedback messages the
+goal produced.
 
-Goal and cancel queries (stream ones included) are decided on the owner's request lane (the
-server's ``accept`` is user code). A cancel is its own query on ``cancel``: it must carry the
-goal's ``cancel_token`` (known only to the client and the server, since goal ids travel in key
-expressions any peer can read); a goal sent without a token can be cancelled by its id alone.
+Goal and cancel queries (stream ones included) are decided on the lane the core gives (the server's
+``accept`` is user code): one of the action server's goal threads, which then runs the goal it
+accepted, or the owner's request lane while all of them are busy. A cancel is its own query on
+``cancel``: it must carry the goal's ``cancel_token`` (known only to the client and the server,
+since goal ids travel in key expressions any peer can read); a goal sent without a token can be
+cancelled by its id alone.
 """
 
 from __future__ import annotations
@@ -100,6 +106,14 @@ class ZenohActionServer:
         self._wake = threading.Condition(self._lock)
         # The open stream query of each goal sent on one, with the time its client stops listening.
         self._streams: dict[str, tuple[zenoh.Query, float]] = {}
+        # Held while a stream query is replied to or ended: a goal's thread and a cancel's thread
+        # may reply on the same query at once, which zenoh refuses ("Already borrowed"). Taken
+        # after self._lock where both are held, never the other way round.
+        self._replying = threading.Lock()
+        # The decision of each accepted stream goal, until its first event sends it (see _decide).
+        self._undecided: dict[str, dict[str, Any]] = {}
+        # Goals whose terminal status sample waits for their result reply (see status()).
+        self._ending: set[str] = set()
         # Feedback messages sent per goal, told with the result: on the two-query form the result
         # travels on another path than the feedback, so the client waits (bounded) for the rest.
         self._sent: collections.OrderedDict[str, int] = collections.OrderedDict()
@@ -164,16 +178,34 @@ class ZenohActionServer:
             answer(query, decision)
             finalize(query)
         else:
-            # Kept before the decision is sent: feedback may follow at once, and goes on the stream.
             with self._lock:
                 if self._closed:
                     stream = False
                 else:
                     self._streams[goal_id] = (query, received + listen_s - STREAM_MARGIN_S)
-            answer(query, {"kind": KIND_GOAL, **decision})
+                    # Sent with the goal's first event (EXECUTING, which follows at once): one reply less.
+                    self._undecided[goal_id] = decision
             if not stream:
+                answer(query, {"kind": KIND_GOAL, **decision})
                 finalize(query)
         self._hooks.on_accepted(goal_id)
+        if stream and self._hooks.wait_result(goal_id, 0.0) is not None:
+            self._decide(goal_id)  # it ended (or went) before it ran: nothing else sends the decision
+
+    def _decide(self, goal_id: str, status: GoalStatus | None = None) -> bool:
+        """Send the goal's decision on its stream if it waits (with ``status`` in it); whether ``status`` went."""
+        with self._lock:
+            decision = self._undecided.pop(goal_id, None)
+            stream = self._stream_of(goal_id) if decision is not None else None
+        if stream is None or decision is None:
+            return False
+        if status is None:
+            with self._replying:
+                answer(stream, {"kind": KIND_GOAL, **decision})
+            return False
+        with self._replying:
+            answer(stream, {"kind": KIND_GOAL, **decision, "status": int(status)})
+        return True
 
     def _stream_of(self, goal_id: str) -> zenoh.Query | None:
         """The goal's open stream query (None when it has none or its client stopped listening); under the lock."""
@@ -183,7 +215,8 @@ class ZenohActionServer:
         if time.monotonic() < entry[1]:
             return entry[0]
         del self._streams[goal_id]
-        finalize(entry[0])
+        with self._replying:
+            finalize(entry[0])
         return None
 
     def _on_cancel(self, query: zenoh.Query) -> None:
@@ -282,6 +315,8 @@ class ZenohActionServer:
 
     def feedback(self, goal_id: str, feedback: dict[str, Any]) -> None:
         """Send a feedback map on the goal's stream, or as a sample on ``<base>/@action/feedback/<goal_id>``."""
+        if self._undecided:
+            self._decide(goal_id)
         with self._lock:
             self._sent[goal_id] = self._sent.get(goal_id, 0) + 1
             self._sent.move_to_end(goal_id)
@@ -289,34 +324,54 @@ class ZenohActionServer:
                 self._sent.popitem(last=False)
             stream = self._stream_of(goal_id)
         if stream is not None:
-            answer(stream, {"kind": KIND_FEEDBACK, "feedback": feedback})
+            with self._replying:
+                answer(stream, {"kind": KIND_FEEDBACK, "feedback": feedback})
             return
         self._context.session.put(self._context.goal_key(self.name, "feedback", goal_id), pack(feedback),
                                   encoding=MSGPACK, priority=CONTROL_PRIORITY)
 
     def status(self, goal_id: str, status: GoalStatus) -> None:
         """Put a status sample on ``<base>/@action/status/<goal_id>`` (and on the goal's stream, if open)."""
-        if not status.is_terminal:  # on the stream, the result reply carries the terminal status
+        if status.is_terminal:
+            with self._lock:
+                if self._stream_of(goal_id) is not None:
+                    # The result reply carries it: the sample goes after it (finish), off the client's path.
+                    self._ending.add(goal_id)
+                    return
+        elif not (self._undecided and self._decide(goal_id, status)):
             with self._lock:
                 stream = self._stream_of(goal_id)
             if stream is not None:
-                answer(stream, {"kind": KIND_STATUS, "status": int(status)})
+                with self._replying:
+                    answer(stream, {"kind": KIND_STATUS, "status": int(status)})
         # Also as a sample: peers watch ``status/*`` (the goal's own client reads its stream).
+        self._put_status(goal_id, status)
+
+    def _put_status(self, goal_id: str, status: GoalStatus) -> None:
         self._context.session.put(self._context.goal_key(self.name, "status", goal_id),
                                   pack({"status": int(status)}), encoding=MSGPACK, priority=CONTROL_PRIORITY)
 
     def finish(self, goal_id: str, status: GoalStatus, result: dict[str, Any]) -> None:
         """End the goal's stream with its result, answer its held result queries and put the result sample."""
+        if self._undecided:
+            self._decide(goal_id)
         with self._lock:
+            deferred = goal_id in self._ending
+            self._ending.discard(goal_id)
             held = self._held.pop(goal_id, [])
             sent = self._sent.get(goal_id, 0)
             self._tokens.pop(goal_id, None)
             stream = self._stream_of(goal_id)
             self._streams.pop(goal_id, None)
         doc = {"status": int(status), "result": result, "feedback_sent": sent}
+        if deferred and stream is None:  # its stream ended meanwhile: the samples go in their usual order
+            self._put_status(goal_id, status)
         if stream is not None:
-            answer(stream, {"kind": KIND_RESULT, **doc}, express=True)
-            finalize(stream)
+            with self._replying:
+                answer(stream, {"kind": KIND_RESULT, **doc}, express=True)
+                finalize(stream)
+            if deferred:
+                self._put_status(goal_id, status)
         else:
             # As a sample: a client between two result queries still gets it if the server then closes.
             self._context.session.put(self._context.goal_key(self.name, "result", goal_id), pack(doc),
@@ -337,9 +392,12 @@ class ZenohActionServer:
             held += [q for q, _deadline in self._streams.values()]
             self._held.clear()
             self._streams.clear()
+            self._undecided.clear()
+            self._ending.clear()
             self._wake.notify_all()
         self._sweeper.join(2.0)
         for query in held:
-            finalize(query)
+            with self._replying:
+                finalize(query)
         for entity in reversed(self._entities):
             undeclare(entity)

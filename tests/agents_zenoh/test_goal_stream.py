@@ -65,6 +65,34 @@ def test_a_goal_cancelled_mid_stream_ends_canceled_with_its_feedback_on_the_stre
             sub.undeclare()
 
 
+def test_a_stream_goal_is_executing_from_its_acceptance_and_peers_see_every_status_sample() -> None:
+    """The decision carries EXECUTING; the status samples (the terminal one after the result) still all go out."""
+    with served_action() as (_server, client, peer):
+        statuses: list[int] = []
+
+        def on_status(sample: zenoh.Sample) -> None:
+            statuses.append(msgpack.unpackb(sample.payload.to_bytes())["status"])
+
+        sub = peer.session.declare_subscriber(f"{ACTION}/@action/status/*", on_status)
+        try:
+            # The subscription reaches the server asynchronously: a first goal shows when it has.
+            first = _send(client, {"task": "hold"})
+            assert first.cancel(5.0) is True
+            assert wait_for(lambda: int(GoalStatus.CANCELED) in statuses, timeout=5.0)
+            statuses.clear()
+            goal = _send(client, {"task": "hold"})
+            assert goal.accepted
+            assert goal.status == GoalStatus.EXECUTING  # from the decision, before any feedback
+            assert goal.cancel(5.0) is True
+            assert goal.result(10.0)[0] == GoalStatus.CANCELED
+            want = [int(GoalStatus.EXECUTING), int(GoalStatus.CANCELING), int(GoalStatus.CANCELED)]
+            # CANCELING (the cancel's thread) and CANCELED (the goal's) may go out in either order.
+            wait_for(lambda: sorted(statuses) == want, timeout=5.0)
+            assert sorted(statuses) == want
+        finally:
+            sub.undeclare()
+
+
 def test_a_result_is_answered_to_a_late_result_query_after_the_stream_ended() -> None:
     with served_action() as (_server, client, peer):
         goal = _send(client, {"task": "hold"})
@@ -128,7 +156,8 @@ def test_a_client_that_goes_away_mid_goal_leaves_the_server_serving() -> None:
         gone.get(f"{ACTION}/@action/stream", on_reply, payload=msgpack.packb(request), encoding=MSGPACK, timeout=30.0,
                  consolidation=zenoh.ConsolidationMode.NONE)  # every reply as it comes, not the latest at the end
         assert first.wait(5.0)
-        assert replies[0] == {"kind": "goal", "accepted": True, "reason": ""}
+        # The acceptance carries the goal's first status (EXECUTING): one reply for both.
+        assert replies[0] == {"kind": "goal", "accepted": True, "reason": "", "status": int(GoalStatus.EXECUTING)}
         assert wait_for(lambda: any(r.get("kind") == "feedback" for r in replies), timeout=5.0)
         gone.close()
         assert wait_for(lambda: server.statistics().succeeded == 1, timeout=10.0)

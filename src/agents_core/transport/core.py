@@ -523,7 +523,7 @@ class DriverTransport:
             if name in self._action_servers:
                 raise WiringError(f"action {name!r} is already served on this transport")
             server = CoreActionServer(name, definition, execute, accept, owner, self._forget_action_server)
-            server.attach(driver.serve_goals(name, definition, server, owner, self._lane(owner)))
+            server.attach(driver.serve_goals(name, definition, server, owner, server.lane(self._lane(owner))))
             self._action_servers[name] = server
         return server
 

@@ -7,8 +7,9 @@ cancels and result requests from the driver (it is the driver's
 - validation of each goal against its :class:`~agents_core.transport.goals.ActionType` (a
   goal that does not fit is rejected with the reason, and counted), goal ids (a duplicate id is
   rejected), a bound on goals running at once, and the server's ``accept`` callback;
-- one thread per accepted goal, named after the action, running the execute callback (never
-  the middleware's thread, never a component's step worker);
+- one thread per running goal, named after the action, running the execute callback (never
+  the middleware's thread, never a component's step worker); threads are reused from goal to goal
+  (:mod:`~agents_core.transport.goal_threads`);
 - the status of each goal (ACCEPTED -> EXECUTING -> CANCELING -> terminal), sent through the
   driver, and the terminal result, kept for a while for result requests that come late;
 - the closed state: closing the server aborts the goals still running, with the reason in the
@@ -31,12 +32,13 @@ from typing import TYPE_CHECKING, Any
 
 from attrs import define
 
-from ..concurrency import CloseOnce, DrainQueue
+from ..concurrency import CloseOnce
 from ..errors import ComponentError, TypeValidationError
+from .goal_threads import ReusedThreads
 from .goals import ActionType, GoalClient, GoalHandle, GoalStatus
 
 if TYPE_CHECKING:
-    from .driver import DriverActionServer, DriverGoal, TransportDriver
+    from .driver import DriverActionServer, DriverGoal, Lane, TransportDriver
 
 __all__ = [
     "ActionServerStatistics",
@@ -115,6 +117,9 @@ class CoreActionServer:
         self._early_cancels: collections.OrderedDict[str, None] = collections.OrderedDict()
         self._stats = ActionServerStatistics()
         self._close_once = CloseOnce()
+        # Each running goal has a thread to itself; a thread whose goal ended waits a while for the
+        # next goal rather than ending (starting one costs more than a short goal's round trip).
+        self._workers = ReusedThreads(f"{name}:goal-idle")
 
     # -- GoalServerHooks (called by the driver) ---------------------------------------------------
 
@@ -164,15 +169,18 @@ class CoreActionServer:
         return None
 
     def on_accepted(self, goal_id: str) -> None:
-        """Start the goal's thread."""
+        """Start the goal on a thread of its own (an idle one of this server's, or a new one)."""
         with self._lock:
             handle = self._running.get(goal_id)
             if handle is None or goal_id in self._threads:
                 return
-            thread = threading.Thread(target=self._run, args=(handle,), daemon=True,
-                                      name=f"{self.name}:goal:{goal_id[:8]}")
-            self._threads[goal_id] = thread
-        thread.start()
+            name = f"{self.name}:goal:{goal_id[:8]}"
+            # Decided on one of this server's threads (see lane()): the goal runs on it next.
+            thread = self._workers.then(lambda: self._run(handle), name)
+            try:
+                self._threads[goal_id] = thread or self._workers.run(lambda: self._run(handle), name)
+            except RuntimeError:  # closed meanwhile: close() aborts the goal
+                return
 
     def on_cancel(self, goal_id: str) -> bool:
         """Mark a running goal canceling; False for a goal that has ended or is unknown."""
@@ -203,6 +211,25 @@ class CoreActionServer:
                 if left <= 0:
                     return None
                 self._lock.wait(left)
+
+    def lane(self, fallback: Lane) -> Lane:
+        """Where the driver runs this server's goal and cancel requests: on one of its goal threads.
+
+        A goal accepted there then runs on the same thread (no hand-off, see :meth:`on_accepted`).
+        The accept callback is user code, so it never runs on the middleware's thread either way.
+        While :data:`MAX_RUNNING_GOALS` threads are busy (goals, or a peer's flood of requests),
+        requests queue on ``fallback`` (the owner's request lane) instead of starting more threads.
+        """
+        def submit(job: Callable[[], None]) -> None:
+            if self._workers.busy < MAX_RUNNING_GOALS:
+                try:
+                    self._workers.run(job, f"{self.name}:goal-request")
+                    return
+                except RuntimeError:  # closed: the owner's lane drops it as it drops every late request
+                    pass
+            fallback(job)
+
+        return submit
 
     def reject(self, reason: object) -> None:
         """Count a request from the network that did not decode."""
@@ -308,6 +335,7 @@ class CoreActionServer:
             # report its own outcome before the abort.
             self._complete(handle, GoalStatus.ABORTED, self._aborted(reason))
             handle._cancel.set()
+        self._workers.close()
         self._on_close(self)
         driver, self._driver_server = self._driver_server, None
         if driver is not None:
@@ -324,31 +352,66 @@ class CoreActionServer:
         return f"<CoreActionServer {self.name!r} {self.action_type.name} running={len(self._running)}>"
 
 
-class _FeedbackDelivery(DrainQueue[dict[str, Any]]):
-    """Calls a goal's feedback callback on a thread of its own, behind a bounded queue (drop oldest).
+#: The threads that call feedback callbacks: each goal's feedback runs on one at a time, in order.
+_FEEDBACK_THREADS = ReusedThreads("goal-feedback-idle")
 
+
+class _FeedbackDelivery:
+    """Calls a goal's feedback callback off the middleware's thread, behind a bounded queue (drop oldest).
+
+    While feedback waits, one thread (borrowed from :data:`_FEEDBACK_THREADS`, named
+    ``goal-feedback:<id>``) calls the callback with each message in order; it goes back when the
+    queue is empty, so a goal holds no thread between bursts and none is started to send it.
     Drops are counted in the client's ``feedback_dropped``.
     """
 
     def __init__(self, client: GoalClient, callback: Callable[[dict[str, Any]], None]) -> None:
         self._client = client
-        super().__init__(callback, depth=FEEDBACK_QUEUE_DEPTH, policy="drop_oldest",
-                         name=f"goal-feedback:{client.goal_id[:8]}")
+        self._callback = callback
+        self._lock = threading.Lock()
+        self._items: collections.deque[dict[str, Any]] = collections.deque()
+        self._draining = False
+        self._stopped = False
+        self._name = f"goal-feedback:{client.goal_id[:8]}"
 
     def offer(self, feedback: dict[str, Any]) -> None:
-        """Queue ``feedback`` (never blocks)."""
-        self.put(feedback)
+        """Queue ``feedback`` (never blocks); the oldest waiting one goes when the queue is full."""
+        with self._lock:
+            if self._stopped:
+                return
+            dropped = len(self._items) >= FEEDBACK_QUEUE_DEPTH
+            if dropped:
+                self._items.popleft()
+            self._items.append(feedback)
+            start = not self._draining
+            self._draining = True
+        if dropped:
+            self._client.feedback_dropped += 1
+        if start:
+            _FEEDBACK_THREADS.run(self._drain, self._name)
+
+    def _drain(self) -> None:
+        while True:
+            with self._lock:
+                if not self._items:
+                    self._draining = False
+                    return
+                item = self._items.popleft()
+            try:
+                self._callback(item)
+            except Exception as exc:
+                logger.warning("feedback callback of goal %s raised %s: %s", self._client.goal_id,
+                               type(exc).__name__, exc)
 
     def stop(self, *, discard: bool = False) -> int:
-        """No more feedback comes: drain what waits (by default), then end the thread."""
-        return super().stop(discard=discard)
-
-    def _dropped(self, count: int) -> None:
-        self._client.feedback_dropped += count
-
-    def _failed(self, item: dict[str, Any], error: Exception) -> None:
-        logger.warning("feedback callback of goal %s raised %s: %s", self._client.goal_id,
-                       type(error).__name__, error)
+        """No more feedback comes: what waits is still delivered (or, ``discard=True``, dropped); returns
+        how many were discarded."""
+        with self._lock:
+            self._stopped = True
+            count = len(self._items) if discard else 0
+            if discard:
+                self._items.clear()
+        return count
 
 
 class _ClientEvents:

@@ -151,6 +151,44 @@ def _is_numpy_number(value: Any) -> bool:
     return type(value).__module__ == "numpy" and hasattr(value, "dtype") and getattr(value, "ndim", 1) == 0
 
 
+def _finite_floats(value: list[Any]) -> bool:
+    return all(type(v) is float and math.isfinite(v) for v in value)
+
+
+#: Per kind: whether a value already is exactly what :meth:`FieldSpec.check` would return (no
+#: conversion, within bounds); ints are checked against the field's bounds separately.
+_EXACT: dict[str, Callable[[Any], bool]] = {
+    "str": lambda v: type(v) is str and len(v) <= MAX_STRING_LENGTH,
+    "bool": lambda v: type(v) is bool,
+    "int": lambda v: type(v) is int,
+    "float": lambda v: type(v) is float and math.isfinite(v),
+    "list[float]": lambda v: type(v) is list and len(v) <= MAX_LIST_LENGTH and _finite_floats(v),
+    "list[int]": lambda v: type(v) is list and len(v) <= MAX_LIST_LENGTH and all(type(i) is int for i in v),
+    "list[str]": lambda v: type(v) is list and len(v) <= MAX_LIST_LENGTH
+    and all(type(i) is str and len(i) <= MAX_STRING_LENGTH for i in v),
+}
+
+
+def _exact(specs: dict[str, FieldSpec], value: dict[str, Any]) -> dict[str, Any] | None:
+    """``value`` checked when every field already has its exact kind (what feedback on the hot path has);
+    None when anything needs converting or is wrong (then the full check converts, or names the error)."""
+    checked: dict[str, Any] = {}
+    found = 0
+    for name, spec in specs.items():
+        if name in value:
+            v = value[name]
+            if not _EXACT[spec.kind](v):
+                return None
+            if spec.kind == "int" and ((spec.minimum is not None and v < spec.minimum)
+                                       or (spec.maximum is not None and v > spec.maximum)):
+                return None
+            checked[name] = list(v) if type(v) is list else v
+            found += 1
+        else:
+            checked[name] = spec.default_value()
+    return checked if found == len(value) else None  # else: an unknown field
+
+
 def _specs(fields: Mapping[str, FieldSpec | str]) -> dict[str, FieldSpec]:
     return {name: spec if isinstance(spec, FieldSpec) else FieldSpec(spec) for name, spec in fields.items()}
 
@@ -175,6 +213,10 @@ class ActionType:
     def validate(self, part: str, value: Any) -> dict[str, Any]:
         """``value`` (a dict) checked against ``part`` ("goal", "result" or "feedback"), defaults filled in."""
         specs: dict[str, FieldSpec] = getattr(self, part)
+        if type(value) is dict:
+            checked = _exact(specs, value)
+            if checked is not None:
+                return checked
         where = f"{self.name} {part}"
         if not isinstance(value, Mapping):
             raise TypeValidationError(f"{where} must be a dict, got {type(value).__name__}")

@@ -300,7 +300,7 @@ class MemoryDriver(DriverBase):
                 hooks.on_accepted(goal_id)
             return reason
 
-        # The accept decision may run user code: on the owner's lane, as requests do.
+        # The accept decision may run user code: on the lane the core gives (a goal thread of the server's).
         try:
             reason = _await_reply(f"goal to {name!r}", _run_on_lane(server.lane, decide), timeout)
         except RequestTimeoutError:
