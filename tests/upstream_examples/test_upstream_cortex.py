@@ -17,6 +17,7 @@ import contextlib
 import os
 import sys
 import threading
+import time
 from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
@@ -268,6 +269,8 @@ def test_cortex_agent_in_processes_on_zenoh(cortex_servers: tuple[ScriptedOllama
         answers = _collect(asker, "cortex_output", "StreamingString")
         with Camera(asker):
             assert wait_for(lambda: bool(detections) or proc.proc.poll() is not None, timeout=60), proc.output()
+            assert wait_for(lambda: _subscribers(asker, "image_raw") >= 2, timeout=60), proc.output()  # the VLM too
+            time.sleep(1.0)
             status, result, feedback = _send_task(asker, "track the object and tell me what you see", timeout=120)
             _check_cortex_agent_plan(ollama, status, result, feedback)
             assert wait_for(lambda: any("object" in list(m.labels) for m in trackings[-3:]), timeout=30)
@@ -317,10 +320,19 @@ def test_cortex_agent_on_ros2(cortex_servers: tuple[ScriptedOllamaServer, RoboML
         detections = _collect(asker, "detections", "Detections")
         with Camera(asker):
             assert wait_for(lambda: bool(detections) or proc.proc.poll() is not None, timeout=60), proc.output()
+            # Detections say the Vision process has images; the VLM process subscribes on its own, and a
+            # forked process can be active before DDS has matched it with the camera: wait for its match.
+            assert wait_for(lambda: _subscribers(asker, "image_raw") >= 2, timeout=60), proc.output()
+            time.sleep(1.0)  # a few camera frames (5 Hz) for the newly matched subscriber
             status, result, feedback = _send_task(asker, "track the object and tell me what you see", timeout=120)
             _check_cortex_agent_plan(ollama, status, result, feedback)
             assert wait_for(lambda: any("object" in list(m.labels) for m in trackings[-3:]), timeout=30)
         assert wait_for(lambda: proc.output().count("LED toggled ON") == 1, timeout=10), proc.output()
+
+
+def _subscribers(transport: Any, topic: str) -> int:
+    """How many subscribers ``transport`` sees on ``topic`` (0 while discovery has not found it)."""
+    return sum(t.subscribers for t in transport.discover(timeout=1.0).topics if t.name == topic)
 
 
 @pytest.mark.zenoh
