@@ -256,8 +256,9 @@ def demo(session: nox.Session) -> None:
 @nox.session
 def bench(session: nox.Session) -> None:
     """Benchmarks: the framework against the raw middleware in one run (``-- --quick`` for CI; benchmarks/README.md)."""
-    # servers: the map suite writes into a local Chroma server.
-    _install_with_local_models(session, "zenoh,ros2,local,voice,voice-gpl,vla,servers,memory,record")
+    # servers: the map suite writes into a local Chroma server; ui: the UI suite measures what a user of the
+    # ui extra gets (simplejpeg's JPEG path, not only Pillow's).
+    _install_with_local_models(session, "zenoh,ros2,local,voice,voice-gpl,vla,servers,memory,record,ui")
     session.install("matplotlib")
     _install_ros2_interfaces(session)
     session.run("python", "-m", "benchmarks.run", *session.posargs)
