@@ -180,3 +180,36 @@ def wait_for(predicate: Any, timeout: float, what: str, step: float = 0.02) -> A
             return value
         time.sleep(step)
     raise AssertionError(f"timed out after {timeout} s waiting for {what}")
+
+
+def parent_pid(pid: int) -> int:
+    """The parent of process ``pid``, from /proc (field 4 of its stat line)."""
+    with open(f"/proc/{pid}/stat") as f:
+        return int(f.read().rsplit(")", 1)[1].split()[1])
+
+
+def ask_where(launcher: Any, prefix: str, timeout: float = 20.0) -> list[int]:
+    """Ask a ``forked_components`` component on ``<prefix>/in``: [pid that imported its module, its own pid]."""
+    from agents_core import Topic  # noqa: PLC0415 - the helpers above need no agents_core
+
+    got: list[str] = []
+    sub = launcher.transport.create_subscription(Topic(f"{prefix}/out", "String"), got.append)
+    pub = launcher.transport.create_publisher(Topic(f"{prefix}/in", "String"))
+    try:
+        wait_for(lambda: pub.publish("hi") or got, timeout=timeout, what=f"an answer on {prefix}/out", step=0.2)
+    finally:
+        sub.close()
+    return [int(part) for part in got[0].split(":")[1:]]
+
+
+def kill_and_wait_for_respawn(launcher: Any, timeout: float) -> Any:
+    """SIGKILL the first component process; return its supervisor child once its new process is active."""
+    supervisor = launcher.supervisor
+    assert supervisor is not None
+    child = supervisor.children[0]
+    old = child.pid
+    assert old is not None
+    os.kill(old, signal.SIGKILL)
+    wait_for(lambda: child.pid != old and child.state == "active", timeout=timeout, what="the respawn")
+    assert child.crashes == 1 and child.restarts == 1
+    return child

@@ -20,7 +20,6 @@ from typing import Any
 
 import pytest
 
-from agents_core import Topic
 from agents_core.errors import ConfigError
 from agents_core.launch.fork_server import PROCESS_START_ENV, ForkedProcess, fork_available, fork_server
 from agents_core.launch.launcher import Launcher
@@ -28,16 +27,11 @@ from agents_core.testing.helpers import free_tcp_port
 from agents_core.testing.pairs import skip_unless_installed
 
 from .forked_components import WhereAmI
-from .helpers import REPO, alive, wait_for
+from .helpers import REPO, alive, ask_where, kill_and_wait_for_respawn, parent_pid, wait_for
 
 pytestmark = [pytest.mark.zenoh, pytest.mark.skipif(not fork_available(), reason="the fork server needs Linux")]
 
 SECRET = "fork-server-secret-4471"
-
-
-def _ppid(pid: int) -> int:
-    with open(f"/proc/{pid}/stat") as f:
-        return int(f.read().rsplit(")", 1)[1].split()[1])
 
 
 def _launcher(prefix: str, **options: Any) -> Launcher:
@@ -61,42 +55,23 @@ def started() -> Iterator[Launcher]:
         launcher.stop()
 
 
-def _answer(launcher: Launcher, prefix: str) -> list[int]:
-    """Ask the component; [pid that imported its module, its own pid]."""
-    got: list[str] = []
-    sub = launcher.transport.create_subscription(Topic(f"{prefix}/out", "String"), got.append)
-    pub = launcher.transport.create_publisher(Topic(f"{prefix}/in", "String"))
-    try:
-        wait_for(lambda: pub.publish("hi") or got, timeout=20.0, what="an answer", step=0.2)
-    finally:
-        sub.close()
-    return [int(part) for part in got[0].split(":")[1:]]
-
-
 def test_a_forked_component_uses_the_module_the_server_imported(started: Launcher) -> None:
     supervisor = started.supervisor
     assert supervisor is not None
     child = supervisor.children[0]
     server = fork_server()
     assert isinstance(child.proc, ForkedProcess)
-    assert child.pid is not None and _ppid(child.pid) == server.pid
-    imported_in, pid = _answer(started, "fs")
+    assert child.pid is not None and parent_pid(child.pid) == server.pid
+    imported_in, pid = ask_where(started, "fs")
     assert pid == child.pid
     assert imported_in == server.pid != pid  # imported once, in the server, before the fork
 
 
 def test_a_respawn_goes_through_the_server(started: Launcher) -> None:
-    supervisor = started.supervisor
-    assert supervisor is not None
-    child = supervisor.children[0]
-    old = child.pid
-    assert old is not None
-    os.kill(old, signal.SIGKILL)
-    wait_for(lambda: child.pid != old and child.state == "active", timeout=20.0, what="the respawn")
-    assert child.crashes == 1 and child.restarts == 1
+    child = kill_and_wait_for_respawn(started, timeout=20.0)
     assert isinstance(child.proc, ForkedProcess)
-    assert child.pid is not None and _ppid(child.pid) == fork_server().pid
-    assert _answer(started, "fs")[1] == child.pid
+    assert child.pid is not None and parent_pid(child.pid) == fork_server().pid
+    assert ask_where(started, "fs")[1] == child.pid
 
 
 def test_no_secret_in_the_forked_process_or_the_server_argv_or_environment(started: Launcher) -> None:
@@ -104,7 +79,7 @@ def test_no_secret_in_the_forked_process_or_the_server_argv_or_environment(start
     assert supervisor is not None
     pid = supervisor.children[0].pid
     assert pid is not None
-    _answer(started, "fs")  # the component was built from its spec (which holds the token)
+    ask_where(started, "fs")  # the component was built from its spec (which holds the token)
     for proc in (pid, fork_server().pid):
         for what in ("cmdline", "environ"):
             assert SECRET.encode() not in Path(f"/proc/{proc}/{what}").read_bytes(), (proc, what)
@@ -121,8 +96,8 @@ def test_process_start_spawn_starts_fresh_interpreters(monkeypatch: pytest.Monke
             assert supervisor is not None
             child = supervisor.children[0]
             assert isinstance(child.proc, subprocess.Popen)
-            assert child.pid is not None and _ppid(child.pid) == os.getpid()
-            imported_in, pid = _answer(launcher, "sp")
+            assert child.pid is not None and parent_pid(child.pid) == os.getpid()
+            imported_in, pid = ask_where(launcher, "sp")
             assert imported_in == pid == child.pid
         finally:
             launcher.stop()
@@ -163,9 +138,9 @@ def test_a_forked_child_and_the_server_die_with_a_killed_launcher(tmp_path: Path
         line = proc.stdout.readline()
         assert line.startswith("PIDS"), (tmp_path / "launcher.log").read_text()[-3000:]
         child = int(line.split()[1])
-        server = _ppid(child)
+        server = parent_pid(child)
         pids = [child, server]
-        assert server != proc.pid and _ppid(server) == proc.pid  # forked by the server, not the launcher
+        assert server != proc.pid and parent_pid(server) == proc.pid  # forked by the server, not the launcher
         proc.kill()
         proc.wait(timeout=5.0)
         killed = time.monotonic()

@@ -10,21 +10,19 @@ of argv and the environment.
 from __future__ import annotations
 
 import os
-import signal
 from collections.abc import Iterator
 from pathlib import Path
 from types import SimpleNamespace
 
 import pytest
 
-from agents_core import Topic
 from agents_core.launch import fork_server as fs
 from agents_core.launch.fork_server import ForkedProcess, fork_available, fork_server
 from agents_core.launch.launcher import Launcher
 from agents_core.testing.pairs import skip_unless_installed
 
 from .forked_components import WhereAmI
-from .helpers import wait_for
+from .helpers import ask_where, kill_and_wait_for_respawn, parent_pid
 
 pytestmark = pytest.mark.skipif(not fork_available(), reason="the fork server needs Linux")
 
@@ -109,24 +107,8 @@ def ros2_started(monkeypatch: pytest.MonkeyPatch) -> Iterator[Launcher]:
         launcher.stop()
 
 
-def _answer(launcher: Launcher) -> list[int]:
-    got: list[str] = []
-    sub = launcher.transport.create_subscription(Topic("r2fs/out", "String"), got.append)
-    pub = launcher.transport.create_publisher(Topic("r2fs/in", "String"))
-    try:
-        wait_for(lambda: pub.publish("hi") or got, timeout=30.0, what="an answer over ROS 2", step=0.2)
-    finally:
-        sub.close()
-    return [int(part) for part in got[0].split(":")[1:]]
-
-
 def _maps(pid: int) -> str:
     return Path(f"/proc/{pid}/maps").read_text(errors="replace")
-
-
-def _ppid(pid: int) -> int:
-    with open(f"/proc/{pid}/stat") as f:
-        return int(f.read().rsplit(")", 1)[1].split()[1])
 
 
 @pytest.mark.ros2
@@ -137,14 +119,14 @@ def test_a_ros2_component_is_forked_from_a_server_that_imported_rclpy_without_a_
     child = supervisor.children[0]
     server = fork_server().pid
     assert isinstance(child.proc, ForkedProcess)
-    assert child.pid is not None and _ppid(child.pid) == server
+    assert child.pid is not None and parent_pid(child.pid) == server
     # rclpy's extension is loaded in the server (imported once, before the fork) ...
     assert "_rclpy_pybind11" in _maps(server)
     # ... but no DDS participant exists there: no Fast DDS segment, no participant threads.
     assert "/dev/shm/fastrtps_" not in _maps(server)
     assert "/dev/shm/fastrtps_" in _maps(child.pid) or len(os.listdir(f"/proc/{child.pid}/task")) > len(
         os.listdir(f"/proc/{server}/task"))
-    imported_in, pid = _answer(ros2_started)
+    imported_in, pid = ask_where(ros2_started, "r2fs", timeout=30.0)
     assert imported_in == server and pid == child.pid
     for proc in (child.pid, server):
         for what in ("cmdline", "environ"):
@@ -153,16 +135,9 @@ def test_a_ros2_component_is_forked_from_a_server_that_imported_rclpy_without_a_
 
 @pytest.mark.ros2
 def test_a_ros2_respawn_is_forked_by_the_server_and_answers(ros2_started: Launcher) -> None:
-    supervisor = ros2_started.supervisor
-    assert supervisor is not None
-    child = supervisor.children[0]
-    old = child.pid
-    assert old is not None
-    os.kill(old, signal.SIGKILL)
-    wait_for(lambda: child.pid != old and child.state == "active", timeout=30.0, what="the respawn")
-    assert child.crashes == 1 and child.restarts == 1
-    assert isinstance(child.proc, ForkedProcess) and _ppid(child.pid) == fork_server().pid
-    assert _answer(ros2_started)[1] == child.pid
+    child = kill_and_wait_for_respawn(ros2_started, timeout=30.0)
+    assert isinstance(child.proc, ForkedProcess) and parent_pid(child.pid) == fork_server().pid
+    assert ask_where(ros2_started, "r2fs", timeout=30.0)[1] == child.pid
 
 
 def test_the_adapter_module_is_found_for_names_and_transport_objects() -> None:

@@ -71,6 +71,8 @@ import time
 from collections.abc import Callable, Iterable
 from typing import IO, Any
 
+from .process_start import PROCESS_START_ENV, fork_available, process_start
+
 __all__ = [
     "PROCESS_START_ENV",
     "ForkServer",
@@ -85,8 +87,6 @@ __all__ = [
 
 logger = logging.getLogger(__name__)
 
-#: ``fork`` (the default where available) or ``spawn``: how component processes start.
-PROCESS_START_ENV = "AGENTS_PROCESS_START"
 #: Always imported by the server: what every component process needs. numpy comes first, by name: the
 #: message types import it only at first use, and its OpenBLAS pool must be in the thread baseline.
 BASE_MODULES = ("numpy", "agents_core.launch.child", "agents_core.launch.spec", "agents_core.launch.recipe_import",
@@ -103,24 +103,6 @@ _MAX_PACKET = 1 << 20
 
 class ForkServerError(OSError):
     """The fork server could not start a process (gone, unsafe to fork, or it refused)."""
-
-
-def fork_available() -> bool:
-    """True where the fork server can run: Linux, with fork and descriptor passing."""
-    return (sys.platform.startswith("linux") and hasattr(os, "fork") and hasattr(socket, "send_fds")
-            and hasattr(socket, "SOCK_SEQPACKET"))
-
-
-def process_start(option: str | None = None) -> str:
-    """``"fork"`` or ``"spawn"``: ``option`` (a launcher's), else :data:`PROCESS_START_ENV`, else fork.
-
-    ``fork`` where :func:`fork_available` says no becomes ``spawn``.
-    """
-    chosen = (option or os.environ.get(PROCESS_START_ENV, "") or "fork").strip().lower()
-    if chosen not in ("fork", "spawn"):
-        raise ValueError(f"process start must be 'fork' or 'spawn', got {chosen!r} "
-                         f"(from {'the launcher' if option else PROCESS_START_ENV})")
-    return "fork" if chosen == "fork" and fork_available() else "spawn"
 
 
 # -- the launcher side --------------------------------------------------------------------------

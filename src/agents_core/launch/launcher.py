@@ -12,15 +12,15 @@ Non-blocking, for tests and embedding::
         pub = launcher.transport.create_publisher(Topic("question", "String"))
         pub.publish("hello")
 
-The launcher watches every event used by a component trigger or in ``events_actions`` with one
-subscription per event topic, and runs each action on the worker of the component that owns
-the method (or on the launcher's own action worker for other callables).
+The launcher watches every event of a component trigger or ``events_actions`` with one subscription
+per event topic, and runs each action on the worker of the component that owns the method (or on
+the launcher's own action worker for other callables).
 
 With ``add_pkg(..., multiprocessing=True)`` each component runs in a process of its own (see
-:mod:`agents_core.launch`), respawned when it crashes (``on_process_fail``). The launcher
-keeps its own transport to watch events; an action on a component in another process runs
-through that component's services (``<name>/execute_method`` for ``@component_action``
-methods, the lifecycle for ``activate`` / ``deactivate`` / ...).
+:mod:`agents_core.launch`), respawned when it crashes (``on_process_fail``). The launcher keeps its
+own transport to watch events; an action on a component in another process runs through that
+component's services (``<name>/execute_method`` for ``@component_action`` methods, the lifecycle for
+``activate`` / ``deactivate`` / ...).
 
 A component triggered by an Event runs in its process too: the launcher evaluates the event (it
 watches every event's topics) and sends each firing down that process's command pipe, where a
@@ -55,8 +55,6 @@ from ..runtime.worker import StepWorker
 from ..status import LifecycleState
 from ..transport.contract import Subscription, Transport
 from ..transport.registry import TRANSPORT_ENV_VAR, resolve_transport
-from .fork_server import ForkServer, adapter_module, prepare
-from .fork_server import process_start as choose_process_start
 from .live_status import LiveStatus, Row, child_rows, component_rows
 from .preflight import (
     LIFECYCLE_METHODS,
@@ -66,10 +64,12 @@ from .preflight import (
     read_launch_file,
     refuse_inside_component_process,
 )
+from .process_start import process_start as choose_process_start
 from .report import LaunchReport, component_row
 from .stop_signals import stop_signals
 
 if TYPE_CHECKING:
+    from .fork_server import ForkServer
     from .supervisor import Supervisor
 
 __all__ = ["Launcher"]
@@ -145,13 +145,9 @@ class Launcher:
 
     # -- recipe -------------------------------------------------------------------------------
 
-    def add_pkg(
-        self,
-        components: Sequence[Component],
-        events_actions: Mapping[Event, Action | Sequence[Action]] | None = None,
-        multiprocessing: bool = False,
-        package_name: str | None = None,
-    ) -> None:
+    def add_pkg(self, components: Sequence[Component],
+                events_actions: Mapping[Event, Action | Sequence[Action]] | None = None,
+                multiprocessing: bool = False, package_name: str | None = None) -> None:
         """Add components (and event -> action wiring) to launch.
 
         ``multiprocessing=True`` (one process per component) needs a transport whose capabilities
@@ -407,8 +403,9 @@ class Launcher:
         if not self._multiprocessing or self._process_start != "fork" or (
                 recipe_import is not None and recipe_import.importing_recipe()):
             return  # a component process importing its recipe never starts a server
-        modules = {type(c).__module__ for c in self.components}
-        self._fork_server = prepare(modules, sys.path, adapter_module(self._transport_spec))
+        from .fork_server import adapter_module, prepare  # noqa: PLC0415 - multiprocessing only
+        self._fork_server = prepare({type(c).__module__ for c in self.components}, sys.path,
+                                    adapter_module(self._transport_spec))
 
     def _start_processes(self) -> None:
         from .spec import ComponentSpec, check_rebuild  # noqa: PLC0415
