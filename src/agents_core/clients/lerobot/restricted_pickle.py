@@ -32,7 +32,7 @@ import io
 import pickle
 import struct
 from collections import OrderedDict
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, fields, is_dataclass
 from typing import Any, Literal
 
@@ -459,6 +459,17 @@ class _Unpickler(_PurePython):  # type: ignore[misc]  # an untyped base, on purp
         if length > self._size - self._stream.tell():
             raise pickle.UnpicklingError(f"a frame of {length} bytes past the end of the payload")
 
+    def _binget(self) -> None:
+        # The most frequent opcode, so _resolving's check is inlined here rather than wrapped around it.
+        index = self.read(1)[0]
+        try:
+            value = self.memo[index]
+        except KeyError:
+            raise pickle.UnpicklingError(f"Memo value not found at index {index}") from None
+        if isinstance(value, _ArrayBuilder) and value.result is not None:
+            value = value.result
+        self.append(value)
+
     def _bytearray8(self) -> None:
         # The pure-Python unpickler allocates the claimed length before reading it.
         (length,) = struct.unpack("<Q", self.read(8))
@@ -488,8 +499,9 @@ def _dispatch() -> _Dispatch:
     table[pickle.FRAME[0]] = _Unpickler._frame
     for code in (pickle.EXT1, pickle.EXT2, pickle.EXT4, pickle.INST, pickle.OBJ, pickle.NEWOBJ_EX):
         table[code[0]] = _Unpickler._refused
-    for code in (pickle.GET, pickle.BINGET, pickle.LONG_BINGET):
+    for code in (pickle.GET, pickle.LONG_BINGET):
         table[code[0]] = _resolving(table[code[0]])
+    table[pickle.BINGET[0]] = _Unpickler._binget
     return table
 
 
@@ -498,23 +510,24 @@ _Unpickler.dispatch = _dispatch()
 
 # -- the result's shape -----------------------------------------------------------------------------
 
-def _children(value: Any, reader: _Reader) -> Iterator[Any]:
+def _children(value: Any, reader: _Reader) -> list[Any]:
     if isinstance(value, list | tuple | set | frozenset):
-        yield from value
-    elif isinstance(value, dict):
-        for key, item in value.items():
-            yield key
-            yield item
-    elif type(value) in reader.fields:
-        missing = reader.fields[type(value)] - vars(value).keys()
+        return list(value)
+    if isinstance(value, dict):
+        return [*value.keys(), *value.values()]
+    names = reader.fields.get(type(value))
+    if names is not None:
+        state = vars(value)
+        missing = names - state.keys()
         if missing:
             raise reader.refuse(f"a {type(value).__name__} without {sorted(missing)}")
-        yield from vars(value).values()
-    elif isinstance(value, _ArrayBuilder):
+        return list(state.values())
+    if isinstance(value, _ArrayBuilder):
         raise reader.refuse("an array that was never built (numpy's _reconstruct without its data), or used "
                             "before it was")
-    elif isinstance(value, _DTypeSpec | _TorchStorage | _StorageType | _Marker):
+    if isinstance(value, _DTypeSpec | _TorchStorage | _StorageType | _Marker):
         raise reader.refuse(f"a bare {type(value).__name__.strip('_')} where only values may be")
+    return []
 
 
 #: Exact types that hold no other values (_children yields nothing for them): not walked at all.
@@ -525,7 +538,7 @@ def _check_result(root: Any, reader: _Reader) -> None:
     """No cycles, no nesting deeper than the limit, no half-built values; without recursion."""
     height: dict[int, int] = {}
     on_path: set[int] = set()
-    # (value, its children once entered: None until then)
+    # (value, its children that are not leaves once entered: None until then); a leaf's height is 0
     todo: list[tuple[Any, list[Any] | None]] = [(root, None)]
     max_depth = reader.limits.max_depth
     while todo:
@@ -538,14 +551,15 @@ def _check_result(root: Any, reader: _Reader) -> None:
                 raise reader.refuse(f"nested deeper than {max_depth}")
             height[key] = depth
             continue
-        children = list(_children(value, reader))
+        children = _children(value, reader)
         if not children or key in height:
             continue
         if key in on_path:
             raise reader.refuse("the payload refers to itself (a cycle)")
         on_path.add(key)
-        todo.append((value, children))
-        todo.extend((child, None) for child in children if type(child) not in _LEAVES)
+        inner = [child for child in children if type(child) not in _LEAVES]
+        todo.append((value, inner))
+        todo.extend((child, None) for child in inner)
 
 
 def restricted_loads(data: bytes, allowed: Mapping[tuple[str, str], Any], *, max_bytes: int,
