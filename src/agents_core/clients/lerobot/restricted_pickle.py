@@ -556,8 +556,13 @@ def _check_result(root: Any, reader: _Reader) -> None:
             continue
         if key in on_path:
             raise reader.refuse("the payload refers to itself (a cycle)")
-        on_path.add(key)
         inner = [child for child in children if type(child) not in _LEAVES]
+        if not inner:  # only leaves below: its height is 1, known without a second visit
+            if max_depth < 1:
+                raise reader.refuse(f"nested deeper than {max_depth}")
+            height[key] = 1
+            continue
+        on_path.add(key)
         todo.append((value, inner))
         todo.extend((child, None) for child in inner)
 
