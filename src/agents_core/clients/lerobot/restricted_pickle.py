@@ -32,7 +32,7 @@ import io
 import pickle
 import struct
 from collections import OrderedDict
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, fields, is_dataclass
 from typing import Any, Literal
 
@@ -84,12 +84,15 @@ _MAX_NDIM = 32
 class _DTypeSpec:
     """A dtype named by a payload: a numeric code and a byte order, nothing else."""
 
-    __slots__ = ("built", "code", "order")
+    __slots__ = ("_native", "_wire", "built", "code", "order")
 
     def __init__(self, code: Any, align: Any = False, copy: Any = True) -> None:
         if not isinstance(code, str) or code not in _NUMERIC_CODES:
             raise UnsafePayloadError(f"dtype {code!r} is not a plain numeric dtype; refused")
         self.code, self.order, self.built = code, "=", False
+        # A payload's arrays share one memoized dtype: made once (the wire one again after BUILD).
+        self._native: np.dtype[Any] = np.dtype(code)
+        self._wire: np.dtype[Any] | None = None
 
     def build(self, state: Any) -> _DTypeSpec:
         # numpy's state: (version, byteorder, subarray, names, fields, elsize, alignment, flags[, metadata]).
@@ -102,7 +105,7 @@ class _DTypeSpec:
                 and type(state[7]) is int and (len(state) == 8 or state[8] in (None, {}))):
             raise UnsafePayloadError(f"dtype {self.code!r}: state {str(state)[:120]} is not a plain numeric "
                                      "dtype's; refused")
-        self.order, self.built = state[1], True
+        self.order, self.built, self._wire = state[1], True, None
         return self
 
     @property
@@ -111,10 +114,12 @@ class _DTypeSpec:
 
     def wire(self) -> np.dtype[Any]:
         """The dtype of the bytes as sent (made here, from the code)."""
-        return np.dtype(self.code).newbyteorder(_WIRE_ORDERS[self.order])
+        if self._wire is None:
+            self._wire = self._native.newbyteorder(_WIRE_ORDERS[self.order])
+        return self._wire
 
     def native(self) -> np.dtype[Any]:
-        return np.dtype(self.code)
+        return self._native
 
 
 class _ArrayBuilder:
@@ -357,10 +362,8 @@ class _Reader:
         builder.result = self.array_from_bytes(raw, self.built_dtype(dtype), shape, fortran=fortran)
         return builder.result
 
-    def tick(self) -> None:
-        self.ops_left -= 1
-        if self.ops_left < 0:
-            raise self.refuse(f"more than {self.limits.max_ops} pickle opcodes")
+    def over_ops(self) -> UnsafePayloadError:
+        return self.refuse(f"more than {self.limits.max_ops} pickle opcodes")
 
 
 class _Unpickler(_PurePython):  # type: ignore[misc]  # an untyped base, on purpose
@@ -372,6 +375,33 @@ class _Unpickler(_PurePython):  # type: ignore[misc]  # an untyped base, on purp
         super().__init__(stream)
         self.reader, self.allowed = reader, allowed
         self.storage_ids = False
+        self._stream = stream
+        with stream.getbuffer() as view:
+            self._size = view.nbytes
+
+    def load(self) -> Any:
+        """The pure-Python unpickler's loop, reading the in-memory payload directly (frames are only a
+        hint for stream readers; their lengths are still checked) and counting each opcode against
+        the reader's budget (shared with nested pickles, hence kept on the reader)."""
+        stream, reader = self._stream, self.reader
+        read = self.read = stream.read
+        self.readline, self.readinto = stream.readline, stream.readinto
+        stack: list[Any] = []
+        metastack: list[list[Any]] = []
+        self.metastack, self.stack, self.proto = metastack, stack, 0
+        self.append = stack.append
+        dispatch = self.dispatch
+        try:
+            while True:
+                key = read(1)
+                if not key:
+                    raise EOFError
+                reader.ops_left -= 1
+                if reader.ops_left < 0:
+                    raise reader.over_ops()
+                dispatch[key[0]](self)
+        except pickle._Stop as stop:  # type: ignore[attr-defined]  # how the pure-Python loop ends
+            return stop.value
 
     def find_class(self, module: str, name: str) -> Any:
         try:
@@ -421,6 +451,25 @@ class _Unpickler(_PurePython):  # type: ignore[misc]  # an untyped base, on purp
         raise self.reader.refuse("the payload uses an opcode that is not allowed (extension registry, INST/OBJ, "
                                  "NEWOBJ_EX)")
 
+    def _frame(self) -> None:
+        header = self.read(8)
+        if len(header) != 8:
+            raise pickle.UnpicklingError("FRAME past the end of the payload")
+        (length,) = struct.unpack("<Q", header)
+        if length > self._size - self._stream.tell():
+            raise pickle.UnpicklingError(f"a frame of {length} bytes past the end of the payload")
+
+    def _binget(self) -> None:
+        # The most frequent opcode, so _resolving's check is inlined here rather than wrapped around it.
+        index = self.read(1)[0]
+        try:
+            value = self.memo[index]
+        except KeyError:
+            raise pickle.UnpicklingError(f"Memo value not found at index {index}") from None
+        if isinstance(value, _ArrayBuilder) and value.result is not None:
+            value = value.result
+        self.append(value)
+
     def _bytearray8(self) -> None:
         # The pure-Python unpickler allocates the claimed length before reading it.
         (length,) = struct.unpack("<Q", self.read(8))
@@ -430,13 +479,6 @@ class _Unpickler(_PurePython):  # type: ignore[misc]  # an untyped base, on purp
         if len(data) != length:
             raise pickle.UnpicklingError("BYTEARRAY8 past the end of the payload")
         self.append(bytearray(data))
-
-
-def _counted(handler: Callable[[Any], None]) -> Callable[[Any], None]:
-    def run(self: _Unpickler) -> None:
-        self.reader.tick()
-        handler(self)
-    return run
 
 
 def _resolving(handler: Callable[[Any], None]) -> Callable[[Any], None]:
@@ -454,11 +496,13 @@ def _dispatch() -> _Dispatch:
     table[pickle.BUILD[0]] = _Unpickler._build
     table[pickle.NEWOBJ[0]] = _Unpickler._newobj
     table[pickle.BYTEARRAY8[0]] = _Unpickler._bytearray8
+    table[pickle.FRAME[0]] = _Unpickler._frame
     for code in (pickle.EXT1, pickle.EXT2, pickle.EXT4, pickle.INST, pickle.OBJ, pickle.NEWOBJ_EX):
         table[code[0]] = _Unpickler._refused
-    for code in (pickle.GET, pickle.BINGET, pickle.LONG_BINGET):
+    for code in (pickle.GET, pickle.LONG_BINGET):
         table[code[0]] = _resolving(table[code[0]])
-    return {code: _counted(handler) for code, handler in table.items()}
+    table[pickle.BINGET[0]] = _Unpickler._binget
+    return table
 
 
 _Unpickler.dispatch = _dispatch()
@@ -466,48 +510,61 @@ _Unpickler.dispatch = _dispatch()
 
 # -- the result's shape -----------------------------------------------------------------------------
 
-def _children(value: Any, reader: _Reader) -> Iterator[Any]:
+def _children(value: Any, reader: _Reader) -> list[Any]:
     if isinstance(value, list | tuple | set | frozenset):
-        yield from value
-    elif isinstance(value, dict):
-        for key, item in value.items():
-            yield key
-            yield item
-    elif type(value) in reader.fields:
-        missing = reader.fields[type(value)] - vars(value).keys()
+        return list(value)
+    if isinstance(value, dict):
+        return [*value.keys(), *value.values()]
+    names = reader.fields.get(type(value))
+    if names is not None:
+        state = vars(value)
+        missing = names - state.keys()
         if missing:
             raise reader.refuse(f"a {type(value).__name__} without {sorted(missing)}")
-        yield from vars(value).values()
-    elif isinstance(value, _ArrayBuilder):
+        return list(state.values())
+    if isinstance(value, _ArrayBuilder):
         raise reader.refuse("an array that was never built (numpy's _reconstruct without its data), or used "
                             "before it was")
-    elif isinstance(value, _DTypeSpec | _TorchStorage | _StorageType | _Marker):
+    if isinstance(value, _DTypeSpec | _TorchStorage | _StorageType | _Marker):
         raise reader.refuse(f"a bare {type(value).__name__.strip('_')} where only values may be")
+    return []
+
+
+#: Exact types that hold no other values (_children yields nothing for them): not walked at all.
+_LEAVES = frozenset({type(None), bool, int, float, complex, str, bytes, bytearray, np.ndarray})
 
 
 def _check_result(root: Any, reader: _Reader) -> None:
     """No cycles, no nesting deeper than the limit, no half-built values; without recursion."""
     height: dict[int, int] = {}
     on_path: set[int] = set()
-    todo: list[tuple[Any, bool]] = [(root, False)]
+    # (value, its children that are not leaves once entered: None until then); a leaf's height is 0
+    todo: list[tuple[Any, list[Any] | None]] = [(root, None)]
+    max_depth = reader.limits.max_depth
     while todo:
-        value, finished = todo.pop()
+        value, entered = todo.pop()
         key = id(value)
-        if finished:
+        if entered is not None:
             on_path.discard(key)
-            depth = 1 + max((height.get(id(child), 0) for child in _children(value, reader)), default=0)
-            if depth > reader.limits.max_depth:
-                raise reader.refuse(f"nested deeper than {reader.limits.max_depth}")
+            depth = 1 + max((height.get(id(child), 0) for child in entered), default=0)
+            if depth > max_depth:
+                raise reader.refuse(f"nested deeper than {max_depth}")
             height[key] = depth
             continue
-        children = list(_children(value, reader))
+        children = _children(value, reader)
         if not children or key in height:
             continue
         if key in on_path:
             raise reader.refuse("the payload refers to itself (a cycle)")
+        inner = [child for child in children if type(child) not in _LEAVES]
+        if not inner:  # only leaves below: its height is 1, known without a second visit
+            if max_depth < 1:
+                raise reader.refuse(f"nested deeper than {max_depth}")
+            height[key] = 1
+            continue
         on_path.add(key)
-        todo.append((value, True))
-        todo.extend((child, False) for child in children)
+        todo.append((value, inner))
+        todo.extend((child, None) for child in inner)
 
 
 def restricted_loads(data: bytes, allowed: Mapping[tuple[str, str], Any], *, max_bytes: int,
