@@ -211,3 +211,14 @@ def test_a_wrong_action_width_is_refused_before_allocating_as_an_algorithm_failu
 def test_the_generic_reader_keeps_its_allow_list() -> None:
     with pytest.raises(UnsafePayloadError, match=r"builtins\.eval"):
         restricted_loads(pickle.dumps(eval), NUMPY_GLOBALS, max_bytes=1000)
+
+
+@pytest.mark.parametrize("claimed", [2**40, 2**64 - 1])
+def test_a_frame_that_claims_more_than_the_payload_holds_is_refused(claimed: int) -> None:
+    payload = bytearray(pickle.dumps([1, 2, 3], protocol=4))
+    assert payload[2] == pickle.FRAME[0]  # PROTO 4, then FRAME and its 8-byte length
+    payload[3:11] = struct.pack("<Q", claimed)
+    with pytest.raises(ProtocolError, match="past the end"):
+        restricted_loads(bytes(payload), {}, max_bytes=1000)
+    with pytest.raises(ProtocolError, match="past the end"):  # the length itself cut short
+        restricted_loads(bytes(payload[:6]), {}, max_bytes=1000)
