@@ -102,7 +102,9 @@ def test_conversational_agent_with_audio_0_7_4_in_processes(ollama: OllamaTestSe
         assert wait_for(speak, timeout=HANG_GUARD, interval=2.0) and replies, (transcripts, replies)
         assert wait_for(lambda: bool(spoken) or proc.proc.poll() is not None, timeout=HANG_GUARD) and spoken
     assert _in_own_processes(proc, "speech_to_text", "vqa", "text_to_speech")
-    assert transcripts and "".join(replies).startswith("You said: " + transcripts[0][:10]), (transcripts, replies)
+    # The speech may be heard as more than one utterance; the reply echoes one of them.
+    assert transcripts and any("".join(replies).startswith("You said: " + t[:10]) for t in transcripts), \
+        (transcripts, replies)
 
 
 @pytest.mark.parametrize("recipe", [V060 / "semantic_router.py", V074 / "semantic_router.py"], ids=["0.6.0", "0.7.4"])
@@ -195,6 +197,8 @@ def test_conversational_agent_with_audio_0_6_0_in_processes(ollama: OllamaTestSe
             return False
 
         assert wait_for(speak, timeout=HANG_GUARD, interval=3.0) and replies, (transcripts, replies)
-    assert transcripts and "".join(replies).startswith("You said: " + transcripts[0][:10]), (transcripts, replies)
+    # The speech may be heard as more than one utterance; the reply echoes one of them.
+    assert transcripts and any("".join(replies).startswith("You said: " + t[:10]) for t in transcripts), \
+        (transcripts, replies)
     added = [c.payload for c in roboml.calls_of("add_node") if c.node == "speecht5"]
     assert added and "TransformersTTS" in str(added[0]), added  # SpeechT5 loaded in the TTS component's process
