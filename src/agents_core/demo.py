@@ -26,7 +26,6 @@ and the answer and writes the spoken answer to a WAV file::
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import logging
 import signal
 import socket
@@ -42,6 +41,7 @@ from .launch.launcher import Launcher
 from .messages import StreamingStringMsg
 from .topics import Topic
 from .transport.contract import Transport
+from .transport.registry import DEFAULT_CROSS_PROCESS, describe_transport_kind
 
 __all__ = ["DEFAULT_QUESTIONS", "build_agent", "main"]
 
@@ -79,14 +79,14 @@ def build_agent(max_new_tokens: int = 60, ncpu: int = 1) -> tuple[LLM, Topic, To
 
 
 def _transport_choice(requested: str | None, endpoint: str) -> tuple[str, dict[str, Any]]:
-    if requested in (None, "zenoh"):
-        if importlib.util.find_spec("zenoh") is not None:
-            return "zenoh", {"mode": "peer", "listen": [endpoint], "connect": []}
-        if requested == "zenoh":
-            raise SystemExit(f"the zenoh extra is not installed: {install_hint('zenoh')}")
-        print("(zenoh is not installed: using the in-memory transport)")
+    descriptor = describe_transport_kind(requested or DEFAULT_CROSS_PROCESS)
+    missing = descriptor.missing_module()
+    if missing is not None and requested is None:
+        print(f"({missing} is not installed: using the in-memory transport)")
         return "memory", {}
-    return requested, {}
+    if missing is not None:
+        raise SystemExit(f"the {descriptor.extra} extra is not installed: {install_hint(descriptor.extra or '')}")
+    return descriptor.name, descriptor.listen(endpoint) if descriptor.endpoints else {}
 
 
 class _Printer:
@@ -138,7 +138,7 @@ def _run_agent(args: argparse.Namespace) -> int:
     launcher = Launcher(transport=name, transport_options=options)
     launcher.add_pkg(components=[llm])
     with launcher:
-        where = f" on {endpoint}" if name == "zenoh" else ""
+        where = f" on {endpoint}" if describe_transport_kind(name).endpoints else ""
         model_file = getattr(llm.local_model, "model_path", "?")
         print(f"Agent 'assistant' is {llm.lifecycle_state.value} over {name}{where}; model file: {model_file}")
         if args.serve:

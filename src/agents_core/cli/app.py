@@ -14,9 +14,9 @@ import typer
 from ..console import QUIET_ENV_VAR
 from ..errors import AgentsError, ConfigError
 from ..install_hint import install_hint
-from ..transport.registry import TRANSPORT_ENV_VAR
+from ..transport.registry import TRANSPORT_ENV_VAR, available_transports
 from . import components, recording, topics
-from .connection import fail, one_line_errors
+from .connection import attachable_transports, fail, one_line_errors
 from .foxglove import foxglove
 from .output import print_json, say
 
@@ -40,7 +40,8 @@ app.command("foxglove")(foxglove)
 def run(ctx: typer.Context,
         recipe: Annotated[Path, typer.Argument(help="the recipe file, run as __main__")],
         transport: Annotated[str | None, typer.Option(
-            "--transport", "-t", help="memory, zenoh or ros2 (sets AGENTS_TRANSPORT for Launcher())")] = None,
+            "--transport", "-t", help="memory, zenoh, ros2 or an installed one (sets AGENTS_TRANSPORT for "
+                                      "Launcher())")] = None,
         connect: Annotated[list[str] | None, typer.Option(
             "--connect", "-c", help="Zenoh endpoint(s) to connect to, e.g. a router; makes the recipe a client "
                                     "unless --mode says otherwise")] = None,
@@ -55,8 +56,8 @@ def run(ctx: typer.Context,
     if not recipe.is_file():
         raise fail(f"recipe {str(recipe)!r} is not a file")
     if transport is not None:
-        if transport.strip().lower() not in ("memory", "zenoh", "ros2"):
-            raise fail(f"unknown transport {transport!r}; use memory, zenoh or ros2")
+        if transport.strip().lower() not in available_transports():
+            raise fail(f"unknown transport {transport!r}; use {', '.join(available_transports())}")
         os.environ[TRANSPORT_ENV_VAR] = transport.strip().lower()
     if connect:
         os.environ[ZENOH_CONNECT_ENV_VAR] = ",".join(connect)
@@ -80,9 +81,9 @@ def ui(ctx: typer.Context) -> None:
     args = list(ctx.args)
     if "--transport" in args and args.index("--transport") + 1 < len(args):
         name = args[args.index("--transport") + 1].strip().lower()
-        if name not in ("zenoh", "ros2"):
-            raise fail(f"the UI attaches over zenoh or ros2, not {name!r} (a memory recipe enables its UI "
-                       "itself: launcher.enable_ui())")
+        if name not in attachable_transports():
+            raise fail(f"the UI attaches over {' or '.join(attachable_transports())}, not {name!r} (a recipe on an "
+                       "in-process transport enables its UI itself: launcher.enable_ui())")
     try:
         from ..ui.attach import main as attach_main  # noqa: PLC0415 - needs the ui extra
     except ImportError as exc:

@@ -13,20 +13,26 @@ import typer
 
 from ..errors import AgentsError, ConfigError
 from ..transport.contract import Transport
-from ..transport.registry import TRANSPORT_ENV_VAR, resolve_transport
+from ..transport.registry import (
+    DEFAULT_CROSS_PROCESS,
+    TRANSPORT_ENV_VAR,
+    describe_transport_kind,
+    known_transports,
+    resolve_transport,
+)
 from .output import safe_text
 from .values import ArgumentError
 
-__all__ = ["DEFAULT_TRANSPORT", "USAGE_ERROR", "discovery_timeout", "fail", "one_line_errors", "open_transport",
-           "transport_default"]
+__all__ = ["DEFAULT_TRANSPORT", "USAGE_ERROR", "attachable_transports", "discovery_timeout", "fail",
+           "observer_options", "one_line_errors", "open_transport", "transport_default"]
 
 F = TypeVar("F", bound=Callable[..., Any])
 
 #: The exit status of a usage error (Typer's, and ours for argument values that cannot be used).
 USAGE_ERROR = 2
 
-#: What the inspection commands use when neither --transport nor AGENTS_TRANSPORT says.
-DEFAULT_TRANSPORT = "zenoh"
+#: What the inspection commands use when neither --transport nor AGENTS_TRANSPORT says (the registry's choice).
+DEFAULT_TRANSPORT = DEFAULT_CROSS_PROCESS
 
 
 def transport_default() -> str:
@@ -70,24 +76,47 @@ def discovery_timeout(transport: Transport, given: float | None) -> float:
     return given if given is not None else transport.capabilities.discovery_settle_s
 
 
-def zenoh_options(connect: list[str] | None) -> dict[str, Any]:
-    """Options for an observer's Zenoh session: a client of ``connect`` if given, else the loopback default."""
-    options: dict[str, Any] = {"zenoh_options": {"scouting/delay": 100}}
-    if connect:
-        options.update(mode="client", connect=list(connect), listen=[])
-    return options
+def attachable_transports() -> list[str]:
+    """The transports whose descriptors say another process can reach a running recipe (``attach``)."""
+    names = []
+    for name in known_transports():
+        try:
+            if describe_transport_kind(name).attachable:
+                names.append(name)
+        except AgentsError:
+            continue
+    return names
+
+
+def endpoint_option_error(option: str, name: str) -> ConfigError:
+    """``--connect`` (or another endpoint option) given for a transport that takes no endpoints."""
+    takers = [d.shown_name for d in map(describe_transport_kind, attachable_transports()) if d.endpoints]
+    return ConfigError(f"{option} is a {' / '.join(takers) or 'endpoint'} option; the {name} transport does not "
+                       "take it")
+
+
+def observer_options(name: str, connect: list[str] | None, mode: str | None = None, *,
+                     what: str = "inspect") -> dict[str, Any]:
+    """Options for transport ``name`` opened by an observer of other processes' graph (its descriptor's).
+
+    ConfigError for a transport nothing outside its process can reach, or ``connect`` given to one
+    that takes no endpoints.
+    """
+    descriptor = describe_transport_kind(name)
+    if not descriptor.attachable:
+        others = " or ".join(f"--transport {n}" for n in attachable_transports())
+        raise ConfigError(f"the {descriptor.name} transport lives inside one process, so there is nothing to "
+                          f"{what} from outside; use {others or 'a cross-process transport'}")
+    if connect and not descriptor.endpoints:
+        raise endpoint_option_error("--connect", descriptor.name)
+    return descriptor.reach(connect, mode)
 
 
 @contextlib.contextmanager
 def open_transport(name: str | None, connect: list[str] | None = None) -> Iterator[Transport]:
     """Open transport ``name`` (None: :func:`transport_default`) as an observer of other processes' graph."""
     name = (name or transport_default()).strip().lower()
-    if name == "memory":
-        raise ConfigError("the memory transport lives inside one process, so there is nothing to inspect from "
-                          "outside; use --transport zenoh or --transport ros2")
-    if connect and name != "zenoh":
-        raise ConfigError(f"--connect is a Zenoh option; the {name} transport does not take it")
-    transport = resolve_transport(name, **(zenoh_options(connect) if name == "zenoh" else {}))
+    transport = resolve_transport(name, **observer_options(name, connect))
     try:
         yield transport
     finally:

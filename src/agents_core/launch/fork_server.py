@@ -297,17 +297,16 @@ def _close_server() -> None:
 def adapter_module(transport: object) -> str | None:
     """The module of the transport adapter ``transport`` (a name or a transport object) names, if known."""
     if transport is None or isinstance(transport, str):
-        from ..transport.registry import ENTRY_POINT_GROUP, TRANSPORT_ALIASES, TRANSPORT_ENV_VAR  # noqa: PLC0415
+        from ..errors import TransportNotAvailableError  # noqa: PLC0415
+        from ..transport.registry import TRANSPORT_ENV_VAR, describe_transport_kind  # noqa: PLC0415
 
         name = transport or os.environ.get(TRANSPORT_ENV_VAR, "").strip()
-        if name in TRANSPORT_ALIASES:
-            return TRANSPORT_ALIASES[name][0].partition(":")[0]
         if not name:
             return None
-        from importlib.metadata import entry_points  # noqa: PLC0415  # a third-party adapter's, by its name
-
-        found = [ep.value for ep in entry_points(group=ENTRY_POINT_GROUP) if ep.name == name]
-        return found[0].partition(":")[0].strip() if found else None
+        try:
+            return describe_transport_kind(name).factory_module()  # its descriptor says what builds it
+        except TransportNotAvailableError:
+            return None
     driver = getattr(transport, "driver", None)  # a DriverTransport around a third-party driver
     module = type(transport).__module__
     return type(driver).__module__ if driver is not None and module.startswith("agents_core.") else module

@@ -54,13 +54,13 @@ from ..install_hint import install_hint
 from ..runtime.worker import StepWorker
 from ..status import LifecycleState
 from ..transport.contract import Subscription, Transport
-from ..transport.registry import TRANSPORT_ENV_VAR, resolve_transport
+from ..transport.registry import DEFAULT_CROSS_PROCESS, TRANSPORT_ENV_VAR, cross_process_transports, resolve_transport
+from ..transport.registry import describe_transport_kind as _describe
 from .live_status import LiveStatus, Row, child_rows, component_rows
 from .preflight import (
     LIFECYCLE_METHODS,
     check_remote_action,
     check_transferable,
-    cross_process_transports,
     read_launch_file,
     refuse_inside_component_process,
 )
@@ -371,13 +371,15 @@ class Launcher:
         if not self._multiprocessing or self._transport_spec is not None \
                 or os.environ.get(TRANSPORT_ENV_VAR, "").strip():
             return
-        if "zenoh" in cross_process_transports():
+        offered = cross_process_transports()
+        if offered:
             logger.info("multiprocessing=True and no transport named: running the component processes on "
-                        "'zenoh' (name one with Launcher(transport=...) or %s)", TRANSPORT_ENV_VAR)
-            self._transport_spec = "zenoh"
+                        "%r (name one with Launcher(transport=...) or %s)", offered[0], TRANSPORT_ENV_VAR)
+            self._transport_spec = offered[0]
         else:
-            logger.warning("multiprocessing=True needs a cross-process transport and none is installed "
-                           "(%s): running every component in this one process", install_hint("zenoh"))
+            hint = install_hint(str(_describe(DEFAULT_CROSS_PROCESS).extra))
+            logger.warning("multiprocessing=True needs a cross-process transport and none is installed (%s): running "
+                           "every component in this one process", hint)
             self._multiprocessing = False
 
     def _apply_component_sections(self) -> None:

@@ -6,7 +6,6 @@ component process or be silently ignored.
 
 from __future__ import annotations
 
-import importlib
 import sys
 from collections.abc import Sequence
 from typing import Any
@@ -17,7 +16,7 @@ from ..config import load_config_file
 from ..errors import ConfigError, WiringError
 from ..events import Event
 
-__all__ = ["LIFECYCLE_METHODS", "check_remote_action", "check_transferable", "cross_process_transports",
+__all__ = ["LIFECYCLE_METHODS", "check_remote_action", "check_transferable",
            "read_launch_file", "refuse_inside_component_process"]
 
 
@@ -42,25 +41,6 @@ def check_remote_action(event: Event, action: Action) -> None:
         raise WiringError(f"event {event.name!r}: action {action.name!r} of component {owner.component_name!r} "
                           "cannot run in the component's process: mark the method @component_action (it then "
                           "runs through the component's execute_method service)")
-
-
-def cross_process_transports() -> list[str]:
-    """The built-in transports installed here whose drivers declare cross_process (capabilities, not names)."""
-    from ..transport.registry import TRANSPORT_ALIASES  # noqa: PLC0415
-
-    names = []
-    for name, (target, _extra) in TRANSPORT_ALIASES.items():
-        module_name = target.partition(":")[0]
-        try:
-            module = importlib.import_module(module_name)
-        except Exception:  # an extra not installed: not offered
-            continue
-        for value in vars(module).values():
-            caps = getattr(value, "capabilities", None)
-            if isinstance(value, type) and getattr(caps, "cross_process", False) is True:
-                names.append(name)
-                break
-    return names
 
 
 def refuse_inside_component_process() -> None:

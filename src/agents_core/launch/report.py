@@ -13,14 +13,12 @@ The lines are coloured by ``rich`` when it is installed (the ``cli`` extra) and 
 terminal, plain text otherwise. ``Launcher(quiet=True)``, ``AGENTS_QUIET=1`` or a level above
 INFO on the ``agents_core`` logger silence them (see :mod:`agents_core.console`).
 
-The transport line reads the transport's settings by duck typing (this module imports neither
-zenoh nor rclpy): Zenoh's mode and endpoints from its driver's ``config``, ROS 2's domain id and
-discovery range.
+The transport line is the transport's own (its descriptor's ``describe``: Zenoh's mode and
+endpoints, ROS 2's domain id and discovery range); this module imports neither zenoh nor rclpy.
 """
 
 from __future__ import annotations
 
-import os
 import sys
 from typing import Any, TextIO
 
@@ -32,54 +30,10 @@ _WIDTH = 12  # the component-name column; longer names simply push the row
 
 
 def describe_transport(transport: Any) -> str:
-    """One line naming ``transport`` and where it reaches: endpoints, domain, or this process."""
-    name = str(getattr(transport, "name", type(transport).__name__))
-    driver = getattr(transport, "driver", None)
-    if name == "memory":
-        return "memory (in this process only)"
-    if name == "zenoh":
-        config = getattr(driver, "config", None)
-        if config is None:
-            return name
-        return f"zenoh ({_zenoh_endpoints(config)})"
-    if name == "ros2":
-        return f"ros2 (domain {_ros_domain(driver)}; discovery range {_ros_range()})"
-    return name
+    """One line naming ``transport`` and where it reaches (endpoints, domain, this process): its descriptor's words."""
+    from ..transport.registry import descriptor_of  # noqa: PLC0415
 
-
-def _zenoh_endpoints(config: Any) -> str:
-    mode = getattr(config, "mode", None) or "peer"
-    listen = getattr(config, "listen", None)
-    connect = getattr(config, "connect", None)
-    parts = [str(mode)]
-    if getattr(config, "config_file", None):
-        parts.append(f"config file {config.config_file}")
-    elif listen is None and connect is None:
-        port = getattr(config, "port", 7447)
-        parts.append(f"loopback rendezvous tcp/127.0.0.1:{port}")
-    if listen:
-        parts.append("listen " + ", ".join(listen))
-    if connect:
-        parts.append("connect " + ", ".join(connect))
-    parts.append("multicast scouting " + ("on" if getattr(config, "multicast_scouting", False) else "off"))
-    namespace = getattr(config, "namespace", "")
-    if namespace:
-        parts.append(f"namespace {namespace}")
-    return "; ".join(parts)
-
-
-def _ros_domain(driver: Any) -> str:
-    try:
-        return str(driver.node.context.get_domain_id())
-    except Exception:  # an older rclpy, or a driver without a node: the environment says the same
-        return os.environ.get("ROS_DOMAIN_ID", "0") or "0"
-
-
-def _ros_range() -> str:
-    value = os.environ.get("ROS_AUTOMATIC_DISCOVERY_RANGE", "").strip()
-    if value:
-        return value
-    return "LOCALHOST" if os.environ.get("ROS_LOCALHOST_ONLY", "") == "1" else "SUBNET"
+    return descriptor_of(transport).summary(transport)
 
 
 class LaunchReport:

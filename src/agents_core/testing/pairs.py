@@ -35,8 +35,9 @@ from functools import partial
 from importlib.metadata import entry_points
 from typing import TYPE_CHECKING
 
+from ..errors import TransportNotAvailableError
 from ..transport.memory import MemoryTransport
-from ..transport.registry import TRANSPORT_ALIASES, available_transports, resolve_transport
+from ..transport.registry import available_transports, describe_transport_kind, resolve_transport
 from .helpers import free_tcp_port
 
 if TYPE_CHECKING:
@@ -65,10 +66,6 @@ PairFactory = Callable[[], AbstractContextManager[tuple["Transport", "Transport"
 # Zenoh's open() waits up to scouting/delay (500 ms by default) for its connections; on
 # loopback they take a few ms, so a short delay saves half a second per test.
 _FAST_OPEN = {"scouting/delay": 50}
-
-#: The module whose absence means a built-in transport's extra is not installed.
-_REQUIRED_MODULE = {"zenoh": "zenoh", "ros2": "rclpy"}
-
 
 @contextlib.contextmanager
 def memory_pair() -> Iterator[tuple[Transport, Transport]]:
@@ -169,10 +166,14 @@ def missing_requirement(name: str) -> str | None:
 
     Only a missing module counts: a broken installation must fail the suite, not skip it.
     """
-    module = _REQUIRED_MODULE.get(name)
-    if module is None or importlib.util.find_spec(module) is not None:
+    try:
+        descriptor = describe_transport_kind(name)
+    except TransportNotAvailableError:
+        return None  # resolving it says what is wrong
+    module = descriptor.missing_module()
+    if module is None:
         return None
-    extra = TRANSPORT_ALIASES[name][1]
+    extra = descriptor.extra
     return (f"{name} transport not available here: the '{extra}' extra is not installed "
             f"(no module {module!r}); pip install 'agents-core[{extra}]'")
 

@@ -41,9 +41,10 @@ from typing import IO, Any
 import pytest
 
 from ..transport.contract import Transport
-from ..transport.registry import resolve_transport
+from ..transport.descriptor import TransportDescriptor
+from ..transport.registry import TRANSPORT_ALIASES, describe_transport_kind, resolve_transport
 from .helpers import free_tcp_port, wait_for
-from .pairs import missing_requirement, private_ros_environment
+from .pairs import missing_requirement
 
 __all__ = [
     "CROSS_PROCESS_TRANSPORTS",
@@ -56,8 +57,8 @@ __all__ = [
     "run_recipe",
 ]
 
-#: The built-in transports that reach another process.
-CROSS_PROCESS_TRANSPORTS = ("zenoh", "ros2")
+#: The built-in transports that reach another process (their descriptors say ``cross-process``).
+CROSS_PROCESS_TRANSPORTS = tuple(name for name in TRANSPORT_ALIASES if describe_transport_kind(name).cross_process)
 
 #: Environment variables of the test process that must not reach a recipe: they would pick
 #: its transport or its Zenoh endpoints instead of the ones the harness gives on its command line.
@@ -69,14 +70,22 @@ class RecipeTransport:
     """One cross-process transport, set up for a recipe child process and for the test that asks it.
 
     :param name: the transport's name, as ``--transport`` takes it.
-    :param endpoint: Zenoh: the loopback endpoint the recipe listens on; None otherwise.
+    :param endpoint: a transport reached at endpoints (Zenoh): the loopback endpoint the recipe
+        listens on; None otherwise.
     :param domain_id: ROS 2: the private domain both processes use; None otherwise.
+    :param options: what the transport's descriptor's ``isolate`` gave (both sides open with it).
     """
 
     name: str
     endpoint: str | None = None
     domain_id: int | None = None
+    options: Mapping[str, Any] = field(default_factory=dict, compare=False)
     _opened: list[Transport] = field(default_factory=list, compare=False, repr=False)
+
+    @property
+    def descriptor(self) -> TransportDescriptor:
+        """What the transport says it can do (:mod:`agents_core.transport.descriptor`)."""
+        return describe_transport_kind(self.name)
 
     @property
     def recipe_args(self) -> list[str]:
@@ -88,19 +97,17 @@ class RecipeTransport:
 
     def open_asker(self) -> Transport:
         """A transport in this process that reaches the recipe's; closed by :meth:`close`."""
-        if self.name == "zenoh":
-            return self._open("zenoh", mode="peer", listen=[], connect=[self.endpoint], multicast_scouting=False)
-        if self.name == "ros2":
-            return self._open("ros2", domain_id=self.domain_id)
-        return self._open(self.name)
+        if self.endpoint is not None:
+            return self._open(self.name, **self.descriptor.reach([self.endpoint], "peer"))
+        return self._open(self.name, **self.options)
 
     def open_recipe_side(self) -> Transport:
         """A transport in this process configured as the recipe child's would be (Zenoh: listening on the endpoint).
 
         For a recipe run inside the test process; closed by :meth:`close`.
         """
-        if self.name == "zenoh":
-            return self._open("zenoh", mode="peer", listen=[self.endpoint], connect=[], multicast_scouting=False)
+        if self.endpoint is not None:
+            return self._open(self.name, **self.descriptor.listen(self.endpoint))
         return self.open_asker()
 
     def _open(self, name: str, **options: Any) -> Transport:
@@ -115,12 +122,19 @@ class RecipeTransport:
 
 
 def open_recipe_transport(name: str) -> RecipeTransport:
-    """Set up transport ``name`` on this host for a recipe test (ROS 2: the private domain, in ``os.environ``)."""
-    if name == "zenoh":
+    """Set up transport ``name`` on this host for a recipe test, as its descriptor says.
+
+    A transport reached at endpoints gets a free loopback one; one with an ``isolate`` sets up its
+    private space (ROS 2: the private domain, in ``os.environ``, which rcl reads when a context
+    starts: the test process's plain rclpy nodes too).
+    """
+    descriptor = describe_transport_kind(name)
+    if descriptor.endpoints:
         return RecipeTransport(name, endpoint=f"tcp/127.0.0.1:{free_tcp_port()}")
-    if name == "ros2":
-        # rcl reads the environment when a context starts: the test process's plain rclpy nodes too.
-        return RecipeTransport(name, domain_id=private_ros_environment())
+    if descriptor.isolate is not None:
+        options = descriptor.isolate()
+        domain = options.get("domain_id")
+        return RecipeTransport(name, domain_id=domain if isinstance(domain, int) else None, options=options)
     return RecipeTransport(name)
 
 
@@ -128,7 +142,7 @@ def recipe_transport_params() -> list[Any]:
     """One ``pytest.param`` per cross-process transport: marked with its name, skipped if its extra is absent."""
     params = []
     for name in CROSS_PROCESS_TRANSPORTS:
-        marks: list[Any] = [getattr(pytest.mark, name)]
+        marks: list[Any] = [getattr(pytest.mark, name)]  # the marker named after the transport
         reason = missing_requirement(name)
         if reason is not None:
             marks.append(pytest.mark.skip(reason=reason))

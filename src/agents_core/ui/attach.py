@@ -3,7 +3,8 @@
 ``python -m agents_core.ui.attach --transport zenoh --connect tcp/127.0.0.1:7447 [--port 5001]``
 opens its own transport session, finds the recipe's components (``transport.discover()``, or
 ``--component NAME`` repeated), asks each one's ``<name>/describe`` service for its inputs,
-outputs and actions, and serves the UI until Ctrl+C. :func:`main` is meant to become the CLI's
+outputs and actions, and serves the UI until Ctrl+C. Any transport whose descriptor says
+``attach`` works; the options come from the descriptor (``reach``). :func:`main` is meant to become the CLI's
 ``agentsctl ui`` subcommand. A token, when binding off loopback, comes from ``AGENTS_UI_TOKEN``
 (never from the command line).
 """
@@ -17,6 +18,7 @@ import threading
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
+from ..errors import ConfigError
 from ..topics import Topic
 from .recipe_view import RemoteRecipe
 from .settings import UISettings
@@ -46,9 +48,12 @@ def attach(transport: Transport, *, components: Sequence[str] | None = None,
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="agentsctl ui", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--transport", default="zenoh", help="zenoh or ros2 (default: zenoh)")
-    parser.add_argument("--connect", action="append", default=[], help="Zenoh endpoint to connect to (repeat)")
-    parser.add_argument("--mode", default="peer", help="Zenoh session mode (peer or client)")
+    parser.add_argument("--transport", default=None,
+                        help="a cross-process transport: zenoh, ros2 or an installed one (default: zenoh)")
+    parser.add_argument("--connect", action="append", default=[],
+                        help="endpoint to connect to, for a transport reached at endpoints such as Zenoh (repeat)")
+    parser.add_argument("--mode", default="peer", help="session mode, where the transport has one (Zenoh: peer "
+                                                       "or client)")
     parser.add_argument("--component", action="append", default=None, help="show only these components (repeat)")
     parser.add_argument("--host", default="127.0.0.1", help="bind address (off loopback needs AGENTS_UI_TOKEN)")
     parser.add_argument("--port", type=int, default=5001)
@@ -61,12 +66,17 @@ def _parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the attached UI until SIGINT / SIGTERM (or ``--seconds``)."""
     args = _parser().parse_args(argv)
-    from ..transport.registry import resolve_transport  # noqa: PLC0415
+    from ..transport.registry import DEFAULT_CROSS_PROCESS, describe_transport_kind, resolve_transport  # noqa: PLC0415
 
-    options: dict[str, Any] = {}
-    if args.transport == "zenoh":
-        options = {"mode": args.mode, "connect": list(args.connect), "listen": []}
-    transport = resolve_transport(args.transport, **options)
+    name = args.transport or DEFAULT_CROSS_PROCESS
+    descriptor = describe_transport_kind(name)
+    if not descriptor.attachable:
+        raise ConfigError(f"the UI cannot attach over the {descriptor.name} transport: it lives inside one "
+                          "process (the recipe enables its UI itself: launcher.enable_ui())")
+    if args.connect and not descriptor.endpoints:
+        raise ConfigError(f"--connect: the {descriptor.name} transport is not reached at endpoints")
+    options: dict[str, Any] = descriptor.reach(args.connect, args.mode) if descriptor.endpoints else descriptor.reach()
+    transport = resolve_transport(name, **options)
     try:
         settings = UISettings(host=args.host, port=args.port, tls_certfile=args.tls_certfile,
                               tls_keyfile=args.tls_keyfile)
