@@ -4,6 +4,9 @@ These are the structural promises of docs/architecture.md:
 
 - the only import circle among the modules of ``src/`` is ``topics`` <-> ``conditions`` (the
   condition language's entry point: ``topic.msg.data > 3`` builds a condition);
+- the modules sit in the layers of :data:`LAYERS` (lowest first) and at most
+  :data:`MAX_BACK_ARROWS` imports run from a lower layer up to a higher one; nothing in
+  ``components/`` imports the launch wing;
 - no file in ``src/`` is over :data:`MAX_LINES` lines;
 - no module assigns an underscore attribute of an object other than ``self`` / ``cls`` (a class's
   private state is written by that class only).
@@ -25,6 +28,27 @@ PACKAGES = ("agents_core", "agents_zenoh", "agents_ros2")
 MAX_LINES = 600
 #: Import circles that are part of the design (sorted module names).
 ALLOWED_CYCLES = {("agents_core.conditions", "agents_core.topics")}
+#: The layers of agents_core, lowest first: name -> the package-root modules / folders in it. A module
+#: may import its own layer and those below; the adapters (agents_zenoh, agents_ros2) sit with the
+#: transport's users, at :data:`ADAPTER_LAYER`. The package root (``agents_core/__init__``, a lazy
+#: façade importing only ``_lazy`` at run time) is in the base.
+LAYERS: tuple[tuple[str, frozenset[str]], ...] = (
+    ("base", frozenset({"", "_version", "_lazy", "_numpy", "errors", "install_hint", "registry", "bounded_json",
+                        "checked_attrs", "base_validators", "console", "utils", "concurrency", "status"})),
+    ("vocabulary", frozenset({"types", "supported_types", "messages", "config", "_component_configs", "topics",
+                              "conditions", "events", "actions", "callbacks", "component_method", "setup_calls",
+                              "models", "vectordbs"})),
+    ("transport", frozenset({"transport"})),
+    ("runtime", frozenset({"runtime"})),
+    ("clients", frozenset({"clients", "engines"})),
+    ("components", frozenset({"components"})),
+    ("wings", frozenset({"launch", "recording", "foxglove", "ui"})),
+    ("entry points", frozenset({"cli", "testing", "demo", "ros"})),
+)
+ADAPTER_LAYER = "runtime"
+#: At most this many imports run back up the layers (each one listed in docs/architecture.md).
+MAX_BACK_ARROWS = 2
+
 #: Places that assign another object's underscore attribute on purpose: (module, "target._attr"): why.
 ALLOWED_PRIVATE_WRITES = {
     # __new__ records the constructor's arguments on the instance it just made (its own object).
@@ -142,6 +166,38 @@ def test_no_import_circle_but_topics_and_conditions() -> None:
 def test_the_cycle_finder_finds_a_circle() -> None:
     # The checker itself must be able to fail.
     assert _cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [("a", "b", "c")]
+
+
+def _layer(module: str) -> int:
+    names = [name for name, _ in LAYERS]
+    if not module.startswith("agents_core"):
+        return names.index(ADAPTER_LAYER)
+    first = module[len("agents_core"):].lstrip(".").split(".")[0]
+    for index, (_, members) in enumerate(LAYERS):
+        if first in members:
+            return index
+    raise AssertionError(f"module {module} is in no layer of tests/test_code_shape.py LAYERS: place it there")
+
+
+def _back_arrows(graph: dict[str, set[str]]) -> list[str]:
+    return sorted(f"{module} -> {dep}" for module, deps in graph.items() for dep in deps
+                  if _layer(dep) > _layer(module))
+
+
+def test_at_most_two_imports_run_back_up_the_layers() -> None:
+    arrows = _back_arrows(_import_graph())
+    assert len(arrows) <= MAX_BACK_ARROWS, "imports running up the layers:\n" + "\n".join(arrows)
+
+
+def test_the_back_arrow_counter_counts_one() -> None:
+    graph = {"agents_core.topics": {"agents_core.launch.spec"}, "agents_core.launch.spec": {"agents_core.topics"}}
+    assert _back_arrows(graph) == ["agents_core.topics -> agents_core.launch.spec"]
+
+
+def test_no_component_imports_the_launch_wing() -> None:
+    found = [f"{module} -> {dep}" for module, deps in _import_graph().items() if module.startswith(
+        "agents_core.components") for dep in deps if dep.startswith("agents_core.launch")]
+    assert not found, f"components importing the launcher: {found}"
 
 
 def test_no_file_in_src_is_over_the_limit() -> None:

@@ -4,7 +4,7 @@ A recipe may give a language model another component's action as a tool
 (``memory.register_tools_on(llm)``, ``llm.register_tool(memory.locate, ...)``). In one process the
 model's component calls the bound method itself. With ``add_pkg(multiprocessing=True)`` the
 model's process holds no such object: the launcher sends the bound method across as this
-reference (the component's name and the action's name, see :mod:`agents_core.launch.spec`), and
+reference (the component's name and the action's name, see :mod:`agents_core.transport.process_values`), and
 the model's component calls it through the owner's ``<component>/execute_method`` service with
 :meth:`ComponentMethod.call`, as upstream does for component tools.
 """
@@ -12,16 +12,21 @@ the model's component calls it through the owner's ``<component>/execute_method`
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 import attrs
 
 from .errors import ComponentError
 
-if TYPE_CHECKING:
-    from .transport.contract import Transport
+__all__ = ["ComponentMethod", "Requester"]
 
-__all__ = ["ComponentMethod"]
+
+class Requester(Protocol):
+    """What :meth:`ComponentMethod.call` needs of a transport (any :class:`~agents_core.transport.Transport`)."""
+
+    def request(self, name: str, payload: dict[str, Any], *, timeout: float = ...) -> dict[str, Any]:
+        """Call service ``name`` with ``payload``; its reply."""
+        ...
 
 
 @attrs.frozen
@@ -45,7 +50,7 @@ class ComponentMethod:
         raise ComponentError(f"{self.component_name}.{self.method} runs in another process: call it through "
                              "a transport (ComponentMethod.call)")
 
-    def call(self, transport: Transport, kwargs: Mapping[str, Any]) -> Any:
+    def call(self, transport: Requester, kwargs: Mapping[str, Any]) -> Any:
         """Run the action with ``kwargs`` on its component's worker; its result (a plain value, else its repr)."""
         reply = transport.request(f"{self.component_name}/execute_method",
                                   {"method": self.method, "args": [], "kwargs": dict(kwargs),

@@ -1,4 +1,5 @@
-"""Values on the command line: parsing what ``topics pub`` and ``call`` send, summarising what ``topics echo`` shows.
+"""Values on the command line: parsing what ``topics pub`` and ``call`` send, summarising what ``topics echo`` shows
+(:mod:`agents_core.types.summary`).
 
 Large arrays and byte strings (images, audio, point clouds) are never printed: they become
 ``{"shape": [...], "dtype": "..."}`` or ``{"bytes": n}``, so an echo of a camera topic stays
@@ -12,26 +13,18 @@ or OverflowError traceback.
 
 from __future__ import annotations
 
-import enum
 import json
 import math
 import re
 from typing import Any
 
-import attrs
-import numpy as np
-
 from ..errors import ConfigError
 from ..types.base import SupportedType
+from ..types.summary import MAX_INLINE_ELEMENTS, MAX_INLINE_TEXT, summarize
 
-__all__ = ["MAX_ARGUMENT_CHARS", "MAX_JSON_DEPTH", "ArgumentError", "parse_call_argument", "parse_json_argument",
-           "parse_value", "summarize"]
+__all__ = ["MAX_ARGUMENT_CHARS", "MAX_INLINE_ELEMENTS", "MAX_INLINE_TEXT", "MAX_JSON_DEPTH", "ArgumentError",
+           "parse_call_argument", "parse_json_argument", "parse_value", "summarize"]
 
-#: Arrays with more elements than this are shown as shape and dtype only.
-MAX_INLINE_ELEMENTS = 16
-#: Strings longer than this are cut (with their length shown).
-MAX_INLINE_TEXT = 2000
-_MAX_DEPTH = 8
 #: The longest argument (JSON or text) accepted, in characters.
 MAX_ARGUMENT_CHARS = 1_000_000
 #: The deepest nesting of JSON arrays and objects accepted in an argument.
@@ -138,37 +131,3 @@ def parse_value(msg_type: type[SupportedType], text: str) -> Any:
             first = first or exc
     # The first candidate is the most specific reading of the text: its error says the most.
     raise ArgumentError(f"value {shown!r}", f"does not fit {name}: {f'it {refused.reason}' if refused else first}")
-
-
-def summarize(value: Any, depth: int = 0) -> Any:
-    """JSON-ready data for ``value``, with large arrays and bytes reduced to a summary."""
-    if depth > _MAX_DEPTH:
-        return repr(value)[:80]
-    if value is None or isinstance(value, bool | int):
-        return value
-    if isinstance(value, float):
-        return value if math.isfinite(value) else str(value)
-    if isinstance(value, str):
-        return value if len(value) <= MAX_INLINE_TEXT else f"{value[:MAX_INLINE_TEXT]}... ({len(value)} chars)"
-    if isinstance(value, enum.Enum):
-        return summarize(value.value, depth + 1)
-    if isinstance(value, bytes | bytearray | memoryview):
-        return {"bytes": len(value)}
-    if isinstance(value, np.generic):
-        return summarize(value.item(), depth + 1)
-    if isinstance(value, np.ndarray):
-        if value.size <= MAX_INLINE_ELEMENTS and value.dtype.kind in "biuf":
-            return [summarize(v, depth + 1) for v in value.tolist()] if value.ndim else summarize(value.item())
-        return {"shape": list(value.shape), "dtype": str(value.dtype)}
-    if attrs.has(type(value)):
-        return {f.name: summarize(getattr(value, f.name), depth + 1) for f in attrs.fields(type(value))}
-    if isinstance(value, dict):
-        return {str(k): summarize(v, depth + 1) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        if len(value) > MAX_INLINE_ELEMENTS and all(isinstance(v, int | float) for v in value):
-            return {"length": len(value)}
-        return [summarize(v, depth + 1) for v in value]
-    fields = getattr(value, "get_fields_and_field_types", None)  # a ROS message used as a value
-    if callable(fields):
-        return {name: summarize(getattr(value, name), depth + 1) for name in fields()}
-    return repr(value)[:200]

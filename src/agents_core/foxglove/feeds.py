@@ -38,7 +38,6 @@ from foxglove import Channel, Context
 from foxglove import channels as fc
 from foxglove import messages as fm
 
-from ..cli.values import summarize
 from ..messages import (
     CompressedImageMsg,
     DetectionsMsg,
@@ -58,6 +57,7 @@ from ..types.component_status import ComponentStatus, ComponentStatusMsg
 from ..types.geometry import Odometry, Path, Pose, PoseArray
 from ..types.media import CompressedImage, Image
 from ..types.perception import Detections, PointsOfInterest, Trackings
+from ..types.summary import summarize
 from ..types.text import StreamingString, String
 
 __all__ = ["TopicFeed", "feed_kind"]

@@ -21,7 +21,7 @@ from typing import Any
 
 from ...actions import Action
 from ...errors import ConfigError
-from ...launch.spec import TAG, ValueCodec, decode_value, encode_value, register_value_codec
+from ...transport.process_values import TAG, ValueCodec, decode_value, encode_value, register_value_codec
 
 __all__ = ["ACTION_CODEC"]
 
