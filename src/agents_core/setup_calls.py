@@ -10,6 +10,13 @@ order, once it has built the component.
 Not recorded: calls made while a constructor runs (the process's constructor makes them again),
 calls made from inside another recorded call (replaying the outer one makes them), and calls
 made once the component is bound to a transport (they happen in the process that runs it).
+
+The record also holds, under the same rules, the names of the public attributes the recipe
+assigned (:func:`note_assignment`, called by ``Component.__setattr__``), and what the
+component's *probe* counted (state no attribute shows, such as its publishers' pre-processors)
+when its construction ended, plus what each recorded call added: anything else added since was
+added past the component's methods (:func:`expected_state`). So what a component is can be read
+from it as data (:class:`~agents_core.launch.recipe.Recipe`), without building it again.
 """
 
 from __future__ import annotations
@@ -20,7 +27,11 @@ from typing import Any, TypeVar
 
 import attrs
 
-__all__ = ["SETUP_MARK", "SetupCall", "constructor", "recorded_setup_calls", "setup_method", "start_recording"]
+__all__ = ["SETUP_MARK", "SetupCall", "constructor", "expected_state", "note_assignment", "recorded_assignments",
+           "recorded_setup_calls", "setup_method", "start_recording"]
+
+#: Counts a component's state that no attribute shows (what :func:`expected_state` compares).
+Probe = Callable[[Any], dict[str, int]]
 
 #: The attribute marking a method whose calls are recorded (its value: True).
 SETUP_MARK = "_agents_setup_method"
@@ -39,17 +50,40 @@ class SetupCall:
 
 
 class _Recorder:
-    __slots__ = ("calls", "constructing", "nesting")
+    __slots__ = ("assigned", "calls", "constructing", "expected", "nesting", "probe")
 
-    def __init__(self) -> None:
+    def __init__(self, probe: Probe | None) -> None:
         self.calls: list[SetupCall] = []
+        self.assigned: dict[str, None] = {}  # an ordered set
         self.constructing = 0
         self.nesting = 0
+        self.probe = probe
+        self.expected: dict[str, int] | None = None
 
 
-def start_recording(instance: Any) -> None:
-    """Give a new instance its (empty) record; called from ``__new__``."""
-    object.__setattr__(instance, _RECORDER, _Recorder())
+def start_recording(instance: Any, probe: Probe | None = None) -> None:
+    """Give a new instance its (empty) record; called from ``__new__`` (``probe``: see the module docstring)."""
+    object.__setattr__(instance, _RECORDER, _Recorder(probe))
+
+
+def note_assignment(instance: Any, name: str) -> None:
+    """Record that public attribute ``name`` was assigned (outside constructors and recorded calls, before binding)."""
+    recorder: _Recorder | None = getattr(instance, _RECORDER, None)
+    if recorder is None or recorder.constructing or recorder.nesting or _bound(instance):
+        return
+    recorder.assigned[name] = None
+
+
+def recorded_assignments(instance: Any) -> list[str]:
+    """The public attributes assigned on ``instance`` after its construction, first assignment first."""
+    recorder: _Recorder | None = getattr(instance, _RECORDER, None)
+    return list(recorder.assigned) if recorder is not None else []
+
+
+def expected_state(instance: Any) -> dict[str, int] | None:
+    """What the probe should count now: at the end of construction plus what recorded calls added (None: no probe)."""
+    recorder: _Recorder | None = getattr(instance, _RECORDER, None)
+    return dict(recorder.expected) if recorder is not None and recorder.expected is not None else None
 
 
 def recorded_setup_calls(instance: Any) -> list[SetupCall]:
@@ -67,9 +101,12 @@ def constructor(init: F) -> F:
             return init(self, *args, **kwargs)
         recorder.constructing += 1
         try:
-            return init(self, *args, **kwargs)
+            result = init(self, *args, **kwargs)
         finally:
             recorder.constructing -= 1
+        if not recorder.constructing and recorder.probe is not None:
+            recorder.expected = recorder.probe(self)  # what the constructor built
+        return result
 
     return wrapper  # type: ignore[return-value]
 
@@ -86,12 +123,16 @@ def setup_method(func: F) -> F:
         recorder: _Recorder | None = getattr(self, _RECORDER, None)
         if recorder is None or recorder.constructing or recorder.nesting or _bound(self):
             return func(self, *args, **kwargs)
+        before = recorder.probe(self) if recorder.probe is not None else None
         recorder.nesting += 1
         try:
             result = func(self, *args, **kwargs)
         finally:
             recorder.nesting -= 1
         recorder.calls.append(SetupCall(func.__name__, tuple(args), dict(kwargs)))
+        if before is not None and recorder.expected is not None and recorder.probe is not None:
+            after = recorder.probe(self)  # what this call added, replayed in the component's process too
+            recorder.expected = {k: recorder.expected.get(k, 0) + after[k] - before.get(k, 0) for k in after}
         return result
 
     setattr(wrapper, SETUP_MARK, True)

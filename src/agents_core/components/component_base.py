@@ -34,7 +34,7 @@ from ..runtime.component_runtime import ComponentRuntime
 from ..runtime.health import ANY_FAILURE
 from ..runtime.run_type import ComponentRunType
 from ..runtime.worker import WorkerStatistics
-from ..setup_calls import constructor, setup_method, start_recording
+from ..setup_calls import constructor, note_assignment, setup_method, start_recording
 from ..status import HealthStatus, LifecycleState
 from ..topics import Topic, validate_topic_name
 from ..transport.core import status_topic
@@ -46,7 +46,16 @@ if TYPE_CHECKING:
     from ..transport.contract import Transport
     from ..transport.goals import GoalHandle
 
-__all__ = ["AllowedTypes", "Component", "ComponentPublisher", "TriggerType"]
+__all__ = ["AllowedTypes", "Component", "ComponentPublisher", "TriggerType", "carried_state"]
+
+
+def carried_state(component: Component) -> dict[str, int]:
+    """What a component holds beyond its attributes that a process must rebuild through its methods (counts)."""
+    publishers = getattr(component, "publishers_dict", None) or {}
+    callbacks = [*(getattr(component, "callbacks", None) or {}).values(),
+                 *(getattr(component, "trig_callbacks", None) or {}).values()]
+    return {"publisher pre-processors": sum(len(p._preprocessors) for p in publishers.values()),
+            "callback post-processors": sum(len(cb._postprocessors) for cb in callbacks)}
 
 
 class Component:
@@ -80,8 +89,14 @@ class Component:
         # the component from them in its own process (see agents_core.launch.spec).
         instance = super().__new__(cls)
         instance._init_arguments = (args, dict(kwargs))
-        start_recording(instance)  # the setup calls made after construction (agents_core.setup_calls)
+        # The setup calls and attribute assignments made after construction (agents_core.setup_calls).
+        start_recording(instance, carried_state)
         return instance
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        object.__setattr__(self, name, value)
+        if not name.startswith("_"):
+            note_assignment(self, name)  # recorded only after construction, before the component runs
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)

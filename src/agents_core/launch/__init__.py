@@ -15,20 +15,13 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from .._lazy import lazy_exports
-
-#: module -> the names re-exported from it, imported on first access.
-_EXPORTS: dict[str, tuple[str, ...]] = {
-    ".launcher": ("Launcher",),
-    ".spec": ("SPEC_VERSION", "ComponentSpec", "ValueCodec", "register_value_codec"),
-    ".supervisor": ("Supervisor",),
-}
+from .._lazy import lazy_facade
 
 if TYPE_CHECKING:
     from .launcher import Launcher
     from .spec import SPEC_VERSION, ComponentSpec, ValueCodec, register_value_codec
     from .supervisor import Supervisor
 else:
-    __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
+    __getattr__, __dir__ = lazy_facade(__name__)
 
 __all__ = ["SPEC_VERSION", "ComponentSpec", "Launcher", "Supervisor", "ValueCodec", "register_value_codec"]

@@ -12,14 +12,16 @@ the recipe file by path under that module name, so its ``if __name__ == "__main_
 does not run. The launcher's ``sys.path`` travels too, so a recipe's sibling modules import
 the same in the child whatever directory the recipe was started from.
 
-What the recipe did to the component after building it travels as well: the calls of its
-setup methods (:mod:`agents_core.setup_calls`: ``register_tool``, ``set_topic_prompt``,
-processors, ...), replayed in order, and public attributes it assigned (an attribute named as a
-constructor parameter, such as ``additional_model_clients``, becomes that argument; another one
-is set again after construction). A function crosses by its qualified name (a module-level
+The spec is the encoding of one entry of the recipe (:class:`~agents_core.launch.recipe.ComponentEntry`,
+read from what the component recorded: nothing is built to learn what it is). What the recipe
+did to the component after building it travels as well: the calls of its setup methods
+(:mod:`agents_core.setup_calls`: ``register_tool``, ``set_topic_prompt``, processors, ...),
+replayed in order, and public attributes it assigned (an attribute named as a constructor
+parameter, such as ``additional_model_clients``, becomes that argument; another one is set again
+after construction). A function crosses by its qualified name (a module-level
 ``def``); a lambda or a nested function cannot, and is refused at ``add_pkg`` naming the
-component, the call and the function. :func:`check_rebuild` rebuilds the component in the
-launcher and refuses, naming the attribute, any difference that would remain.
+component, the call and the function. :func:`check_rebuild` refuses, naming it, state added past
+the component's methods (a pre-processor given to a publisher directly), which the child would lack.
 
 A component triggered by an :class:`~agents_core.events.Event` gets a stand-in event of the same
 name (:class:`LauncherEvent`): the launcher watches the event's topics and evaluates its
@@ -32,7 +34,6 @@ from different releases fail with a clear error instead of building something el
 
 from __future__ import annotations
 
-import inspect
 import os
 import sys
 from collections.abc import Mapping
@@ -43,7 +44,7 @@ import attrs
 
 from ..errors import ConfigError
 from ..events import Event
-from ..setup_calls import SETUP_MARK, SetupCall, recorded_setup_calls
+from ..setup_calls import SETUP_MARK, SetupCall, expected_state
 from ..topics import Topic
 from ..transport.process_values import (  # re-exported: the codecs moved below the launcher
     RECIPE_MODULE,
@@ -56,6 +57,7 @@ from ..transport.process_values import (  # re-exported: the codecs moved below 
     import_class,
     register_value_codec,
 )
+from .recipe import ComponentEntry
 
 if TYPE_CHECKING:
     from ..components.component_base import Component
@@ -109,17 +111,23 @@ class ComponentSpec:
     def from_component(cls, component: Component, transport: str, transport_options: Mapping[str, Any],
                        parent_pid: int) -> ComponentSpec:
         """The spec of ``component``; ConfigError naming the component for what cannot cross processes."""
-        name = component.component_name
+        return cls.from_entry(ComponentEntry.of(component), transport, transport_options, parent_pid)
+
+    @classmethod
+    def from_entry(cls, entry: ComponentEntry, transport: str, transport_options: Mapping[str, Any],
+                   parent_pid: int) -> ComponentSpec:
+        """The spec of one recipe entry (:class:`~agents_core.launch.recipe.ComponentEntry`), encoded."""
+        name = entry.name
         where = f"component {name!r}"
-        args, kwargs = getattr(component, "_init_arguments", ((), {}))
-        positional, keywords = _bind_config(component, args, kwargs)
-        trigger = component.trigger
+        positional, keywords = entry.args, dict(entry.kwargs)
+        trigger = entry.trigger
         if isinstance(trigger, Event):
             # The launcher evaluates the event and forwards its firings (see LauncherEvent).
             stand_in = LauncherEvent(trigger.name)
             positional = tuple(stand_in if a is trigger else a for a in positional)
             keywords = {k: stand_in if v is trigger else v for k, v in keywords.items()}
-        spec = cls(component_name=name, component_class=class_path(type(component)),
+        component = entry.component
+        spec = cls(component_name=name, component_class=class_path(entry.component_class),
                    args=[encode_value(a, f"{where}: argument {i}") for i, a in enumerate(positional)],
                    kwargs={k: encode_value(v, f"{where}: argument {k!r}") for k, v in keywords.items()},
                    transport=transport,
@@ -128,10 +136,12 @@ class ComponentSpec:
                    parent_pid=parent_pid,
                    fallbacks={kind: {"actions": [_encode_own_action(component, a) for a in fallback.actions],
                                      "max_retries": fallback.max_retries}
-                              for kind, fallback in component.runtime.health.fallbacks.items()},
-                   giveup=[_encode_own_action(component, a) for a in component.runtime.health.giveup_actions],
-                   giveup_retries=component.runtime.health.giveup_retries,
-                   setup_calls=[_encode_setup_call(where, call) for call in recorded_setup_calls(component)],
+                              for kind, fallback in entry.fallbacks.items()},
+                   giveup=[_encode_own_action(component, a) for a in entry.giveup],
+                   giveup_retries=entry.giveup_retries,
+                   setup_calls=[_encode_setup_call(where, call) for call in entry.setup_calls],
+                   attributes={k: encode_value(v, f"{where}: attribute {k!r} (set after construction)")
+                               for k, v in entry.attributes.items()},
                    sys_path=_import_path())
         spec.find_recipe(where)
         return spec
@@ -216,40 +226,6 @@ def _mentions_recipe(spec: ComponentSpec) -> bool:
     return f'"{RECIPE_MODULE}:' in repr(spec.to_dict()).replace("'", '"')
 
 
-def _bind_config(component: Component, args: tuple[Any, ...],
-                 kwargs: dict[str, Any]) -> tuple[tuple[Any, ...], dict[str, Any]]:
-    """The constructor arguments with ``config`` replaced by the component's config as it is now.
-
-    A launcher's config file (or code run after construction) may have changed the config; the
-    child must start from what the parent would have run. The arguments are normalised to
-    keywords where the signature allows it.
-    """
-    try:
-        signature = inspect.signature(type(component).__init__)
-        bound = signature.bind(None, *args, **kwargs)
-    except TypeError:
-        return args, kwargs
-    arguments = dict(bound.arguments)
-    arguments.pop(next(iter(signature.parameters)), None)  # self
-    has_config = "config" in signature.parameters or any(
-        p.kind is inspect.Parameter.VAR_KEYWORD for p in signature.parameters.values())
-    positional: list[Any] = []
-    keywords: dict[str, Any] = {}
-    for name, value in arguments.items():
-        param = signature.parameters[name]
-        if param.kind is inspect.Parameter.VAR_POSITIONAL:
-            positional.extend(value)
-        elif param.kind is inspect.Parameter.VAR_KEYWORD:
-            keywords.update(value)
-        elif param.kind is inspect.Parameter.POSITIONAL_ONLY:
-            positional.append(value)
-        else:
-            keywords[name] = value
-    if has_config and "config_file" not in keywords:
-        keywords["config"] = component.config
-    return tuple(positional), keywords
-
-
 def _encode_own_action(component: Component, action: Any) -> dict[str, Any]:
     """A fallback action as data: a method of the component itself, with JSON-like arguments."""
     where = f"component {component.component_name!r}: fallback action {action.name!r}"
@@ -273,90 +249,23 @@ def _import_path() -> list[str]:
     return [os.path.abspath(entry or os.curdir) for entry in sys.path if isinstance(entry, str)]
 
 
-def _extra_state(component: Component) -> dict[str, int]:
-    """What a component holds beyond its constructor's doing that no attribute shows."""
-    health = component.runtime.health
-    return {"fallbacks": len(health.fallbacks) + len(health.giveup_actions),
-            "publisher pre-processors": sum(len(p._preprocessors) for p in component.publishers_dict.values()),
-            "callback post-processors": sum(len(cb._postprocessors) for cb in
-                                            (*component.callbacks.values(), *component.trig_callbacks.values()))}
-
-
-#: Attributes compared by other means (the config is bound as an argument, the trigger is a stand-in).
-_NOT_COMPARED = frozenset({"config", "trigger", "runtime"})
-_OPAQUE = object()
-
-
-def _public_state(component: Component) -> dict[str, Any]:
-    """The component's public attributes, encoded (``_OPAQUE`` for a value no codec knows)."""
-    state: dict[str, Any] = {}
-    for name, value in vars(component).items():
-        if name.startswith("_") or name in _NOT_COMPARED:
-            continue
-        try:
-            state[name] = encode_value(value, name)
-        except ConfigError:
-            state[name] = _OPAQUE
-    return state
-
-
-def _constructor_parameters(component: Component) -> set[str]:
-    """Parameter names the component's constructor takes (through ``**kwargs`` too, up its classes)."""
-    names: set[str] = set()
-    for klass in type(component).__mro__:
-        init = klass.__dict__.get("__init__")
-        if init is None or klass is object:
-            continue
-        params = inspect.signature(init).parameters.values()
-        names.update(p.name for p in params if p.kind not in (p.VAR_POSITIONAL, p.VAR_KEYWORD))
-        if not any(p.kind is p.VAR_KEYWORD for p in params):
-            break  # this constructor passes nothing more up
-    return names
-
-
-def _carry_attributes(component: Component, spec: ComponentSpec, rebuilt: Component) -> bool:
-    """Put in ``spec`` the public attributes of ``component`` that ``rebuilt`` lacks or has otherwise;
-    whether there were any. ConfigError naming an attribute that cannot cross."""
-    where = f"component {component.component_name!r}"
-    now, then = _public_state(component), _public_state(rebuilt)
-    parameters = _constructor_parameters(component)
-    changed = False
-    for name, value in now.items():
-        if name in then and (value is _OPAQUE or value == then[name]):
-            continue  # the same, or two values of a kind no codec knows (a queue, a lock): built alike
-        if value is _OPAQUE:
-            encode_value(getattr(component, name), f"{where}: attribute {name!r} (set after construction)")
-        if name in parameters:  # the constructor checks it as it checks its own arguments
-            spec.kwargs[name] = value
-        else:
-            spec.attributes[name] = value
-        changed = True
-    return changed
-
-
 def check_rebuild(component: Component, spec: ComponentSpec) -> None:
-    """Rebuild ``component`` from ``spec`` here; carry the attributes assigned after construction into
-    ``spec``, and refuse, naming it, whatever the child would still lack.
+    """Refuse, naming it, state the child would lack: added past the component's methods since its construction.
+
+    Nothing is rebuilt: the component's record (:func:`~agents_core.setup_calls.expected_state`)
+    says what its constructor and its recorded setup calls made; the attributes assigned after
+    construction are in ``spec`` already (:meth:`ComponentSpec.from_component`).
     """
+    from ..components.component_base import carried_state  # noqa: PLC0415
+
     where = f"component {component.component_name!r}"
-    if spec.recipe_path is not None and RECIPE_MODULE not in sys.modules:
-        # In the launcher's process the recipe is __main__: the same module under the child's name.
-        sys.modules[RECIPE_MODULE] = sys.modules["__main__"]
-    rebuilt = spec.build()
-    if _carry_attributes(component, spec, rebuilt):
-        spec.find_recipe(where)
-        if spec.recipe_path is not None and RECIPE_MODULE not in sys.modules:
-            sys.modules[RECIPE_MODULE] = sys.modules["__main__"]
-        rebuilt = spec.build()
-    now, then = _public_state(component), _public_state(rebuilt)
-    for name, value in now.items():
-        if value is not _OPAQUE and then.get(name, _OPAQUE) != value:
-            raise ConfigError(f"{where}: attribute {name!r} set after construction does not come out the same in a "
-                              "component process; set it through the constructor, or run it with "
-                              "multiprocessing=False")
-    before, after = _extra_state(component), _extra_state(rebuilt)
-    for what, count in before.items():
-        if count != after[what]:
+    expected = expected_state(component)
+    if expected is None:
+        return
+    for what, count in carried_state(component).items():
+        if count != expected.get(what, 0):
             raise ConfigError(f"{where}: {what} added after construction are not carried to a component process "
                               "(set other than through the component's methods); add them in the component's "
                               "__init__, or run it with multiprocessing=False")
+    if spec.attributes or spec.kwargs:
+        spec.find_recipe(where)

@@ -22,7 +22,7 @@ from ..console import say
 
 __all__ = ["stop_signals"]
 
-logger = logging.getLogger("agents_core.launch.launcher")  # the launcher's lines, as before the split
+logger = logging.getLogger(__name__)
 
 
 @contextlib.contextmanager
