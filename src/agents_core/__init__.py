@@ -12,22 +12,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
-from ._lazy import lazy_exports
-
-#: module -> the names re-exported from it, imported on first access.
-_EXPORTS: dict[str, tuple[str, ...]] = {
-    ".actions": ("Action", "component_action", "component_fallback"),
-    ".components": ("Component", "ComponentRunType", "ModelComponent"),
-    ".config": ("BaseComponentConfig", "ModelComponentConfig"),
-    ".errors": ("AgentsError",),
-    ".events": ("Event",),
-    ".launch.launcher": ("Launcher",),
-    ".messages": ("Header",),
-    ".status": ("HealthStatus", "LifecycleState"),
-    ".supported_types": ("SupportedType", "add_additional_datatypes", "get_type", "registered_types"),
-    ".topics": ("FixedInput", "QoSConfig", "Topic"),
-    ".transport": ("MemoryTransport", "Transport", "resolve_transport"),
-}
+from ._lazy import lazy_facade
 
 if TYPE_CHECKING:
     from .actions import Action, component_action, component_fallback
@@ -42,7 +27,7 @@ if TYPE_CHECKING:
     from .topics import FixedInput, QoSConfig, Topic
     from .transport import MemoryTransport, Transport, resolve_transport
 else:
-    _lazy_getattr, _lazy_dir = lazy_exports(__name__, _EXPORTS)
+    _lazy_getattr, _lazy_dir = lazy_facade(__name__)
 
     def __dir__() -> list[str]:
         return sorted({*_lazy_dir(), "__version__"})

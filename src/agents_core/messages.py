@@ -17,23 +17,9 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from ._lazy import lazy_exports
+from ._lazy import lazy_facade
 from .types.component_status import ComponentStatusMsg
 from .types.fields import MAX_ARRAY_DIM, Header, Wire, as_numeric_array, values_equal, wire
-
-#: module -> the names re-exported from it, imported at first access: naming ``String`` does not build the
-#: image, perception and sensor classes (see :mod:`agents_core.types`).
-_EXPORTS: dict[str, tuple[str, ...]] = {
-    ".types.geometry": ("OdometryMsg", "PathMsg", "PointMsg", "PoseArrayMsg", "PoseMsg", "TwistMsg"),
-    ".types.joints": ("JointJogMsg", "JointStateMsg", "JointTrajectoryMsg", "JointTrajectoryPointMsg"),
-    ".types.maps": ("MapMetaDataMsg", "OccupancyGridMsg"),
-    ".types.media": ("DEPTH_ENCODINGS", "IMAGE_ENCODINGS", "MAX_IMAGE_SIDE", "AudioMsg", "CompressedImageMsg",
-        "ImageMsg", "RGBDMsg", "VideoMsg", "image_array"),
-    ".types.perception": ("DetectionsMsg", "PointsOfInterestMsg", "TrackingsMsg"),
-    ".types.sensors": ("POINT_FIELD_DTYPES", "CameraInfoMsg", "ImuMsg", "LaserScanMsg", "NavSatFixMsg",
-        "PointCloud2Msg"),
-    ".types.text": ("StreamingStringMsg",),
-}
 
 if TYPE_CHECKING:
     from .types.geometry import OdometryMsg, PathMsg, PointMsg, PoseArrayMsg, PoseMsg, TwistMsg
@@ -54,7 +40,7 @@ if TYPE_CHECKING:
     from .types.sensors import POINT_FIELD_DTYPES, CameraInfoMsg, ImuMsg, LaserScanMsg, NavSatFixMsg, PointCloud2Msg
     from .types.text import StreamingStringMsg
 else:
-    __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
+    __getattr__, __dir__ = lazy_facade(__name__)
 
 __all__ = [
     "DEPTH_ENCODINGS",

@@ -5,11 +5,12 @@ did upstream. Nothing here depends on ROS: each name lives in a descriptive modu
 and works on every transport.
 
 Upstream names with no counterpart here: ``BaseComponent`` (write ``Component``, from
-:mod:`agents_core.components`), ``Monitor`` (the launcher supervises), ``MemLayer`` (no Memory
-component yet), ``VisionLanguageAction`` (the VLA component is ``agents_core.components.VLA``), and
-the rclpy helpers ``MutuallyExclusiveCallbackGroup``, ``ServiceClientHandler``,
-``ActionClientHandler``, ``run_external_processor``, ``get_ros_msg_fields_dict``,
-``ros_msg_to_str``, ``get_methods_with_decorator`` and ``ActionPhase``. Upstream's ``actions``
+:mod:`agents_core.components`), ``Monitor`` (the launcher supervises), ``VisionLanguageAction``
+(the VLA component is ``agents_core.components.VLA``), and the rclpy helpers
+``MutuallyExclusiveCallbackGroup``, ``ServiceClientHandler``, ``ActionClientHandler``,
+``run_external_processor``, ``get_ros_msg_fields_dict``, ``ros_msg_to_str``,
+``get_methods_with_decorator`` and ``ActionPhase``. ``MemLayer`` and ``Memory`` are here (the
+Memory component, :mod:`agents_core.components.memory`). Upstream's ``actions``
 module is :mod:`agents_core.actions` (its names, ``Action`` and the decorators, are here).
 """
 
@@ -17,33 +18,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from ._lazy import lazy_exports
-
-#: module -> the names re-exported from it, imported on first access: ``from agents_core.ros import
-#: Topic, Launcher, String`` loads the launcher and the type table, never the model components or clients.
-_EXPORTS: dict[str, tuple[str, ...]] = {
-    ".actions": ("Action", "Fallback", "component_action", "component_fallback"),
-    ".components.map_encoding": ("MapLayer",),
-    ".components.memory": ("MemLayer", "Memory", "MemoryConfig"),
-    ".components.semantic_router": ("Route",),
-    ".config": ("BaseAttrs", "BaseComponentConfig"),
-    ".events": ("Event",),
-    ".launch.launcher": ("Launcher",),
-    ".runtime.run_type": ("ComponentRunType",),
-    ".status": ("HealthStatus", "LifecycleState"),
-    ".supported_types": (
-        "Audio", "Bool", "CameraInfo", "ComponentStatus", "CompressedImage", "Detections", "DetectionsMultiSource",
-        "Float32", "Float32MultiArray", "Float64", "Float64MultiArray", "Image", "Imu", "Int32", "Int64", "JointJog",
-        "JointState", "JointTrajectory", "JointTrajectoryPoint", "LaserScan", "MapMetaData", "NavSatFix",
-        "OccupancyGrid", "Odometry", "Path", "Point", "PointCloud2", "PointsOfInterest", "PointStamped", "Pose",
-        "PoseArray", "PoseStamped", "RGBD", "StreamingString", "String", "SupportedType", "Trackings",
-        "TrackingsMultiSource", "Twist", "Video", "add_additional_datatypes",
-    ),
-    ".callbacks": ("GenericCallback",),
-    ".topics": ("FixedInput", "QoSConfig", "Topic"),
-}
-#: re-exported names that are modules themselves: name -> module.
-_MODULE_EXPORTS = {"base_validators": ".base_validators"}
+from ._lazy import lazy_facade
 
 if TYPE_CHECKING:
     from . import base_validators
@@ -102,7 +77,7 @@ if TYPE_CHECKING:
     )
     from .topics import FixedInput, QoSConfig, Topic
 else:
-    __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS, modules=_MODULE_EXPORTS)
+    __getattr__, __dir__ = lazy_facade(__name__)
 
 __all__ = [
     "RGBD",

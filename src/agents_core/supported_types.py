@@ -18,7 +18,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from ._lazy import lazy_exports
+from ._lazy import lazy_facade
 from .types.base import (
     SupportedType,
     _registry,  # noqa: F401 - re-exported: tests and plugins undo their registrations through it
@@ -29,21 +29,6 @@ from .types.base import (
     ros_message_class,
     shares_value_class,
 )
-
-#: module -> the names re-exported from it, imported at first access: naming ``String`` does not build the
-#: image, perception and sensor classes (see :mod:`agents_core.types`).
-_EXPORTS: dict[str, tuple[str, ...]] = {
-    ".types.component_status": ("ComponentStatus",),
-    ".types.geometry": ("Odometry", "Path", "Point", "PointStamped", "Pose", "PoseArray", "PoseStamped", "Twist"),
-    ".types.joints": ("JointJog", "JointState", "JointTrajectory", "JointTrajectoryPoint"),
-    ".types.maps": ("MapMetaData", "OccupancyGrid"),
-    ".types.media": ("RGBD", "Audio", "CompressedImage", "Image", "Video"),
-    ".types.perception": ("Detections", "DetectionsMultiSource", "PointsOfInterest", "Trackings",
-        "TrackingsMultiSource"),
-    ".types.scalars": ("Bool", "Float32", "Float32MultiArray", "Float64", "Float64MultiArray", "Int32", "Int64"),
-    ".types.sensors": ("CameraInfo", "Imu", "LaserScan", "NavSatFix", "PointCloud2"),
-    ".types.text": ("StreamingString", "String"),
-}
 
 if TYPE_CHECKING:
     from .types.component_status import ComponentStatus
@@ -56,7 +41,7 @@ if TYPE_CHECKING:
     from .types.sensors import CameraInfo, Imu, LaserScan, NavSatFix, PointCloud2
     from .types.text import StreamingString, String
 else:
-    __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
+    __getattr__, __dir__ = lazy_facade(__name__)
 
 __all__ = [
     "RGBD",

@@ -111,8 +111,8 @@ class _ComponentNode(LifecycleNodeMixin, Node):  # type: ignore[misc]  # rclpy i
 class ComponentLifecycle:
     """A component's presence on ROS 2: its lifecycle node and its status publisher.
 
-    Implements :class:`~agents_core.transport.contract.ComponentPresence`. Created by
-    :meth:`agents_ros2.transport.Ros2Transport.declare_component`.
+    Implements :class:`~agents_core.transport.driver.DriverPresence`. Created by
+    :meth:`agents_ros2.transport.Ros2Driver.declare_presence`.
     """
 
     def __init__(self, name: str, context: Context, on_transition: TransitionHandler,

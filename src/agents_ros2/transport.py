@@ -235,6 +235,8 @@ class Ros2Driver(DriverBase):
 
     name = "ros2"
     cross_process = True
+    #: Each received value is validated as it is decoded (the codec / the conversion calls ``validate``).
+    validates_incoming = True
     # DDS takes up to ~2 s to show a new participant the graph.
     discovery_settle_s = 4.0
 

@@ -88,6 +88,8 @@ class ZenohDriver(DriverBase):
 
     name = "zenoh"
     cross_process = True
+    #: Each received value is validated as it is decoded (the codec / the conversion calls ``validate``).
+    validates_incoming = True
 
     def __init__(self, config: ZenohConfig) -> None:
         self.config = config

@@ -10,22 +10,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from .._lazy import lazy_exports
-
-#: module -> the names re-exported from it, imported on first access.
-_EXPORTS: dict[str, tuple[str, ...]] = {
-    ".chroma.client": ("ChromaClient",),
-    ".client_base": ("BaseClient", "client_from_spec", "client_types"),
-    ".db_base": ("DBClient",),
-    ".generic": ("GenericHTTPClient",),
-    ".lerobot.client": ("LeRobotClient",),
-    ".model_base": ("ModelClient",),
-    ".ollama": ("OllamaClient",),
-    ".policy_base": ("PolicyClient",),
-    ".roboml_http": ("RoboMLHTTPClient",),
-    ".roboml_resp": ("RoboMLRESPClient",),
-    ".roboml_ws": ("RoboMLWSClient",),
-}
+from .._lazy import lazy_facade
 
 #: Clients register themselves by class name when their module is imported, and these names read that
 #: registry (ChromaClient rebuilds its embedding client from a spec): taking one from the package imports
@@ -45,7 +30,7 @@ if TYPE_CHECKING:
     from .roboml_resp import RoboMLRESPClient
     from .roboml_ws import RoboMLWSClient
 else:
-    __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS, import_all_for=_NEED_EVERY_CLIENT)
+    __getattr__, __dir__ = lazy_facade(__name__, import_all_for=_NEED_EVERY_CLIENT)
 
 __all__ = ["BaseClient", "ChromaClient", "DBClient", "GenericHTTPClient", "LeRobotClient", "ModelClient",
            "OllamaClient", "PolicyClient", "RoboMLHTTPClient", "RoboMLRESPClient", "RoboMLWSClient",

@@ -8,26 +8,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from .._lazy import lazy_exports
-
-#: module -> the names re-exported from it, imported on first access.
-_EXPORTS: dict[str, tuple[str, ...]] = {
-    ".component_base": ("Component",),
-    ".cortex.component": ("Cortex",),
-    ".publisher": ("ComponentPublisher",),
-    ".llm": ("LLM",),
-    ".map_encoding": ("MapEncoding", "MapLayer"),
-    ".memory": ("MemLayer", "Memory"),
-    ".mllm": ("MLLM", "VLM"),
-    ".model_component": ("ModelComponent",),
-    "..runtime.run_type": ("ComponentRunType",),
-    ".semantic_router": ("Route", "SemanticRouter"),
-    ".speech_to_text": ("SpeechToText",),
-    ".text_to_speech": ("TextToSpeech",),
-    ".video_maker": ("VideoMessageMaker",),
-    ".vision.component": ("Vision",),
-    ".vla.component": ("VLA",),
-}
+from .._lazy import lazy_facade
 
 if TYPE_CHECKING:
     from ..runtime.run_type import ComponentRunType
@@ -46,7 +27,7 @@ if TYPE_CHECKING:
     from .vision.component import Vision
     from .vla.component import VLA
 else:
-    __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
+    __getattr__, __dir__ = lazy_facade(__name__)
 
 __all__ = [
     "LLM",

@@ -13,17 +13,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from .._lazy import lazy_exports
-
-#: module -> the names re-exported from it, imported on first access.
-_EXPORTS: dict[str, tuple[str, ...]] = {
-    ".audio": ("StreamResampler", "to_mono_float"),
-    ".local_llm": ("LocalLLM", "LocalVLM"),
-    ".local_stt": ("LocalSTT",),
-    ".local_tts": ("LocalTTS",),
-    ".local_vision": ("LocalVisionModel",),
-    ".model_files": ("default_llm_path", "resolve_model_file"),
-}
+from .._lazy import lazy_facade
 
 if TYPE_CHECKING:
     from .audio import StreamResampler, to_mono_float
@@ -33,7 +23,7 @@ if TYPE_CHECKING:
     from .local_vision import LocalVisionModel
     from .model_files import default_llm_path, resolve_model_file
 else:
-    __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
+    __getattr__, __dir__ = lazy_facade(__name__)
 
 __all__ = ["LocalLLM", "LocalSTT", "LocalTTS", "LocalVLM", "LocalVisionModel", "StreamResampler",
            "default_llm_path", "resolve_model_file", "to_mono_float"]

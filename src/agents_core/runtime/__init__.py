@@ -14,16 +14,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from .._lazy import lazy_exports
-
-_EXPORTS: dict[str, tuple[str, ...]] = {
-    ".component_runtime": ("ComponentRuntime",),
-    ".health": ("Health",),
-    ".lifecycle": ("LifecycleMachine",),
-    ".run_type": ("ComponentRunType",),
-    ".services": ("ComponentServices",),
-    ".worker": ("PeriodicTimer", "StepWorker", "WorkerStatistics"),
-}
+from .._lazy import lazy_facade
 
 if TYPE_CHECKING:
     from .component_runtime import ComponentRuntime
@@ -33,7 +24,7 @@ if TYPE_CHECKING:
     from .services import ComponentServices
     from .worker import PeriodicTimer, StepWorker, WorkerStatistics
 else:
-    __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
+    __getattr__, __dir__ = lazy_facade(__name__)
 
 __all__ = ["ComponentRunType", "ComponentRuntime", "ComponentServices", "Health", "LifecycleMachine",
            "PeriodicTimer", "StepWorker", "WorkerStatistics"]

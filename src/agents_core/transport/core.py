@@ -38,7 +38,14 @@ from ..messages import ComponentStatusMsg
 from ..status import HealthStatus, LifecycleState
 from ..supported_types import ComponentStatus
 from ..topics import QoSConfig, Topic, validate_topic_name
-from .delivery import BoundedDelivery, InlineDelivery, SubscriptionStatistics, TopicCounters, TopicStatistics
+from .delivery import (
+    BoundedDelivery,
+    InlineDelivery,
+    SubscriptionStatistics,
+    TopicCounters,
+    TopicStatistics,
+    ValidatingSink,
+)
 from .driver import (
     Closable,
     DriverGoal,
@@ -354,7 +361,8 @@ class DriverTransport:
             delivery = (InlineDelivery if inline else BoundedDelivery)(topic, callback, self._counters)
             subscription = CoreSubscription(self, topic, delivery)
             try:
-                subscription.attach(self.driver.open_subscriber(topic, delivery, owner))
+                sink = delivery if self.capabilities.validates_incoming else ValidatingSink(topic, delivery)
+                subscription.attach(self.driver.open_subscriber(topic, sink, owner))
             except BaseException:
                 delivery.close()
                 raise

@@ -28,7 +28,8 @@ from attrs import define
 from ..concurrency import CloseOnce, DrainQueue
 from ..topics import Topic
 
-__all__ = ["BoundedDelivery", "InlineDelivery", "SubscriptionStatistics", "TopicCounters", "TopicStatistics"]
+__all__ = ["BoundedDelivery", "InlineDelivery", "SubscriptionStatistics", "TopicCounters", "TopicStatistics",
+           "ValidatingSink"]
 
 logger = logging.getLogger(__name__)
 
@@ -232,3 +233,30 @@ class InlineDelivery(_Counted):
     def close(self) -> None:
         """Stop calling back; idempotent."""
         self._closed = True
+
+
+class ValidatingSink:
+    """A sink that validates each value against the topic's type before offering it to ``sink``.
+
+    What the core gives a driver that does not declare ``validates_incoming`` (see
+    :meth:`agents_core.transport.driver.Sink.offer`): a value that does not validate is rejected,
+    with why, and counted as a decode error. Never blocks, never raises.
+    """
+
+    def __init__(self, topic: Topic, sink: BoundedDelivery | InlineDelivery) -> None:
+        self._validate = topic.msg_type.validate
+        self._sink = sink
+
+    def offer(self, value: Any) -> None:
+        """Validate ``value``, then offer its canonical form (or reject it)."""
+        try:
+            checked = self._validate(value)
+        except Exception as exc:  # a driver's value must never raise into the driver's thread
+            self._sink.reject(exc)
+            return
+        self._sink.offer(checked)
+
+    def reject(self, reason: object) -> None:
+        """A payload that did not decode: passed on."""
+        self._sink.reject(reason)
+

@@ -11,7 +11,8 @@ and the goal bookkeeping (:mod:`agents_core.transport.goal_serving`).
 
 What a driver offers is data, derived from the class (:func:`capabilities_of`): ``actions`` when
 it overrides both goal primitives, ``discovery`` when it overrides :meth:`~TransportDriver.discover`;
-``cross_process``, ``discovery_settle_s`` and ``local_requests`` are declared as class attributes.
+``cross_process``, ``discovery_settle_s``, ``local_requests`` and ``validates_incoming`` are declared
+as class attributes.
 
 Errors: a driver raises the core's errors (:class:`~agents_core.errors.RequestTimeoutError`,
 :class:`~agents_core.errors.ServiceUnavailableError`, :class:`~agents_core.errors.RemoteError`,
@@ -81,6 +82,9 @@ class TransportCapabilities:
     #: Every service it serves lives in this process, on this transport: a request to an ``inline``
     #: service may be answered on the caller's thread (read by ``DriverTransport.request``).
     local_requests: bool = False
+    #: The driver validates each received value against the topic's type before offering it (it
+    #: checks as it decodes); when False the core does (read by ``DriverTransport.create_subscription``).
+    validates_incoming: bool = False
 
 
 @runtime_checkable
@@ -88,7 +92,14 @@ class Sink(Protocol):
     """Where a driver hands what it receives on one topic (given by the core)."""
 
     def offer(self, value: Any) -> None:
-        """A decoded value (not yet validated: the core validates it). Never blocks, never raises."""
+        """A decoded value. Never blocks, never raises.
+
+        Each value is validated against the topic's type exactly once before anyone sees it: by
+        the driver, as it decodes, when the driver declares ``validates_incoming = True`` (Zenoh's
+        codecs, the ROS 2 conversions, the memory transport's already validated values); else by
+        the core, which wraps this sink so that a value that does not validate is rejected
+        (counted as a decode error) instead of reaching a component.
+        """
         ...
 
     def reject(self, reason: object) -> None:
@@ -425,8 +436,8 @@ def capabilities_of(driver: object) -> TransportCapabilities:
 
     ``actions``: it overrides both :meth:`~TransportDriver.serve_goals` and
     :meth:`~TransportDriver.send_goal`; ``discovery``: it overrides
-    :meth:`~TransportDriver.discover`; ``cross_process``, ``discovery_settle_s`` and
-    ``local_requests``: its class attributes (default False, 1 s and False).
+    :meth:`~TransportDriver.discover`; ``cross_process``, ``discovery_settle_s``, ``local_requests``
+    and ``validates_incoming``: its class attributes (default False, 1 s, False and False).
     """
     return TransportCapabilities(
         cross_process=bool(getattr(driver, "cross_process", False)),
@@ -434,6 +445,7 @@ def capabilities_of(driver: object) -> TransportCapabilities:
         discovery=_overrides(driver, "discover"),
         discovery_settle_s=float(getattr(driver, "discovery_settle_s", 1.0)),
         local_requests=bool(getattr(driver, "local_requests", False)),
+        validates_incoming=bool(getattr(driver, "validates_incoming", False)),
     )
 
 

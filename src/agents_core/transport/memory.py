@@ -184,6 +184,8 @@ class MemoryDriver(DriverBase):
     name = "memory"
     #: Its services are this object's: an ``inline`` one may answer on the caller's thread.
     local_requests = True
+    #: What it hands a subscriber was validated by the core's publisher in this very process.
+    validates_incoming = True
 
     def __init__(self) -> None:
         self._lock = threading.Lock()

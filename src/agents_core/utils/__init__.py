@@ -12,18 +12,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from .._lazy import lazy_exports
-
-#: module -> the names re-exported from it, imported on first access.
-_EXPORTS: dict[str, tuple[str, ...]] = {
-    "..engines.audio": ("StreamResampler", "to_mono_float"),
-    "..engines.local_llm": ("LocalLLM", "LocalVLM"),
-    "..engines.local_stt": ("LocalSTT",),
-    "..engines.local_tts": ("LocalTTS",),
-    "..engines.local_vision": ("LocalVisionModel",),
-    "..engines.model_files": ("default_llm_path", "resolve_model_file"),
-    "..components.vision.tracking": ("ObjectTracker", "TrackedObject"),
-}
+from .._lazy import lazy_facade
 
 if TYPE_CHECKING:
     from ..components.vision.tracking import ObjectTracker, TrackedObject
@@ -34,7 +23,7 @@ if TYPE_CHECKING:
     from ..engines.local_vision import LocalVisionModel
     from ..engines.model_files import default_llm_path, resolve_model_file
 else:
-    __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
+    __getattr__, __dir__ = lazy_facade(__name__)
 
 __all__ = ["LocalLLM", "LocalSTT", "LocalTTS", "LocalVLM", "LocalVisionModel", "ObjectTracker", "StreamResampler",
            "TrackedObject", "default_llm_path", "resolve_model_file", "to_mono_float"]

@@ -34,16 +34,11 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from ..._lazy import lazy_exports
-
-#: module -> the names re-exported from it, imported on first access.
-_EXPORTS: dict[str, tuple[str, ...]] = {
-    ".client": ("ChromaClient",),
-}
+from ..._lazy import lazy_facade
 
 if TYPE_CHECKING:
     from .client import ChromaClient
 else:
-    __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
+    __getattr__, __dir__ = lazy_facade(__name__)
 
 __all__ = ["ChromaClient"]

@@ -14,14 +14,12 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from ..._lazy import lazy_exports
-
-_EXPORTS: dict[str, tuple[str, ...]] = {".component": ("Cortex",), ".config": ("CortexConfig",)}
+from ..._lazy import lazy_facade
 
 if TYPE_CHECKING:
     from .component import Cortex
     from .config import CortexConfig
 else:
-    __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
+    __getattr__, __dir__ = lazy_facade(__name__)
 
 __all__ = ["Cortex", "CortexConfig"]

@@ -8,14 +8,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from ..._lazy import lazy_exports
-
-_EXPORTS: dict[str, tuple[str, ...]] = {
-    ".component": ("Memory",),
-    ".config": ("MemoryConfig",),
-    ".engine": ("MemoryStoreError",),
-    ".layers": ("MemLayer",),
-}
+from ..._lazy import lazy_facade
 
 if TYPE_CHECKING:
     from .component import Memory
@@ -23,6 +16,6 @@ if TYPE_CHECKING:
     from .engine import MemoryStoreError
     from .layers import MemLayer
 else:
-    __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
+    __getattr__, __dir__ = lazy_facade(__name__)
 
 __all__ = ["MemLayer", "Memory", "MemoryConfig", "MemoryStoreError"]
