@@ -34,7 +34,7 @@ from ..runtime.component_runtime import ComponentRuntime
 from ..runtime.health import ANY_FAILURE
 from ..runtime.run_type import ComponentRunType
 from ..runtime.worker import WorkerStatistics
-from ..setup_calls import constructor, note_assignment, setup_method, start_recording
+from ..setup_calls import constructor, setup_method, start_recording
 from ..status import HealthStatus, LifecycleState
 from ..topics import Topic, validate_topic_name
 from ..transport.core import status_topic
@@ -89,14 +89,9 @@ class Component:
         # the component from them in its own process (see agents_core.launch.spec).
         instance = super().__new__(cls)
         instance._init_arguments = (args, dict(kwargs))
-        # The setup calls and attribute assignments made after construction (agents_core.setup_calls).
+        # The setup calls made and attributes assigned after construction (agents_core.setup_calls).
         start_recording(instance, carried_state)
         return instance
-
-    def __setattr__(self, name: str, value: Any) -> None:
-        object.__setattr__(self, name, value)
-        if not name.startswith("_"):
-            note_assignment(self, name)  # recorded only after construction, before the component runs
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)

@@ -37,6 +37,7 @@ from ..errors import (
     WiringError,
 )
 from ..events import Event
+from ..setup_calls import freeze_record
 from ..status import HealthStatus, LifecycleState
 from ..topics import FixedInput
 from ..transport.requests import check_timeout, request_deadline
@@ -171,6 +172,7 @@ class ComponentRuntime:
         if c.run_type == ComponentRunType.ACTION_SERVER and not transport.capabilities.actions:
             raise WiringError(f"component {self._name!r} runs as an action server, but the "
                               f"{transport.name!r} transport has no long-running goals (actions)")
+        freeze_record(c)  # what the recipe assigned until now; the running component's own changes are not
         self._transport = transport
         self._worker = StepWorker(self._name, c.config.execution_queue_depth, c.config.queue_full_policy)
         self._presence = transport.declare_component(self._name, on_transition=self._external_transition,
