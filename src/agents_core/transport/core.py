@@ -7,10 +7,10 @@ driver; what each driver primitive promises is specified in
 - the closed state (every call after :meth:`~DriverTransport.close` raises
   :class:`~agents_core.errors.TransportClosedError`), names checked, duplicate services and
   components refused, and **one type per topic** within a transport instance;
-- values validated against the topic's type before a driver sends them;
-- per-topic statistics (:class:`~agents_core.transport.delivery.TopicStatistics`): every value
-  received ends delivered, dropped, a callback error or discarded, and a payload that does not
-  decode is counted in decode_errors, so no value is ever lost uncounted;
+- values validated against the topic's type before a driver sends them (and when it receives them,
+  unless it says ``validates_incoming``); per-topic statistics
+  (:class:`~agents_core.transport.delivery.TopicStatistics`): every value received ends delivered,
+  dropped, a callback error or discarded, and a payload that does not decode is counted in decode_errors;
 - how a received value reaches its callback: a bounded delivery thread for user callbacks, or
   ``inline=True`` for component inputs, where the value goes straight to the component's worker
   from the middleware's thread (one hand-off per hop);
@@ -38,14 +38,7 @@ from ..messages import ComponentStatusMsg
 from ..status import HealthStatus, LifecycleState
 from ..supported_types import ComponentStatus
 from ..topics import QoSConfig, Topic, validate_topic_name
-from .delivery import (
-    BoundedDelivery,
-    InlineDelivery,
-    SubscriptionStatistics,
-    TopicCounters,
-    TopicStatistics,
-    ValidatingSink,
-)
+from .delivery import BoundedDelivery, InlineDelivery, SubscriptionStatistics, TopicCounters, TopicStatistics
 from .driver import (
     Closable,
     DriverGoal,
@@ -69,14 +62,7 @@ from .requests import RequestLanes, answer_here, check_timeout, on_lane, serve_w
 if TYPE_CHECKING:
     from typing import Self
 
-__all__ = [
-    "CorePresence",
-    "CorePublisher",
-    "CoreService",
-    "CoreSubscription",
-    "DriverTransport",
-    "status_topic",
-]
+__all__ = ["CorePresence", "CorePublisher", "CoreService", "CoreSubscription", "DriverTransport", "status_topic"]
 
 logger = logging.getLogger(__name__)
 
@@ -361,7 +347,7 @@ class DriverTransport:
             delivery = (InlineDelivery if inline else BoundedDelivery)(topic, callback, self._counters)
             subscription = CoreSubscription(self, topic, delivery)
             try:
-                sink = delivery if self.capabilities.validates_incoming else ValidatingSink(topic, delivery)
+                sink = delivery if self.capabilities.validates_incoming else delivery.validating()  # see Sink.offer
                 subscription.attach(self.driver.open_subscriber(topic, sink, owner))
             except BaseException:
                 delivery.close()

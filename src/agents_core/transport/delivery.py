@@ -104,6 +104,10 @@ class _Counted:
         self._stats = SubscriptionStatistics()
         self._totals = counters.live(topic.name) if counters is not None else TopicStatistics()
 
+    def validating(self) -> ValidatingSink:
+        """This delivery behind a sink that validates each value first (for a driver that does not)."""
+        return ValidatingSink(self.topic, self)  # type: ignore[attr-defined, arg-type]  # a subclass
+
     def reject(self, reason: object) -> None:
         """Count a received payload that does not decode into the topic's type; never raises.
 
