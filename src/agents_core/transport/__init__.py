@@ -16,11 +16,19 @@ from .contract import (
 )
 from .core import DriverTransport
 from .delivery import BoundedDelivery, SubscriptionStatistics
+from .descriptor import TransportDescriptor
 from .driver import DriverBase, TransportDriver
 from .goals import ActionType, FieldSpec, GoalClient, GoalHandle, GoalStatus, register_action_type
 from .graph import Graph, TopicInfo, describe_component
 from .memory import MemoryTransport, TopicStatistics
-from .registry import ENTRY_POINT_GROUP, TRANSPORT_ALIASES, available_transports, resolve_transport
+from .registry import (
+    ENTRY_POINT_GROUP,
+    TRANSPORT_ALIASES,
+    available_transports,
+    describe_transport_kind,
+    register_transport,
+    resolve_transport,
+)
 
 __all__ = [
     "ENTRY_POINT_GROUP",
@@ -48,9 +56,12 @@ __all__ = [
     "TransitionHandler",
     "Transport",
     "TransportCapabilities",
+    "TransportDescriptor",
     "TransportDriver",
     "available_transports",
     "describe_component",
+    "describe_transport_kind",
     "register_action_type",
+    "register_transport",
     "resolve_transport",
 ]
