@@ -31,7 +31,6 @@ from __future__ import annotations
 
 import collections
 import functools
-import itertools
 import math
 import sqlite3
 import threading
@@ -49,17 +48,10 @@ from ...topics import Topic
 from ..component_base import Component, TriggerType
 from ..layer_points import position_of
 from .config import MemoryConfig
-from .engine import (
-    ClientEmbedder,
-    ClientSummarizer,
-    MemoryStoreError,
-    Observation,
-    commit_batch,
-    open_engine,
-    require_emem,
-)
+from .engine import ClientEmbedder, ClientSummarizer, MemoryStoreError, Observation, open_engine, require_emem
 from .layers import Fix, MemLayer
 from .tools import TOOL_NAMES, action_description, check_arguments, tool_description
+from .writing import MAX_LAYER_NAME, MemoryWriting
 
 if TYPE_CHECKING:
     from ..llm import LLM
@@ -68,13 +60,11 @@ __all__ = ["Memory"]
 
 #: The layer of notes written through ``store_specific_memory`` (kept apart from the perception streams).
 NOTES_LAYER = "agent_notes"
-#: How many observations one embedding request carries at most.
-_EMBED_CHUNK = 64
 #: A value as it arrived: layer, text, Unix time, the robot's position then, ``time.monotonic()`` then.
 _Arrival = tuple[str, str, float, Fix | None, float]
 
 
-class Memory(Component):
+class Memory(MemoryWriting, Component):
     """Remembers what its layers receive, where and when (see the module docs).
 
     :param layers: the :class:`MemLayer` list (one topic each, distinct).
@@ -170,17 +160,15 @@ class Memory(Component):
     def stats(self) -> dict[str, int]:
         """Counters: ``stored`` observations; not stored: ``no_position`` (no recent position), ``unchanged``
         (same value, same place, on a layer without ``temporal_change``), ``dropped`` (buffer full),
-        ``unreadable`` (a value without a text form); failures: ``embed_errors``, ``store_errors``;
+        ``unreadable`` (a value without a text form), ``refused`` (an observation that cannot be stored: a
+        place or time that is not finite, a text that is not valid Unicode or too long, or one the database
+        or the embedding server refused); failures: ``embed_errors``, ``store_errors``;
         ``pending`` (buffered, to be written, including values that wait for the next step)."""
         with self._lock:
             counts = {k: self._counts[k] for k in ("stored", "no_position", "unchanged", "dropped", "unreadable",
-                                                   "embed_errors", "store_errors")}
+                                                   "refused", "embed_errors", "store_errors")}
             counts["pending"] = len(self._pending) + len(self._arrived)
         return counts
-
-    def _count(self, what: str, n: int = 1) -> None:
-        with self._lock:
-            self._counts[what] += n
 
     # -- arrivals (the transport's thread: short) ---------------------------------------------
 
@@ -285,12 +273,16 @@ class Memory(Component):
             if self._summarizer is None and self.model_client is not None:
                 self._summarizer = ClientSummarizer(self.model_client)
             try:
-                engine = open_engine(self.config, self._embedder, self._summarizer)
+                engine, notes = open_engine(self.config, self._embedder, self._summarizer)
             except MemoryStoreError:
                 self._count("store_errors")
                 raise
-            first_time = engine.store.count_observations() == 0
+            count = engine.store.count_observations()
+            first_time = count == 0
             self._engine = engine
+            self._logger.info("memory database %r open: %d observation(s), %d findable by meaning%s",
+                              self.config.db_path, count, len(engine.store._hnsw_id_map),
+                              "".join(f"; {note}" for note in notes))
         if first_time:
             self._write_pre_defined()
         return engine
@@ -346,81 +338,9 @@ class Memory(Component):
         if not layer.temporal_change and self._last_stored.get(name) == (text, cell):
             self._count("unchanged")
             return True
-        self._last_stored[name] = (text, cell)
-        self._enqueue(Observation(text, fix.x, fix.y, fix.z, stamp, name, layer.is_internal_state))
+        if self._enqueue(Observation(text, fix.x, fix.y, fix.z, stamp, name, layer.is_internal_state)) is None:
+            self._last_stored[name] = (text, cell)
         return True
-
-    def _enqueue(self, observation: Observation) -> None:
-        with self._lock:
-            if len(self._pending) >= self.config.buffer_size:
-                self._pending.popleft()
-                self._counts["dropped"] += 1
-            if not self._pending:
-                self._pending_since = time.monotonic()
-            self._pending.append(observation)
-
-    def _write(self, *, force: bool) -> int:
-        """Embed and commit the buffered observations (when due, or ``force``); how many were written.
-
-        Due by count, whole batches of ``flush_batch_size`` are written (the rest waits for its batch or
-        for ``flush_interval``); forced or due by age, everything waiting now. Each chunk of up to
-        ``_EMBED_CHUNK`` is one embedding request and one transaction, and leaves the buffer, in order,
-        only once committed: on a failure it stays for a retry and the typed error is raised.
-        """
-        with self._lock:
-            waiting = len(self._pending)
-            since = self._pending_since
-        aged = since is not None and time.monotonic() - since >= self.config.flush_interval
-        quota = waiting if force or aged else waiting - waiting % self.config.flush_batch_size
-        if not quota:
-            return 0
-        written = 0
-        with self._engine_lock:
-            engine = self._open()
-            assert self._embedder is not None
-            while written < quota:
-                with self._lock:
-                    batch = list(itertools.islice(self._pending, min(_EMBED_CHUNK, quota - written)))
-                if not batch:
-                    break
-                try:
-                    vectors = self._embedder.embed([o.text for o in batch])
-                except ModelClientError:
-                    self._count("embed_errors")
-                    raise
-                self._commit(engine, batch, vectors)
-                with self._lock:
-                    for observation in batch:
-                        if self._pending and self._pending[0] is observation:
-                            self._pending.popleft()
-                        elif observation in self._pending:  # the oldest may have been dropped meanwhile
-                            self._pending.remove(observation)
-                    self._counts["stored"] += len(batch)
-                    if not self._pending:  # else the rest keeps the older age: it never waits longer
-                        self._pending_since = None
-                written += len(batch)
-            if time.monotonic() - self._index_saved >= self.config.index_save_interval:
-                self._save_index()
-        return written
-
-    def _commit(self, engine: Any, batch: list[Observation], vectors: Any) -> None:
-        try:
-            commit_batch(engine, batch, vectors)
-        except (sqlite3.Error, OSError, RuntimeError) as exc:
-            self._count("store_errors")
-            raise MemoryStoreError(f"cannot write to the memory database {self.config.db_path!r}: "
-                                   f"{type(exc).__name__}: {exc}") from exc
-
-    def _save_index(self) -> None:
-        with self._engine_lock:
-            if self._engine is None:
-                return
-            try:
-                self._engine.store.save()
-                self._index_saved = time.monotonic()
-            except (sqlite3.Error, OSError, RuntimeError) as exc:
-                self._count("store_errors")
-                self._logger.warning("the memory's vector index could not be saved: %s", exc)
 
     # -- storage actions ----------------------------------------------------------------------
 
@@ -451,26 +371,33 @@ class Memory(Component):
     def store_specific_memory(self, content: str, layer_name: str = NOTES_LAYER, x: float | None = None,
                               y: float | None = None, z: float | None = None) -> bool:
         """Write ``content`` as an observation now (at x, y, or at the current position); True once written."""
+        name = f"component {self.component_name!r}: store_specific_memory"
         if not isinstance(content, str) or not content.strip():
-            raise ComponentError(f"component {self.component_name!r}: store_specific_memory needs a non-empty text")
+            raise ComponentError(f"{name} needs a non-empty text")
+        if not isinstance(layer_name, str) or not 0 < len(layer_name) <= MAX_LAYER_NAME:
+            raise ComponentError(f"{name}: layer_name must be a text of 1 to {MAX_LAYER_NAME} characters")
+        for axis, value in (("x", x), ("y", y), ("z", z)):
+            if value is not None and (isinstance(value, bool) or not isinstance(value, int | float)
+                                      or not math.isfinite(value)):
+                self._count("refused")
+                raise ComponentError(f"{name}: {axis} must be a finite number, got {value!r:.40}: not stored")
         if (x is None) != (y is None):
-            raise ComponentError(f"component {self.component_name!r}: give both x and y, or neither")
+            raise ComponentError(f"{name}: give both x and y, or neither")
         if x is None or y is None:
             with self._lock:
                 fix = self._fix
             if fix is None or time.monotonic() - fix.received > self.config.position_timeout:
                 self._count("no_position")
-                raise ComponentError(f"component {self.component_name!r}: no x, y given and no recent position "
-                                     f"on {self.position.name!r}: not stored")
+                raise ComponentError(f"{name}: no x, y given and no recent position on {self.position.name!r}: "
+                                     "not stored")
             place = (fix.x, fix.y, fix.z if z is None else float(z))
         else:
-            try:
-                place = position_of((x, y, 0.0 if z is None else z), "store_specific_memory position")
-            except ConfigError as exc:
-                raise ComponentError(str(exc)) from exc
+            place = (float(x), float(y), 0.0 if z is None else float(z))
         layer = self.layers.get(layer_name)
         internal = layer is not None and layer.is_internal_state
-        self._enqueue(Observation(content.strip(), *place, time.time(), str(layer_name), internal))
+        problem = self._enqueue(Observation(content.strip(), *place, time.time(), layer_name, internal))
+        if problem is not None:
+            raise ComponentError(f"{name}: {problem}: not stored")
         self._write(force=True)
         return True
 
@@ -528,8 +455,13 @@ class Memory(Component):
             engine = self._open()
             try:
                 return str(engine.dispatch_tool_call(name, checked))
-            except (sqlite3.Error, OSError, RuntimeError) as exc:
+            except (sqlite3.OperationalError, OSError) as exc:
                 raise MemoryStoreError(f"{name}: the memory database failed: {type(exc).__name__}: {exc}") from exc
+            except (ModelClientError, ComponentError):
+                raise
+            except Exception as exc:  # the engine refused these arguments: one clear error, never a raw one
+                raise ComponentError(f"component {self.component_name!r}: {name} cannot answer {checked!r:.200}: "
+                                     f"{type(exc).__name__}: {str(exc)[:200]}") from exc
 
     @component_action(description=action_description("semantic_search"))
     def semantic_search(self, **kwargs: Any) -> str:

@@ -43,6 +43,10 @@ class MemoryConfig(BaseComponentConfig):
     :param flush_interval: ... or once the oldest waiting one is this many seconds old.
     :param index_save_interval: how often (s) the vector index file is saved while writing (it is always
         saved at deactivate and shutdown); the database rows are committed at once.
+    :param max_text_length: the longest observation text (characters); a longer value is refused and counted.
+    :param on_embedding_change: a database written with another embedding model (checkpoint or dimension):
+        ``"refuse"`` it (the default: the Memory stays unopened, its health says why) or ``"reembed"`` every
+        stored text with the new model at open (logged).
     :param embedding_checkpoint: accepted for upstream recipes and unused: Memory never downloads a model,
         its embeddings come from the ``embedding_client`` the recipe gives.
 
@@ -62,6 +66,9 @@ class MemoryConfig(BaseComponentConfig):
     flush_batch_size: int = field(default=5, validator=base_validators.in_range(1, 100_000))
     flush_interval: float = field(default=2.0, validator=base_validators.ge(0.0))
     index_save_interval: float = field(default=10.0, validator=base_validators.gt(0.0))
+    max_text_length: int = field(default=16_384, validator=base_validators.in_range(1, 10_000_000))
+    on_embedding_change: str = field(default="refuse", validator=base_validators.in_(("refuse", "reembed")),
+                                     metadata=AT_CONFIGURE)
     embedding_checkpoint: str | None = field(default=None)
     # The emem engine's own settings (read at configure).
     working_memory_size: int = field(default=50, validator=base_validators.gt(0), metadata=AT_CONFIGURE)
