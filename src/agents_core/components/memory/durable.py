@@ -188,6 +188,7 @@ def claim(db_path: str, index_path: str, model: str, dim: int, reembed: bool) ->
     :param reembed: another model than the database's: drop the stored vectors (every text is then
         embedded again by :func:`resync`) instead of refusing.
     """
+    _kind(db_path)  # a foreign file is refused before the lock file is made beside it
     lock = DatabaseLock(db_path)
     lock.acquire()
     try:
