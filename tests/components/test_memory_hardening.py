@@ -73,6 +73,11 @@ def test_nan_or_infinite_z_and_a_lone_surrogate_are_refused_and_never_block_the_
     """Attack 1: store_specific_memory with z = NaN / inf, and a String holding a lone surrogate on a layer."""
     m = build(str(tmp_path / "m.db"))
     with running(m) as send:
+        send(ODOM, OdometryMsg(pose=PoseMsg(position=[3.0, 4.0, 0.0]), header=Header(frame_id="map")))
+        assert wait_for(lambda: m._fix is not None)
+        for z in (math.nan, math.inf):  # at the current position, with only z given (z was never checked)
+            with pytest.raises(ComponentError, match="z must be a finite number"):
+                m.store_specific_memory("poison", z=z)
         for bad in ({"z": math.nan}, {"z": math.inf}, {"x": math.nan}, {"y": -math.inf}, {"z": True}):
             place = {"x": 1.0, "y": 2.0, **bad}
             with pytest.raises(ComponentError, match="must be a finite number"):
@@ -81,10 +86,8 @@ def test_nan_or_infinite_z_and_a_lone_surrogate_are_refused_and_never_block_the_
             m.store_specific_memory("bad \ud800 text", x=1.0, y=1.0)
         with pytest.raises(ComponentError, match="max_text_length"):
             m.store_specific_memory("long " * 10_000, x=1.0, y=1.0)
-        send(ODOM, OdometryMsg(pose=PoseMsg(position=[3.0, 4.0, 0.0]), header=Header(frame_id="map")))
-        assert wait_for(lambda: m._fix is not None)
-        send(HEARD, "a voice \udc80 with a lone surrogate")
-        assert wait_for(lambda: m.stats["refused"] == 8)
+        send(HEARD, "a voice \udc80 with a lone surrogate")  # as the web UI passes it on
+        assert wait_for(lambda: m.stats["refused"] == 10)
         for i in range(10):
             assert m.store_specific_memory(note(i), x=float(i), y=0.0) is True
         assert m.stats["stored"] == 10 and m.stats["pending"] == 0
@@ -125,8 +128,19 @@ def test_nan_z_from_a_zenoh_peer_in_another_process_is_refused_and_the_next_note
                                     timeout=15)["result"]
 
             assert wait_for(lambda: _answers(call), timeout=30), process.output()
-            with pytest.raises(RemoteError, match="z must be a finite number"):
-                call("store_specific_memory", content="poison", x=1.0, y=1.0, z=float("nan"))
+            odom = peer.create_publisher(ODOM)
+
+            def placed() -> bool:  # the robot's position reached the Memory: a note without x, y is stored
+                odom.publish(OdometryMsg(pose=PoseMsg(position=[3.0, 4.0, 0.0]), header=Header(frame_id="map")))
+                try:
+                    return bool(call("store_specific_memory", content="the robot is here"))
+                except RemoteError:
+                    return False
+
+            assert wait_for(placed, timeout=30), process.output()
+            for z in (float("nan"), float("inf")):  # at the current position, with only z given
+                with pytest.raises(RemoteError, match="z must be a finite number"):
+                    call("store_specific_memory", content="poison", z=z)
             with pytest.raises(RemoteError, match="'n_results' must be an integer"):
                 call("semantic_search", query="note", n_results=10**18)
             for i in range(10):
