@@ -18,10 +18,12 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 
 from agents_core import Launcher, MemoryTransport
 from agents_core.components import Memory
+from agents_core.components.memory.engine import Observation
 from agents_core.errors import ComponentError, RemoteError
 from agents_core.messages import Header, OdometryMsg, PoseMsg
 from agents_core.status import HealthStatus
@@ -29,7 +31,7 @@ from agents_core.testing.pairs import missing_requirement
 from agents_core.testing.recipes import RecipeProcess, open_recipe_transport, recipe_environment
 
 from ..conftest import wait_for
-from .memory_recipe import HEARD, ODOM, WORDS, build, note
+from .memory_recipe import HEARD, ODOM, WORDS, WordEmbedder, build, note
 
 pytest.importorskip("emem", reason="the memory extra is not installed (pip install 'agents-core[memory]')")
 
@@ -98,8 +100,6 @@ def test_nan_or_infinite_z_and_a_lone_surrogate_are_refused_and_never_block_the_
 def test_an_observation_the_store_refuses_is_dropped_and_counted_not_kept_at_the_head_of_the_buffer(
         tmp_path: Path) -> None:
     """Attack 1, past the checks: a value the database refuses (here NaN put straight into the buffer)."""
-    from agents_core.components.memory.engine import Observation
-
     m = build(str(tmp_path / "m.db"))
     with running(m):
         with m._lock:
@@ -183,16 +183,16 @@ def test_a_second_process_on_the_same_database_is_refused_with_the_holder_s_pid(
     """Attack 3: two Memory processes on one db_path; after both, each writer's notes are found."""
     db = tmp_path / "shared.db"
     second = build(str(db))
-    with child(db, tmp_path, "--transport", "memory", "--notes", "20", "--writer", "first") as process:
-        with running(second):
-            assert second.health_status == HealthStatus.COMPONENT_FAILURE
-            assert f"in use by process {process.pid}" in second.health_message
-            with pytest.raises(ComponentError, match=f"in use by process {process.pid}"):
-                second.store_specific_memory(note(0, "second"), x=0.0, y=0.0)
-            with pytest.raises(ComponentError, match="in use by process"):
-                second.semantic_search(query="note")
-            assert second.stats["stored"] == 0
-    # The first process is gone (stopped cleanly): the lock is free, the buffered note and 19 more go in.
+    with child(db, tmp_path, "--transport", "memory", "--notes", "20", "--writer", "first") as process, \
+            running(second):
+        assert second.health_status == HealthStatus.COMPONENT_FAILURE
+        assert f"in use by process {process.pid}" in second.health_message
+        with pytest.raises(ComponentError, match=f"in use by process {process.pid}"):
+            second.store_specific_memory(note(0, "second"), x=0.0, y=0.0)
+        with pytest.raises(ComponentError, match="in use by process"):
+            second.semantic_search(query="note")
+        assert second.stats["stored"] == 0
+    # The first process is gone (stopped cleanly): the lock is free, another writer's notes go in beside its own.
     m = build(str(db))
     with running(m):
         for i in range(20):
@@ -291,10 +291,7 @@ def test_a_foreign_sqlite_file_and_non_regular_paths_are_refused_untouched(tmp_p
 
 def test_a_database_of_an_earlier_version_is_adopted_and_its_vectors_kept_with_its_rows(tmp_path: Path) -> None:
     """An emem database without our mark (as earlier versions wrote it) opens, and its index survives a crash."""
-    from emem import SpatioTemporalMemory, SpatioTemporalMemoryConfig
-
-    from .memory_recipe import WordEmbedder
-
+    emem = pytest.importorskip("emem")
     db = tmp_path / "earlier.db"
     embedder = WordEmbedder()
 
@@ -302,13 +299,11 @@ def test_a_database_of_an_earlier_version_is_adopted_and_its_vectors_kept_with_i
         dim = 64
 
         def embed(self, texts: list[str]) -> Any:
-            import numpy as np
-
             return np.asarray(embedder.embed(texts), dtype=np.float32)
 
-    config = SpatioTemporalMemoryConfig(db_path=str(db), hnsw_path=str(tmp_path / "earlier.hnsw.bin"),
+    config = emem.SpatioTemporalMemoryConfig(db_path=str(db), hnsw_path=str(tmp_path / "earlier.hnsw.bin"),
                                         embedding_dim=64, flush_batch_size=1)
-    with SpatioTemporalMemory(config=config, embedding_provider=Provider()) as earlier:
+    with emem.SpatioTemporalMemory(config=config, embedding_provider=Provider()) as earlier:
         for i in range(10):
             earlier.add(text=note(i), x=float(i), y=0.0)
     m = build(str(db))

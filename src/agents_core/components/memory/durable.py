@@ -289,6 +289,13 @@ def _store_class() -> type:
             if int_id is not None:
                 self._db.execute(f"DELETE FROM {VECTOR_TABLE} WHERE int_id = ?", (int_id,))
 
+        def reload_mappings(self) -> None:
+            """Read the index's id mappings from the rows again (emem reads them only when the index file exists)."""
+            self._hnsw_id_map.clear()
+            self._hnsw_str_map.clear()
+            self._hnsw_counter = 0
+            self._load_hnsw_mappings()
+
         def save(self) -> None:
             path = Path(self._hnsw_path)
             temporary = path.with_name(f"{path.name}.{os.getpid()}.tmp")
@@ -327,10 +334,7 @@ def resync(store: Any, embed: Callable[[list[str]], Any]) -> list[str]:
     """
     import numpy as np  # noqa: PLC0415
 
-    store._hnsw_id_map.clear()
-    store._hnsw_str_map.clear()
-    store._hnsw_counter = 0
-    store._load_hnsw_mappings()  # emem reads them only when the index file exists
+    store.reload_mappings()
     wanted = set(store._hnsw_id_map)
     held = {int(i) for i in store._hnsw.get_ids_list()}
     notes: list[str] = []
