@@ -21,11 +21,12 @@ from typing import Any
 import numpy as np
 import pytest
 
-from agents_core import Launcher, MemoryTransport
-from agents_core.components import Memory
+from agents_core import Launcher, MemoryTransport, Topic
+from agents_core.components import MemLayer, Memory
 from agents_core.components.memory.engine import Observation
+from agents_core.config import MemoryConfig
 from agents_core.errors import ComponentError, RemoteError
-from agents_core.messages import Header, OdometryMsg, PoseMsg
+from agents_core.messages import Header, OdometryMsg, PoseMsg, StreamingStringMsg
 from agents_core.status import HealthStatus
 from agents_core.testing.pairs import missing_requirement
 from agents_core.testing.recipes import RecipeProcess, open_recipe_transport, recipe_environment
@@ -81,7 +82,7 @@ def test_nan_or_infinite_z_and_a_lone_surrogate_are_refused_and_never_block_the_
             with pytest.raises(ComponentError, match="z must be a finite number"):
                 m.store_specific_memory("poison", z=z)
         for bad in ({"z": math.nan}, {"z": math.inf}, {"x": math.nan}, {"y": -math.inf}, {"z": True}):
-            place = {"x": 1.0, "y": 2.0, **bad}
+            place: dict[str, Any] = {"x": 1.0, "y": 2.0, **bad}
             with pytest.raises(ComponentError, match="must be a finite number"):
                 m.store_specific_memory("poison", **place)
         with pytest.raises(ComponentError, match="lone surrogate"):
@@ -95,6 +96,27 @@ def test_nan_or_infinite_z_and_a_lone_surrogate_are_refused_and_never_block_the_
         assert m.stats["stored"] == 10 and m.stats["pending"] == 0
         assert found_notes(m, 10) == 10
         assert m.health_status == HealthStatus.HEALTHY
+
+
+def test_a_stream_that_never_ends_is_not_kept_whole_and_the_next_stream_is_stored(tmp_path: Path) -> None:
+    """Attack 1 (sizes): a StreamingString whose chunks keep coming, never done."""
+    said = Topic("said", "StreamingString")
+    m = Memory(layers=[MemLayer(subscribes_to=said)], position=ODOM, embedding_client=WordEmbedder(),
+               config=MemoryConfig(db_path=str(tmp_path / "m.db"), flush_interval=0.0),
+               trigger=20.0)
+    with running(m) as send:
+        send(ODOM, OdometryMsg(pose=PoseMsg(position=[1.0, 1.0, 0.0]), header=Header(frame_id="map")))
+        assert wait_for(lambda: m._fix is not None)
+        for _ in range(2000):
+            send(said, StreamingStringMsg(data="blah " * 20, stream=True, done=False))
+        send(said, StreamingStringMsg(data="end", stream=True, done=True))
+        assert wait_for(lambda: m.stats["refused"] == 1)
+        assert not m._partial
+        for chunk, done in (("the kettle ", False), ("is boiling", True)):
+            send(said, StreamingStringMsg(data=chunk, stream=True, done=done))
+        assert wait_for(lambda: m.stats["stored"] == 1), m.stats
+        assert "the kettle is boiling" in m.semantic_search(query="kettle")
+        assert "blah" not in m.temporal_query(last_n_minutes=5)
 
 
 def test_an_observation_the_store_refuses_is_dropped_and_counted_not_kept_at_the_head_of_the_buffer(

@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import collections
 import functools
+import logging
 import math
 import sqlite3
 import threading
@@ -120,6 +121,7 @@ class Memory(MemoryWriting, Component):
         self._engine_lock = threading.RLock()  # the engine: steps, actions and direct calls one at a time
         self._fix: Fix | None = None
         self._partial: dict[str, str] = {}  # per StreamingString layer: the stream in progress
+        self._overlong: set[str] = set()  # StreamingString layers whose stream in progress was refused
         # An arrival: (layer, text, Unix time, the position then, time.monotonic() then). Per sampled layer its
         # newest not yet taken by a step; on the layers that trigger the component, every value in order.
         self._fresh: dict[str, _Arrival] = {}
@@ -185,10 +187,23 @@ class Memory(MemoryWriting, Component):
     def _on_value(self, layer: str, value: Any, every: bool = False) -> None:
         if isinstance(value, StreamingStringMsg):
             with self._lock:
+                if layer in self._overlong:  # the rest of a stream already refused
+                    if value.done:
+                        self._overlong.discard(layer)
+                    return
                 text = self._partial.pop(layer, "") + value.data
-                if not value.done:
+                overlong = len(text) > self.config.max_text_length
+                if overlong:  # a stream that never ends is not kept whole
+                    self._counts["refused"] += 1
+                    if not value.done:
+                        self._overlong.add(layer)
+                elif not value.done:
                     self._partial[layer] = text
                     return
+            if overlong:
+                self._logger.warning("layer %r: a stream longer than max_text_length=%d: not stored", layer,
+                                     self.config.max_text_length)
+                return
             value = text
         try:
             stored = self.layers[layer].text_of(value)
@@ -280,9 +295,10 @@ class Memory(MemoryWriting, Component):
             count = engine.store.count_observations()
             first_time = count == 0
             self._engine = engine
-            self._logger.info("memory database %r open: %d observation(s), %d findable by meaning%s",
-                              self.config.db_path, count, len(engine.store._hnsw_id_map),
-                              "".join(f"; {note}" for note in notes))
+            self._logger.log(logging.WARNING if notes else logging.INFO,
+                             "memory database %r open: %d observation(s), %d entr(ies) findable by meaning%s",
+                             self.config.db_path, count, len(engine.store._hnsw_id_map),
+                             "".join(f"; {note}" for note in notes))
         if first_time:
             self._write_pre_defined()
         return engine
