@@ -24,6 +24,7 @@ from agents_core import Launcher, Topic
 from agents_core.clients import ModelClient
 from agents_core.components import MemLayer, Memory
 from agents_core.config import MemoryConfig
+from agents_core.errors import ComponentError
 from agents_core.models import GenericLLM
 
 from .recipe_main import MAX_RUN_SECONDS, transport_options
@@ -89,9 +90,12 @@ def main(argv: list[str] | None = None) -> None:
     launcher = Launcher(transport=args.transport, transport_options=transport_options(args.transport, args.listen))
     launcher.add_pkg(components=[memory])
     with launcher:
-        for i in range(args.notes):
-            memory.store_specific_memory(note(i, args.writer), x=float(i), y=0.0)
-        print(f"COMMITTED {memory.stats['stored']}", flush=True)
+        try:
+            for i in range(args.notes):
+                memory.store_specific_memory(note(i, args.writer), x=float(i), y=0.0)
+            print(f"COMMITTED {memory.stats['stored']}", flush=True)
+        except ComponentError as exc:  # e.g. another process holds the database
+            print(f"REFUSED {exc}", flush=True)
         print("READY", flush=True)
         stop.wait(MAX_RUN_SECONDS)
     print("stopped cleanly", file=sys.stderr, flush=True)
