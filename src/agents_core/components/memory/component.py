@@ -7,11 +7,15 @@ arrived, with its time; a layer whose topic triggers the component keeps every v
 a step: none is merged into the next when the worker is behind). The ``store`` action keeps each
 layer's newest value at the current position. Observations are embedded by the ``embedding_client``
 and committed to the SQLite database at ``config.db_path`` in batches (one embedding request and one
-transaction for what is waiting), whose vector index is saved beside it: both survive a restart of
-the component and of the process.
+transaction for what is waiting), with its vectors; the vector index is saved beside it. What was
+committed survives a restart of the component and of the process, a crash included (the index is
+re-synced from the rows at open); one process writes a database (an OS lock), another embedding model
+or a file that is not a Memory database is refused (``docs/memory.md`` has every guarantee).
 
 Never lost silently: an observation whose position is older than ``config.position_timeout`` (or
-missing) is not stored, and counted (and the step reports ``ALGORITHM_FAILURE``). When the
+missing) is not stored, and counted; one that cannot be stored (a place that is not finite, a text
+that is not valid Unicode or longer than ``config.max_text_length``) is refused and counted, and never
+holds back the ones after it (and the step reports ``ALGORITHM_FAILURE``). When the
 embedding server or the database fails, the step fails with the typed error (health
 ``COMPONENT_FAILURE``: a :class:`~agents_core.errors.ModelClientError`, or
 :class:`~agents_core.components.memory.engine.MemoryStoreError` for the database); the

@@ -30,7 +30,9 @@ class MemoryConfig(BaseComponentConfig):
     Where and how observations are kept:
 
     :param db_path: the SQLite file of the memory; the vector index lives beside it
-        (``<db_path without suffix>.hnsw.bin``). Both survive a restart of the component or process.
+        (``<db_path without suffix>.hnsw.bin``), and the writer lock (``<db_path>.lock``). What was
+        committed survives a restart of the component or process, a crash included. A path that is not
+        a regular file, or a file that is not a Memory database, is refused untouched.
     :param auto_store: take a snapshot of the layers at every step (False: only the ``store`` action does).
     :param position_timeout: a snapshot is only stored when the robot's position arrived at most this many
         seconds before; older (or no) position: the layer values are not stored, and counted.
