@@ -215,6 +215,7 @@ def open_engine(config: MemoryConfig, embedder: ClientEmbedder,
         # Never flushed by count or age on its own: a write that fails then loses nothing the component
         # has not kept in its own buffer, and a batch is one transaction instead of one per observation.
         flush_batch_size=2**62, flush_interval=math.inf, **config.engine_settings())
+    engine: Any = None
     try:
         try:
             engine = _engine_class()(config=settings, embedding_provider=embedder, llm_client=summarizer)
@@ -227,11 +228,14 @@ def open_engine(config: MemoryConfig, embedder: ClientEmbedder,
         engine.writer_lock = lock
         engine.store.__class__ = store_class()
         notes += resync(engine.store, embedder.embed)
-    except (sqlite3.Error, OSError, RuntimeError) as exc:
+    except BaseException as exc:
+        if engine is not None:  # not closed through the engine: that would save an index not yet in line
+            with contextlib.suppress(sqlite3.Error):
+                engine.store._db.close()
         lock.release()
-        raise MemoryStoreError(f"cannot open the memory database {given!r}: {type(exc).__name__}: {exc}") from exc
-    except BaseException:
-        lock.release()
+        if isinstance(exc, sqlite3.Error | OSError | RuntimeError):
+            raise MemoryStoreError(f"cannot open the memory database {given!r}: {type(exc).__name__}: "
+                                   f"{exc}") from exc
         raise
     return engine, notes
 
