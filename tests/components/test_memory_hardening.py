@@ -379,6 +379,15 @@ def test_retrieval_tools_answer_hostile_arguments_with_one_clear_error(
     assert memory_under_attack.health_status == HealthStatus.HEALTHY
 
 
+def test_an_episode_name_with_a_lone_surrogate_or_of_a_megabyte_is_one_clear_error(
+        memory_under_attack: Memory) -> None:
+    """Item 11: the episode's name went to sqlite as it was (a raw UnicodeEncodeError)."""
+    for name, why in (("patrol \ud800", "lone surrogate"), ("x" * 1_000_000, "at most")):
+        with pytest.raises(ComponentError, match=f"start_episode: the name .*{why}"):
+            memory_under_attack.start_episode(name)
+    assert memory_under_attack.health_status == HealthStatus.HEALTHY
+
+
 @pytest.fixture(scope="module")
 def memory_under_attack(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Memory]:
     m = build(str(tmp_path_factory.mktemp("attack") / "m.db"))

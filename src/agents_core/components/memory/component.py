@@ -56,7 +56,7 @@ from .config import MemoryConfig
 from .engine import ClientEmbedder, ClientSummarizer, MemoryStoreError, Observation, open_engine, require_emem
 from .layers import Fix, MemLayer
 from .tools import TOOL_NAMES, action_description, check_arguments, tool_description
-from .writing import MAX_LAYER_NAME, MemoryWriting
+from .writing import MAX_LAYER_NAME, MemoryWriting, problem_of
 
 if TYPE_CHECKING:
     from ..llm import LLM
@@ -432,6 +432,10 @@ class Memory(MemoryWriting, Component):
         """Start an episode named ``name`` (ending the active one first, if any); returns its id."""
         if not isinstance(name, str) or not name.strip():
             raise ComponentError(f"component {self.component_name!r}: an episode needs a name")
+        problem = problem_of(Observation(name.strip(), 0.0, 0.0, 0.0, 0.0, "episode", False), MAX_LAYER_NAME)
+        if problem is not None:
+            raise ComponentError(f"component {self.component_name!r}: start_episode: "
+                                 f"{problem.replace('its text', 'the name')}")
         with self._engine_lock:
             self._write(force=True)  # what was observed before belongs to no (or the previous) episode
             engine = self._open()
