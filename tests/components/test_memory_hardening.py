@@ -135,6 +135,7 @@ def test_an_observation_the_store_refuses_is_dropped_and_counted_not_kept_at_the
         assert m._engine.store.count_observations() == 10 and len(m._engine.store._hnsw_id_map) == 10
 
 
+@pytest.mark.zenoh
 def test_nan_z_from_a_zenoh_peer_in_another_process_is_refused_and_the_next_notes_are_stored(tmp_path: Path) -> None:
     """Attack 1 over the network: any Zenoh peer calls store_specific_memory with z = NaN."""
     reason = missing_requirement("zenoh")
