@@ -5,7 +5,8 @@ Memory (component name ``memory``) on the database at PATH whose embeddings come
 :class:`WordEmbedder` (hashed bags of words, no server), writes ``--notes`` notes through
 ``store_specific_memory`` (each committed before the call returns), prints ``COMMITTED n`` and
 ``READY`` on stdout and runs until SIGINT / SIGTERM (or SIGKILL, which is the point of some tests).
-``--transport zenoh --listen tcp/127.0.0.1:PORT`` serves it to a peer in another process.
+``--transport zenoh --listen tcp/127.0.0.1:PORT`` (or ``--transport ros2``, discovery settings from the
+environment) serves it to a peer in another process.
 """
 
 from __future__ import annotations
@@ -76,7 +77,7 @@ def build(db: str, dim: int = 64, checkpoint: str = "words", **config: Any) -> M
 
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("--transport", required=True, choices=["memory", "zenoh"])
+    parser.add_argument("--transport", required=True, choices=["memory", "zenoh", "ros2"])
     parser.add_argument("--listen", default=None, help="zenoh: the endpoint to listen on")
     parser.add_argument("--db", required=True)
     parser.add_argument("--notes", type=int, default=0)

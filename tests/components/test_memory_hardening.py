@@ -28,8 +28,7 @@ from agents_core.config import MemoryConfig
 from agents_core.errors import ComponentError, RemoteError
 from agents_core.messages import Header, OdometryMsg, PoseMsg, StreamingStringMsg
 from agents_core.status import HealthStatus
-from agents_core.testing.pairs import missing_requirement
-from agents_core.testing.recipes import RecipeProcess, open_recipe_transport, recipe_environment
+from agents_core.testing.recipes import RecipeProcess, RecipeTransport, recipe_environment
 
 from ..conftest import wait_for
 from .memory_recipe import HEARD, ODOM, WORDS, WordEmbedder, build, note
@@ -135,44 +134,40 @@ def test_an_observation_the_store_refuses_is_dropped_and_counted_not_kept_at_the
         assert m._engine.store.count_observations() == 10 and len(m._engine.store._hnsw_id_map) == 10
 
 
-@pytest.mark.zenoh
-def test_nan_z_from_a_zenoh_peer_in_another_process_is_refused_and_the_next_notes_are_stored(tmp_path: Path) -> None:
-    """Attack 1 over the network: any Zenoh peer calls store_specific_memory with z = NaN."""
-    reason = missing_requirement("zenoh")
-    if reason is not None:
-        pytest.skip(reason)
-    transport = open_recipe_transport("zenoh")
-    db = tmp_path / "zenoh.db"
-    try:
-        with child(db, tmp_path, *transport.recipe_args) as process:
-            peer = transport.open_asker()
+def test_nan_z_from_a_peer_in_another_process_is_refused_and_the_next_notes_are_stored(
+        recipe_transport: RecipeTransport, tmp_path: Path) -> None:
+    """Attack 1 over the network: any Zenoh (or ROS 2) peer calls store_specific_memory with z = NaN."""
+    transport = recipe_transport
+    db = tmp_path / "peer.db"
+    with child(db, tmp_path, *transport.recipe_args) as process:
+        peer = transport.open_asker()
 
-            def call(method: str, **kwargs: Any) -> Any:
-                return peer.request("memory/execute_method", {"method": method, "kwargs": kwargs},
-                                    timeout=15)["result"]
+        def call(method: str, **kwargs: Any) -> Any:
+            return peer.request("memory/execute_method", {"method": method, "kwargs": kwargs},
+                                timeout=15)["result"]
 
-            assert wait_for(lambda: _answers(call), timeout=30), process.output()
-            odom = peer.create_publisher(ODOM)
+        assert wait_for(lambda: _answers(call), timeout=30), process.output()
+        odom = peer.create_publisher(ODOM)
 
-            def placed() -> bool:  # the robot's position reached the Memory: a note without x, y is stored
-                odom.publish(OdometryMsg(pose=PoseMsg(position=[3.0, 4.0, 0.0]), header=Header(frame_id="map")))
-                try:
-                    return bool(call("store_specific_memory", content="the robot is here"))
-                except RemoteError:
-                    return False
+        def placed() -> bool:  # the robot's position reached the Memory: a note without x, y is stored
+            odom.publish(OdometryMsg(pose=PoseMsg(position=[3.0, 4.0, 0.0]), header=Header(frame_id="map")))
+            try:
+                return bool(call("store_specific_memory", content="the robot is here"))
+            except RemoteError:
+                return False
 
-            assert wait_for(placed, timeout=30), process.output()
-            for z in (float("nan"), float("inf")):  # at the current position, with only z given
-                with pytest.raises(RemoteError, match="z must be a finite number"):
-                    call("store_specific_memory", content="poison", z=z)
-            with pytest.raises(RemoteError, match="'n_results' must be an integer"):
-                call("semantic_search", query="note", n_results=10**18)
-            for i in range(10):
-                assert call("store_specific_memory", content=note(i), x=float(i), y=0.0) is True
-            hits = sum(note(i) in call("semantic_search", query=f"note {WORDS[i]}", n_results=3) for i in range(10))
-            assert hits == 10, process.output()
-    finally:
-        transport.close()
+        assert wait_for(placed, timeout=30), process.output()
+        # At the current position, with only z given. ROS 2's JSON requests refuse NaN before it arrives.
+        refused = "z must be a finite number" if transport.name == "zenoh" else "holds NaN or Infinity"
+        for z in (float("nan"), float("inf")):
+            with pytest.raises(RemoteError, match=refused):
+                call("store_specific_memory", content="poison", z=z)
+        with pytest.raises(RemoteError, match="'n_results' must be an integer"):
+            call("semantic_search", query="note", n_results=10**18)
+        for i in range(10):
+            assert call("store_specific_memory", content=note(i), x=float(i), y=0.0) is True
+        hits = sum(note(i) in call("semantic_search", query=f"note {WORDS[i]}", n_results=3) for i in range(10))
+        assert hits == 10, process.output()
 
 
 def _answers(call: Any) -> bool:
