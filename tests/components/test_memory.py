@@ -129,7 +129,7 @@ def test_observations_are_stored_at_the_robot_s_place_and_found_by_meaning_place
         reply = launcher.transport.request(f"{m.component_name}/execute_method",
                                            {"method": "semantic_search", "kwargs": {"query": "doorbell"}})
         assert "doorbell" in reply["result"]
-    assert m.stats == {"stored": 4, "no_position": 0, "unchanged": 0, "dropped": 0, "unreadable": 0,
+    assert m.stats == {"stored": 4, "no_position": 0, "unchanged": 0, "dropped": 0, "unreadable": 0, "refused": 0,
                        "embed_errors": 0, "store_errors": 0, "pending": 0}
     assert m.health_status == HealthStatus.HEALTHY
 

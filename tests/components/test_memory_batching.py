@@ -59,7 +59,7 @@ def test_a_burst_on_a_trigger_layer_is_stored_whole_in_order_at_each_value_s_pla
             send(HEARD, text)
         assert wait_for(lambda: m.stats["stored"] == 40, timeout=20), m.stats
         assert rows(db) == sent
-        assert m.stats == {"stored": 40, "no_position": 0, "unchanged": 0, "dropped": 0, "unreadable": 0,
+        assert m.stats == {"stored": 40, "no_position": 0, "unchanged": 0, "dropped": 0, "unreadable": 0, "refused": 0,
                            "embed_errors": 0, "store_errors": 0, "pending": 0}
     written = embedder.sizes[1:]  # the first request is the dimension probe
     assert sum(written) == 40 and len(written) < 20, written  # batched: not one request per value

@@ -7,11 +7,15 @@ arrived, with its time; a layer whose topic triggers the component keeps every v
 a step: none is merged into the next when the worker is behind). The ``store`` action keeps each
 layer's newest value at the current position. Observations are embedded by the ``embedding_client``
 and committed to the SQLite database at ``config.db_path`` in batches (one embedding request and one
-transaction for what is waiting), whose vector index is saved beside it: both survive a restart of
-the component and of the process.
+transaction for what is waiting), with its vectors; the vector index is saved beside it. What was
+committed survives a restart of the component and of the process, a crash included (the index is
+re-synced from the rows at open); one process writes a database (an OS lock), another embedding model
+or a file that is not a Memory database is refused (``docs/memory.md`` has every guarantee).
 
 Never lost silently: an observation whose position is older than ``config.position_timeout`` (or
-missing) is not stored, and counted (and the step reports ``ALGORITHM_FAILURE``). When the
+missing) is not stored, and counted; one that cannot be stored (a place that is not finite, a text
+that is not valid Unicode or longer than ``config.max_text_length``) is refused and counted, and never
+holds back the ones after it (and the step reports ``ALGORITHM_FAILURE``). When the
 embedding server or the database fails, the step fails with the typed error (health
 ``COMPONENT_FAILURE``: a :class:`~agents_core.errors.ModelClientError`, or
 :class:`~agents_core.components.memory.engine.MemoryStoreError` for the database); the
@@ -31,7 +35,7 @@ from __future__ import annotations
 
 import collections
 import functools
-import itertools
+import logging
 import math
 import sqlite3
 import threading
@@ -49,17 +53,10 @@ from ...topics import Topic
 from ..component_base import Component, TriggerType
 from ..layer_points import position_of
 from .config import MemoryConfig
-from .engine import (
-    ClientEmbedder,
-    ClientSummarizer,
-    MemoryStoreError,
-    Observation,
-    commit_batch,
-    open_engine,
-    require_emem,
-)
+from .engine import ClientEmbedder, ClientSummarizer, MemoryStoreError, Observation, open_engine, require_emem
 from .layers import Fix, MemLayer
 from .tools import TOOL_NAMES, action_description, check_arguments, tool_description
+from .writing import MAX_LAYER_NAME, MemoryWriting, problem_of
 
 if TYPE_CHECKING:
     from ..llm import LLM
@@ -68,13 +65,11 @@ __all__ = ["Memory"]
 
 #: The layer of notes written through ``store_specific_memory`` (kept apart from the perception streams).
 NOTES_LAYER = "agent_notes"
-#: How many observations one embedding request carries at most.
-_EMBED_CHUNK = 64
 #: A value as it arrived: layer, text, Unix time, the robot's position then, ``time.monotonic()`` then.
 _Arrival = tuple[str, str, float, Fix | None, float]
 
 
-class Memory(Component):
+class Memory(MemoryWriting, Component):
     """Remembers what its layers receive, where and when (see the module docs).
 
     :param layers: the :class:`MemLayer` list (one topic each, distinct).
@@ -130,6 +125,7 @@ class Memory(Component):
         self._engine_lock = threading.RLock()  # the engine: steps, actions and direct calls one at a time
         self._fix: Fix | None = None
         self._partial: dict[str, str] = {}  # per StreamingString layer: the stream in progress
+        self._overlong: set[str] = set()  # StreamingString layers whose stream in progress was refused
         # An arrival: (layer, text, Unix time, the position then, time.monotonic() then). Per sampled layer its
         # newest not yet taken by a step; on the layers that trigger the component, every value in order.
         self._fresh: dict[str, _Arrival] = {}
@@ -170,17 +166,15 @@ class Memory(Component):
     def stats(self) -> dict[str, int]:
         """Counters: ``stored`` observations; not stored: ``no_position`` (no recent position), ``unchanged``
         (same value, same place, on a layer without ``temporal_change``), ``dropped`` (buffer full),
-        ``unreadable`` (a value without a text form); failures: ``embed_errors``, ``store_errors``;
+        ``unreadable`` (a value without a text form), ``refused`` (an observation that cannot be stored: a
+        place or time that is not finite, a text that is not valid Unicode or too long, or one the database
+        or the embedding server refused); failures: ``embed_errors``, ``store_errors``;
         ``pending`` (buffered, to be written, including values that wait for the next step)."""
         with self._lock:
             counts = {k: self._counts[k] for k in ("stored", "no_position", "unchanged", "dropped", "unreadable",
-                                                   "embed_errors", "store_errors")}
+                                                   "refused", "embed_errors", "store_errors")}
             counts["pending"] = len(self._pending) + len(self._arrived)
         return counts
-
-    def _count(self, what: str, n: int = 1) -> None:
-        with self._lock:
-            self._counts[what] += n
 
     # -- arrivals (the transport's thread: short) ---------------------------------------------
 
@@ -197,10 +191,23 @@ class Memory(Component):
     def _on_value(self, layer: str, value: Any, every: bool = False) -> None:
         if isinstance(value, StreamingStringMsg):
             with self._lock:
+                if layer in self._overlong:  # the rest of a stream already refused
+                    if value.done:
+                        self._overlong.discard(layer)
+                    return
                 text = self._partial.pop(layer, "") + value.data
-                if not value.done:
+                overlong = len(text) > self.config.max_text_length
+                if overlong:  # a stream that never ends is not kept whole
+                    self._counts["refused"] += 1
+                    if not value.done:
+                        self._overlong.add(layer)
+                elif not value.done:
                     self._partial[layer] = text
                     return
+            if overlong:
+                self._logger.warning("layer %r: a stream longer than max_text_length=%d: not stored", layer,
+                                     self.config.max_text_length)
+                return
             value = text
         try:
             stored = self.layers[layer].text_of(value)
@@ -285,12 +292,17 @@ class Memory(Component):
             if self._summarizer is None and self.model_client is not None:
                 self._summarizer = ClientSummarizer(self.model_client)
             try:
-                engine = open_engine(self.config, self._embedder, self._summarizer)
+                engine, notes = open_engine(self.config, self._embedder, self._summarizer)
             except MemoryStoreError:
                 self._count("store_errors")
                 raise
-            first_time = engine.store.count_observations() == 0
+            count = engine.store.count_observations()
+            first_time = count == 0
             self._engine = engine
+            self._logger.log(logging.WARNING if notes else logging.INFO,
+                             "memory database %r open: %d observation(s), %d entr(ies) findable by meaning%s",
+                             self.config.db_path, count, len(engine.store._hnsw_id_map),
+                             "".join(f"; {note}" for note in notes))
         if first_time:
             self._write_pre_defined()
         return engine
@@ -346,81 +358,9 @@ class Memory(Component):
         if not layer.temporal_change and self._last_stored.get(name) == (text, cell):
             self._count("unchanged")
             return True
-        self._last_stored[name] = (text, cell)
-        self._enqueue(Observation(text, fix.x, fix.y, fix.z, stamp, name, layer.is_internal_state))
+        if self._enqueue(Observation(text, fix.x, fix.y, fix.z, stamp, name, layer.is_internal_state)) is None:
+            self._last_stored[name] = (text, cell)
         return True
-
-    def _enqueue(self, observation: Observation) -> None:
-        with self._lock:
-            if len(self._pending) >= self.config.buffer_size:
-                self._pending.popleft()
-                self._counts["dropped"] += 1
-            if not self._pending:
-                self._pending_since = time.monotonic()
-            self._pending.append(observation)
-
-    def _write(self, *, force: bool) -> int:
-        """Embed and commit the buffered observations (when due, or ``force``); how many were written.
-
-        Due by count, whole batches of ``flush_batch_size`` are written (the rest waits for its batch or
-        for ``flush_interval``); forced or due by age, everything waiting now. Each chunk of up to
-        ``_EMBED_CHUNK`` is one embedding request and one transaction, and leaves the buffer, in order,
-        only once committed: on a failure it stays for a retry and the typed error is raised.
-        """
-        with self._lock:
-            waiting = len(self._pending)
-            since = self._pending_since
-        aged = since is not None and time.monotonic() - since >= self.config.flush_interval
-        quota = waiting if force or aged else waiting - waiting % self.config.flush_batch_size
-        if not quota:
-            return 0
-        written = 0
-        with self._engine_lock:
-            engine = self._open()
-            assert self._embedder is not None
-            while written < quota:
-                with self._lock:
-                    batch = list(itertools.islice(self._pending, min(_EMBED_CHUNK, quota - written)))
-                if not batch:
-                    break
-                try:
-                    vectors = self._embedder.embed([o.text for o in batch])
-                except ModelClientError:
-                    self._count("embed_errors")
-                    raise
-                self._commit(engine, batch, vectors)
-                with self._lock:
-                    for observation in batch:
-                        if self._pending and self._pending[0] is observation:
-                            self._pending.popleft()
-                        elif observation in self._pending:  # the oldest may have been dropped meanwhile
-                            self._pending.remove(observation)
-                    self._counts["stored"] += len(batch)
-                    if not self._pending:  # else the rest keeps the older age: it never waits longer
-                        self._pending_since = None
-                written += len(batch)
-            if time.monotonic() - self._index_saved >= self.config.index_save_interval:
-                self._save_index()
-        return written
-
-    def _commit(self, engine: Any, batch: list[Observation], vectors: Any) -> None:
-        try:
-            commit_batch(engine, batch, vectors)
-        except (sqlite3.Error, OSError, RuntimeError) as exc:
-            self._count("store_errors")
-            raise MemoryStoreError(f"cannot write to the memory database {self.config.db_path!r}: "
-                                   f"{type(exc).__name__}: {exc}") from exc
-
-    def _save_index(self) -> None:
-        with self._engine_lock:
-            if self._engine is None:
-                return
-            try:
-                self._engine.store.save()
-                self._index_saved = time.monotonic()
-            except (sqlite3.Error, OSError, RuntimeError) as exc:
-                self._count("store_errors")
-                self._logger.warning("the memory's vector index could not be saved: %s", exc)
 
     # -- storage actions ----------------------------------------------------------------------
 
@@ -451,26 +391,33 @@ class Memory(Component):
     def store_specific_memory(self, content: str, layer_name: str = NOTES_LAYER, x: float | None = None,
                               y: float | None = None, z: float | None = None) -> bool:
         """Write ``content`` as an observation now (at x, y, or at the current position); True once written."""
+        name = f"component {self.component_name!r}: store_specific_memory"
         if not isinstance(content, str) or not content.strip():
-            raise ComponentError(f"component {self.component_name!r}: store_specific_memory needs a non-empty text")
+            raise ComponentError(f"{name} needs a non-empty text")
+        if not isinstance(layer_name, str) or not 0 < len(layer_name) <= MAX_LAYER_NAME:
+            raise ComponentError(f"{name}: layer_name must be a text of 1 to {MAX_LAYER_NAME} characters")
+        for axis, value in (("x", x), ("y", y), ("z", z)):
+            if value is not None and (isinstance(value, bool) or not isinstance(value, int | float)
+                                      or not math.isfinite(value)):
+                self._count("refused")
+                raise ComponentError(f"{name}: {axis} must be a finite number, got {value!r:.40}: not stored")
         if (x is None) != (y is None):
-            raise ComponentError(f"component {self.component_name!r}: give both x and y, or neither")
+            raise ComponentError(f"{name}: give both x and y, or neither")
         if x is None or y is None:
             with self._lock:
                 fix = self._fix
             if fix is None or time.monotonic() - fix.received > self.config.position_timeout:
                 self._count("no_position")
-                raise ComponentError(f"component {self.component_name!r}: no x, y given and no recent position "
-                                     f"on {self.position.name!r}: not stored")
+                raise ComponentError(f"{name}: no x, y given and no recent position on {self.position.name!r}: "
+                                     "not stored")
             place = (fix.x, fix.y, fix.z if z is None else float(z))
         else:
-            try:
-                place = position_of((x, y, 0.0 if z is None else z), "store_specific_memory position")
-            except ConfigError as exc:
-                raise ComponentError(str(exc)) from exc
+            place = (float(x), float(y), 0.0 if z is None else float(z))
         layer = self.layers.get(layer_name)
         internal = layer is not None and layer.is_internal_state
-        self._enqueue(Observation(content.strip(), *place, time.time(), str(layer_name), internal))
+        problem = self._enqueue(Observation(content.strip(), *place, time.time(), layer_name, internal))
+        if problem is not None:
+            raise ComponentError(f"{name}: {problem}: not stored")
         self._write(force=True)
         return True
 
@@ -485,6 +432,10 @@ class Memory(Component):
         """Start an episode named ``name`` (ending the active one first, if any); returns its id."""
         if not isinstance(name, str) or not name.strip():
             raise ComponentError(f"component {self.component_name!r}: an episode needs a name")
+        problem = problem_of(Observation(name.strip(), 0.0, 0.0, 0.0, 0.0, "episode", False), MAX_LAYER_NAME)
+        if problem is not None:
+            raise ComponentError(f"component {self.component_name!r}: start_episode: "
+                                 f"{problem.replace('its text', 'the name')}")
         with self._engine_lock:
             self._write(force=True)  # what was observed before belongs to no (or the previous) episode
             engine = self._open()
@@ -528,8 +479,13 @@ class Memory(Component):
             engine = self._open()
             try:
                 return str(engine.dispatch_tool_call(name, checked))
-            except (sqlite3.Error, OSError, RuntimeError) as exc:
+            except (sqlite3.OperationalError, OSError) as exc:
                 raise MemoryStoreError(f"{name}: the memory database failed: {type(exc).__name__}: {exc}") from exc
+            except (ModelClientError, ComponentError):
+                raise
+            except Exception as exc:  # the engine refused these arguments: one clear error, never a raw one
+                raise ComponentError(f"component {self.component_name!r}: {name} cannot answer {checked!r:.200}: "
+                                     f"{type(exc).__name__}: {str(exc)[:200]}") from exc
 
     @component_action(description=action_description("semantic_search"))
     def semantic_search(self, **kwargs: Any) -> str:

@@ -30,7 +30,9 @@ class MemoryConfig(BaseComponentConfig):
     Where and how observations are kept:
 
     :param db_path: the SQLite file of the memory; the vector index lives beside it
-        (``<db_path without suffix>.hnsw.bin``). Both survive a restart of the component or process.
+        (``<db_path without suffix>.hnsw.bin``), and the writer lock (``<db_path>.lock``). What was
+        committed survives a restart of the component or process, a crash included. A path that is not
+        a regular file, or a file that is not a Memory database, is refused untouched.
     :param auto_store: take a snapshot of the layers at every step (False: only the ``store`` action does).
     :param position_timeout: a snapshot is only stored when the robot's position arrived at most this many
         seconds before; older (or no) position: the layer values are not stored, and counted.
@@ -43,6 +45,10 @@ class MemoryConfig(BaseComponentConfig):
     :param flush_interval: ... or once the oldest waiting one is this many seconds old.
     :param index_save_interval: how often (s) the vector index file is saved while writing (it is always
         saved at deactivate and shutdown); the database rows are committed at once.
+    :param max_text_length: the longest observation text (characters); a longer value is refused and counted.
+    :param on_embedding_change: a database written with another embedding model (checkpoint or dimension):
+        ``"refuse"`` it (the default: the Memory stays unopened, its health says why) or ``"reembed"`` every
+        stored text with the new model at open (logged).
     :param embedding_checkpoint: accepted for upstream recipes and unused: Memory never downloads a model,
         its embeddings come from the ``embedding_client`` the recipe gives.
 
@@ -62,6 +68,9 @@ class MemoryConfig(BaseComponentConfig):
     flush_batch_size: int = field(default=5, validator=base_validators.in_range(1, 100_000))
     flush_interval: float = field(default=2.0, validator=base_validators.ge(0.0))
     index_save_interval: float = field(default=10.0, validator=base_validators.gt(0.0))
+    max_text_length: int = field(default=16_384, validator=base_validators.in_range(1, 10_000_000))
+    on_embedding_change: str = field(default="refuse", validator=base_validators.in_(("refuse", "reembed")),
+                                     metadata=AT_CONFIGURE)
     embedding_checkpoint: str | None = field(default=None)
     # The emem engine's own settings (read at configure).
     working_memory_size: int = field(default=50, validator=base_validators.gt(0), metadata=AT_CONFIGURE)

@@ -6,10 +6,12 @@ rest of the package, and ``import agents_core``, never load it.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import json
 import logging
 import math
+import os
 import re
 import sqlite3
 from pathlib import Path
@@ -27,8 +29,8 @@ if TYPE_CHECKING:
     from ...clients.model_base import ModelClient
     from .config import MemoryConfig
 
-__all__ = ["ClientEmbedder", "ClientSummarizer", "MemoryStoreError", "Observation", "commit_batch", "index_path",
-           "open_engine", "require_emem"]
+__all__ = ["TRANSIENT_ERRORS", "ClientEmbedder", "ClientSummarizer", "MemoryStoreError", "Observation", "commit_batch",
+           "index_path", "open_engine", "require_emem"]
 
 _logger = logging.getLogger(__name__)
 
@@ -69,6 +71,9 @@ class ClientEmbedder:
 
     def __init__(self, client: ModelClient) -> None:
         self.client = client
+        checkpoint = getattr(client, "model_init_params", {}).get("checkpoint")
+        #: The embedding model's identity, kept with the database: its checkpoint (else its name).
+        self.model = str(checkpoint or getattr(client, "model_name", "") or type(client).__name__)
         probe = client.embed(["dimension probe"])
         self._dim = len(probe[0])
         if self._dim < 1:
@@ -168,37 +173,115 @@ def _engine_class() -> Any:
     class CommittedMemory(SpatioTemporalMemory):  # type: ignore[misc]
         """emem's memory whose added observations wait in its working memory until :meth:`commit`."""
 
+        #: The database's writer lock (:class:`~agents_core.components.memory.durable.DatabaseLock`).
+        writer_lock: Any = None
+
         def commit(self) -> int:
             """Write the observations added since the last commit in one transaction; how many."""
             return int(self._wm.flush())
 
+        def close(self) -> None:
+            """Save, close, and let the next process open the database."""
+            try:
+                super().close()
+            finally:
+                if self.writer_lock is not None:
+                    self.writer_lock.release()
+                    self.writer_lock = None
+
     return CommittedMemory
 
 
-def open_engine(config: MemoryConfig, embedder: ClientEmbedder, summarizer: ClientSummarizer | None) -> Any:
-    """A ``SpatioTemporalMemory`` on ``config.db_path``; MemoryStoreError when it cannot be opened.
+def open_engine(config: MemoryConfig, embedder: ClientEmbedder,
+                summarizer: ClientSummarizer | None) -> tuple[Any, list[str]]:
+    """A ``SpatioTemporalMemory`` on ``config.db_path`` and what opening it did (for the log); MemoryStoreError
+    when it cannot be opened.
 
     Its own batching is off: the component adds a batch of observations and calls ``commit()``
     (one SQLite transaction per batch), and takes them out of its buffer only once that returned.
+    The database is checked, locked and marked first, and its index brought in line with its rows
+    after (:mod:`~agents_core.components.memory.durable`).
     """
     from emem import SpatioTemporalMemoryConfig  # noqa: PLC0415  (the optional engine)
 
-    db_path = str(Path(config.db_path).expanduser())
+    from .durable import check_database_path, claim, resync, store_class  # noqa: PLC0415
+
+    given = str(Path(config.db_path).expanduser())
+    db_path = check_database_path(given, index_path(os.path.realpath(given)))
+    hnsw_path = index_path(db_path)
+    lock, notes = claim(db_path, hnsw_path, embedder.model, embedder.dim, config.on_embedding_change == "reembed")
     settings = SpatioTemporalMemoryConfig(
-        db_path=db_path, hnsw_path=index_path(db_path), embedding_dim=embedder.dim,
+        db_path=db_path, hnsw_path=hnsw_path, embedding_dim=embedder.dim,
         # Never flushed by count or age on its own: a write that fails then loses nothing the component
         # has not kept in its own buffer, and a batch is one transaction instead of one per observation.
         flush_batch_size=2**62, flush_interval=math.inf, **config.engine_settings())
+    engine: Any = None
     try:
-        return _engine_class()(config=settings, embedding_provider=embedder, llm_client=summarizer)
-    except (sqlite3.Error, OSError, RuntimeError) as exc:
-        raise MemoryStoreError(f"cannot open the memory database {db_path!r}: {type(exc).__name__}: {exc}") from exc
+        try:
+            engine = _engine_class()(config=settings, embedding_provider=embedder, llm_client=summarizer)
+        except RuntimeError as exc:  # hnswlib could not read the index file: rebuilt from the rows
+            if not os.path.exists(hnsw_path):
+                raise
+            os.replace(hnsw_path, hnsw_path + ".damaged")
+            notes.append(f"the vector index could not be read ({exc}): set aside as .damaged, rebuilt from the rows")
+            engine = _engine_class()(config=settings, embedding_provider=embedder, llm_client=summarizer)
+        engine.writer_lock = lock
+        engine.store.__class__ = store_class()
+        notes += resync(engine.store, embedder.embed)
+    except BaseException as exc:
+        if engine is not None:  # not closed through the engine: that would save an index not yet in line
+            with contextlib.suppress(sqlite3.Error):
+                engine.store._db.close()
+        lock.release()
+        if isinstance(exc, sqlite3.Error | OSError | RuntimeError):
+            raise MemoryStoreError(f"cannot open the memory database {given!r}: {type(exc).__name__}: "
+                                   f"{exc}") from exc
+        raise
+    return engine, notes
+
+
+#: What a database refuses for reasons of its own (locked, disk full, I/O): the observations wait and are retried.
+TRANSIENT_ERRORS = (sqlite3.OperationalError, OSError)
 
 
 def commit_batch(engine: Any, batch: list[Observation], vectors: Any) -> None:
-    """Add ``batch`` with its embeddings to an engine from :func:`open_engine` and commit it in one transaction
-    (the engine's errors are raised as they are)."""
-    for o, vector in zip(batch, vectors, strict=True):
-        engine.add(text=o.text, x=o.x, y=o.y, z=o.z, timestamp=o.stamp, layer_name=o.layer,
-                   source_type="interoception" if o.internal else "perception", embedding=vector)
-    engine.commit()
+    """Add ``batch`` with its embeddings to an engine from :func:`open_engine` and commit it in one transaction.
+
+    On any failure nothing of the batch is left anywhere (the transaction rolled back, its entries taken
+    out of the engine's in-memory indexes) and the engine's error is raised as it is.
+    """
+    added: list[tuple[str, Observation]] = []
+    try:
+        for o, vector in zip(batch, vectors, strict=True):
+            added.append((engine.add(text=o.text, x=o.x, y=o.y, z=o.z, timestamp=o.stamp, layer_name=o.layer,
+                                     source_type="interoception" if o.internal else "perception",
+                                     embedding=vector), o))
+        engine.commit()
+    except Exception:
+        _undo(engine, added)
+        raise
+
+
+def _undo(engine: Any, added: list[tuple[str, Observation]]) -> None:
+    store, ids = engine.store, {obs_id for obs_id, _ in added}
+    with contextlib.suppress(sqlite3.Error):
+        store._db.rollback()
+    wm = engine._wm
+    with wm._lock:
+        wm._buffer.clear()
+        kept = [o for o in wm._recent if o.id not in ids]
+        wm._recent.clear()
+        wm._recent.extend(kept)
+    for obs_id, o in added:
+        label = store._hnsw_str_map.pop(obs_id, None)
+        if label is not None:
+            store._hnsw_id_map.pop(label, None)
+            with contextlib.suppress(RuntimeError):
+                store._hnsw.mark_deleted(label)
+        spatial = store._spatial
+        number = spatial._str_to_int.pop(obs_id, None)
+        if number is not None:
+            spatial._int_to_str.pop(number, None)
+            spatial._coords.pop(obs_id, None)
+            with contextlib.suppress(Exception):
+                spatial._index.delete(number, (o.x, o.y, o.z, o.x, o.y, o.z))

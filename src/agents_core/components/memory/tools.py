@@ -8,12 +8,13 @@ arguments that engine takes, so a language model (or a planner) sees the same co
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from typing import Any
 
 from ...errors import ComponentError
 
-__all__ = ["TOOL_NAMES", "action_description", "check_arguments", "tool_description"]
+__all__ = ["MAX_RESULTS", "MAX_STRING", "TOOL_NAMES", "action_description", "check_arguments", "tool_description"]
 
 _TIME = "a relative time ('-10m', '-1h', '-2d') or a Unix timestamp"
 
@@ -123,27 +124,82 @@ _CHECKS = {"string": lambda v: isinstance(v, str),
            "integer": lambda v: isinstance(v, int) and not isinstance(v, bool),
            "array": lambda v: isinstance(v, list | tuple) and all(isinstance(x, str) for x in v)}
 
+#: The most a count argument (``n_results``, ``last_n``) may ask for.
+MAX_RESULTS = 1000
+#: The longest string argument (characters), and the most items of an array argument.
+MAX_STRING, MAX_ITEMS = 2000, 100
+#: The largest magnitude of a coordinate or distance argument (m), and of a duration (minutes).
+MAX_METRES, MAX_MINUTES = 1e7, 1e8
+#: Arguments that must be > 0 (a distance, a duration or a multiple); the other numbers are coordinates.
+_POSITIVE = frozenset({"radius", "spatial_radius", "last_n_minutes", "include_recent_minutes", "radius_multiplier"})
+
+
+def _bad(name: str, key: str, why: str, value: Any) -> ComponentError:
+    return ComponentError(f"{name}: argument {key!r} {why}, got {value!r:.80}")
+
+
+def _check_text(name: str, key: str, value: str) -> None:
+    if len(value) > MAX_STRING:
+        raise _bad(name, key, f"must be at most {MAX_STRING} characters ({len(value)} given)", value[:40])
+    try:
+        value.encode("utf-8")
+    except UnicodeEncodeError:
+        raise _bad(name, key, "must be valid Unicode text (it holds a lone surrogate)", value) from None
+
+
+def _check_value(name: str, key: str, spec: dict[str, Any], value: Any) -> Any:
+    """``value`` of ``key`` checked (types, finiteness, ranges, sizes); the value to dispatch."""
+    if key in _TIME_KEYS and _CHECKS["number"](value):
+        if not math.isfinite(value) or abs(value) > 1e11:
+            raise _bad(name, key, "must be a finite Unix timestamp", value)
+        return str(value)
+    if not _CHECKS[spec["type"]](value):
+        raise _bad(name, key, f"must be a {spec['type']}", value)
+    if "enum" in spec and value not in spec["enum"]:
+        raise ComponentError(f"{name}: argument {key!r} must be one of {spec['enum']}, got {value!r:.80}")
+    kind = spec["type"]
+    if kind == "integer" and not 1 <= value <= MAX_RESULTS:
+        raise _bad(name, key, f"must be an integer from 1 to {MAX_RESULTS}", value)
+    if kind == "number":
+        if not math.isfinite(value):
+            raise _bad(name, key, "must be a finite number", value)
+        bound = MAX_MINUTES if "minutes" in key else MAX_METRES
+        if key in _POSITIVE and not 0 < value <= bound:
+            raise _bad(name, key, f"must be > 0 and at most {bound:g}", value)
+        if abs(value) > bound:
+            raise _bad(name, key, f"must be at most {bound:g} in magnitude", value)
+        return float(value)
+    if kind == "string":
+        _check_text(name, key, value)
+        if key in _TIME_KEYS:
+            try:
+                stamp = float(value)
+            except ValueError:
+                return value  # a relative time: the engine parses it (its error names the tool)
+            if not math.isfinite(stamp):
+                raise _bad(name, key, "must be a finite time", value)
+    if kind == "array":
+        if len(value) > MAX_ITEMS:
+            raise _bad(name, key, f"must have at most {MAX_ITEMS} items ({len(value)} given)", value[:3])
+        for item in value:
+            _check_text(name, key, item)
+        return list(value)
+    return value
+
 
 def check_arguments(name: str, arguments: Mapping[str, Any]) -> dict[str, Any]:
     """``arguments`` of tool ``name`` checked against its schema (None values dropped); ComponentError naming
-    the unknown, missing or mistyped argument otherwise."""
+    the unknown, missing, mistyped or out-of-range argument otherwise (NaN, infinities, counts outside
+    1..:data:`MAX_RESULTS`, strings over :data:`MAX_STRING` characters or holding lone surrogates)."""
     _, properties, required = _TOOLS[name]
+    if not isinstance(arguments, Mapping) or not all(isinstance(k, str) for k in arguments):
+        raise ComponentError(f"{name}: the arguments must be an object of named values")
     given = {k: v for k, v in arguments.items() if v is not None}
     unknown = sorted(set(given) - set(properties))
     if unknown:
-        raise ComponentError(f"{name}: unknown argument(s) {unknown}; it takes {sorted(properties)}")
+        raise ComponentError(f"{name}: unknown argument(s) {[u[:40] for u in unknown[:8]]}; "
+                             f"it takes {sorted(properties)}")
     missing = [k for k in required if k not in given]
     if missing:
         raise ComponentError(f"{name}: missing required argument(s) {missing}")
-    for key, value in given.items():
-        spec = properties[key]
-        # A time may also be given as a Unix timestamp (a number), as the descriptions say.
-        if key in _TIME_KEYS and _CHECKS["number"](value):
-            given[key] = str(value)
-        elif not _CHECKS[spec["type"]](value):
-            raise ComponentError(f"{name}: argument {key!r} must be a {spec['type']}, got {value!r:.80}")
-        if "enum" in spec and value not in spec["enum"]:
-            raise ComponentError(f"{name}: argument {key!r} must be one of {spec['enum']}, got {value!r}")
-    if "layers" in given:
-        given["layers"] = list(given["layers"])
-    return given
+    return {key: _check_value(name, key, properties[key], value) for key, value in given.items()}
