@@ -90,7 +90,7 @@ def run_block(number: int, namespace: dict[str, Any] | None = None, *replacement
     """Execute block ``number`` (adapted and completed) in ``namespace``; returns the namespace."""
     namespace = {"__name__": f"spec_block_{number}"} if namespace is None else namespace
     namespace.setdefault("__name__", f"spec_block_{number}")
-    exec(compile(adapted(number, *replacements), f"{SPEC.name}:block{number}", "exec"), namespace)  # noqa: S102
+    exec(compile(adapted(number, *replacements), f"{SPEC.name}:block{number}", "exec"), namespace)
     return namespace
 
 

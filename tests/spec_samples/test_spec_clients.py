@@ -99,7 +99,7 @@ def _as_methods(number: int, base: type, namespace: dict[str, Any] | None = None
 
     body = "\n".join("    " + line for line in adapted(number).splitlines())
     ns: dict[str, Any] = {"Base": base, **(namespace or {})}
-    exec(f"class Sample(Base):\n{body}\n", ns)  # noqa: S102
+    exec(f"class Sample(Base):\n{body}\n", ns)
     sample: type = ns["Sample"]
     return sample
 
@@ -134,7 +134,7 @@ def test_block_13_serialize_returns_the_documented_dict() -> None:
     from .spec_blocks import adapted  # noqa: PLC0415
 
     # The block is a dict with a "..." placeholder among the init params: drop it.
-    documented = eval(adapted(13, (', ...}', '}')))  # noqa: S307 - the spec's own literal
+    documented = eval(adapted(13, (', ...}', '}')))
     my_client = type("MyClient", (_Hooks,), {})
     spec = my_client(OllamaModel(name="my_model", checkpoint="llama3.2:3b"), host="127.0.0.1", port=8080).serialize()
     for key, value in documented.items():

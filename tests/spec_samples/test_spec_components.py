@@ -97,7 +97,7 @@ def test_block_1_execution_step_pattern_reads_creates_calls_publishes() -> None:
     namespace = run_block(1)
 
     class TextEcho(ModelComponent):
-        handled_outputs = [String]
+        handled_outputs = [String]  # noqa: RUF012 - as the spec writes it
         _execution_step = namespace["_execution_step"]
 
         def _create_input(self, text: Any, *args: Any, **kwargs: Any) -> dict[str, Any] | None:
@@ -119,7 +119,7 @@ def test_block_2_allowed_inputs_and_outputs_are_validated_in_init() -> None:
 
     namespace: dict[str, Any] = {"Image": Image, "String": String, "Audio": Audio, "CompressedImage": CompressedImage}
     body = "\n".join("        " + line for line in adapted(2).splitlines())
-    exec(  # noqa: S102 - the block as the start of an __init__, before super().__init__
+    exec(
         "from agents_core.components import Component\n"
         "class Checked(Component):\n"
         "    def __init__(self, **kwargs):\n" + body + "\n        super().__init__(**kwargs)\n"
@@ -147,7 +147,8 @@ def test_block_3_local_model_path_takes_a_hub_id() -> None:
     from agents_core.components import LLM  # noqa: PLC0415
 
     # With the local model enabled the component needs no client (it deploys the model at configure).
-    llm = LLM(inputs=[Topic("q", "String")], outputs=[Topic("a", "String")], config=config, trigger=Topic("q", "String"))
+    question = Topic("q", "String")
+    llm = LLM(inputs=[question], outputs=[Topic("a", "String")], config=config, trigger=question)
     assert llm.model_client is None
 
 

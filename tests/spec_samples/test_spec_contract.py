@@ -43,7 +43,7 @@ def test_validate_topics_is_a_method_run_by_init_that_subclasses_override() -> N
     calls: list[str] = []
 
     class Strict(_Echo):
-        allowed_inputs = {"Required": [String]}
+        allowed_inputs = {"Required": [String]}  # noqa: RUF012 - as the spec writes it
 
         def _validate_topics(self) -> None:
             calls.append("validate")
@@ -88,7 +88,7 @@ def test_activate_all_triggers_runs_at_activate_and_wires_the_trigger_callback()
 
 
 class _Asker(ModelComponent):
-    handled_outputs = [String]
+    handled_outputs = [String]  # noqa: RUF012 - as the spec writes it
 
     def _create_input(self, *args: Any, **kwargs: Any) -> dict[str, Any] | None:
         text = self.trig_callbacks["text_in"].get_output()
@@ -129,7 +129,7 @@ def test_a_model_component_that_never_calls_a_model_needs_only_its_step() -> Non
     class NoStep(ModelComponent):
         pass
 
-    with pytest.raises(TypeError, match="NoStep .*must implement _execution_step"):
+    with pytest.raises(TypeError, match=r"NoStep .*must implement _execution_step"):
         NoStep(inputs=[IN], outputs=[], trigger=IN)
 
 

@@ -21,8 +21,8 @@ from agents_core.errors import ConfigError
 from agents_core.messages import DetectionsMsg, ImageMsg, PointsOfInterestMsg, StreamingStringMsg
 from agents_core.supported_types import SupportedType, add_additional_datatypes, registered_types
 
-from ..conftest import wait_for
 from ..components.scripted_client import ScriptedChatClient
+from ..conftest import wait_for
 from .spec_blocks import covers, run_block
 
 ros_msgs = pytest.importorskip("agents_interfaces.msg", reason="the samples' messages are in agents_interfaces")
