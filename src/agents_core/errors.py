@@ -28,6 +28,7 @@ so code that does not know this module still handles them sensibly::
     │   └── AlgorithmFailure                a step ran but its result is unusable
     └── ModelClientError                    talking to a model / database server failed
         ├── ClientConnectionError (ConnectionError)
+        │   └── InferenceConnectionError    the server went away under a run-time inference
         ├── InferenceTimeoutError (TimeoutError)
         ├── HTTPStatusError                 the server answered with an error status
         ├── ProtocolError                   the server answered something the client cannot read

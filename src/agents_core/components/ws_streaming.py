@@ -19,19 +19,50 @@ cleanup and shutdown stop both loops.
 
 from __future__ import annotations
 
+import logging
 import queue
 import threading
-from typing import TYPE_CHECKING, Any
+from collections.abc import Callable
+from typing import Any, Protocol
 
 from ..clients.payloads import ChunkStream
 from ..clients.roboml_protocol import RESPONSE_ENDED
 from ..errors import ModelClientError
 from ..status import HealthStatus, LifecycleState
 
-if TYPE_CHECKING:
-    from .model_component import ModelComponent
+__all__ = ["RESPONSE_ENDED", "StreamingHost", "WebSocketStreaming"]
 
-__all__ = ["RESPONSE_ENDED", "WebSocketStreaming"]
+
+class StreamingHost(Protocol):
+    """What the flow needs of its component (a :class:`~agents_core.components.model_component.ModelComponent`)."""
+
+    component_name: str
+    req_queue: queue.Queue[dict[str, Any]]
+    resp_queue: queue.Queue[Any]
+    model_client: Any
+    runtime: Any
+
+    @property
+    def lifecycle_state(self) -> LifecycleState:
+        """The component's lifecycle state."""
+        ...
+
+    @property
+    def health_status(self) -> HealthStatus:
+        """The component's health."""
+        ...
+
+    def get_logger(self) -> logging.Logger:
+        """The component's logger."""
+        ...
+
+    def run_on_worker(self, func: Callable[[], Any], timeout: float = 30.0) -> Any:
+        """Run ``func`` between steps."""
+        ...
+
+    def _handle_websocket_streaming(self) -> Any:
+        """Publish what ``resp_queue`` holds."""
+        ...
 
 #: The fast loop's period (upstream's 1 ms timer).
 FAST_LOOP_PERIOD = 0.001
@@ -42,7 +73,7 @@ _REQUEST_POLL = 0.05
 class WebSocketStreaming:
     """The two loops of the flow for ``component`` (see the module docstring)."""
 
-    def __init__(self, component: ModelComponent) -> None:
+    def __init__(self, component: StreamingHost) -> None:
         self._component = component
         self._stop = threading.Event()
         self._threads: list[threading.Thread] = []
