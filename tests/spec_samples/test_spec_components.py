@@ -19,7 +19,6 @@ from agents_core import Launcher, Topic
 from agents_core.clients.model_base import ModelClient
 from agents_core.components.model_component import ModelComponent
 from agents_core.config import LLMConfig, ModelComponentConfig
-from agents_core.engines.device import resolve_device
 from agents_core.errors import ConfigError, WiringError
 from agents_core.messages import ImageMsg
 from agents_core.models import Model
@@ -230,6 +229,8 @@ def test_block_7_local_model_fields_and_the_cuda_default(caplog: pytest.LogCaptu
     assert (config.enable_local_model, config.device_local_model, config.ncpu_local_model,
             config.local_model_path) == (False, "cuda", 1, "your/default-model")
     # "cuda" on a machine whose backend cannot use a GPU runs on the CPU, and says so loudly.
+    from agents_core.engines.device import resolve_device  # noqa: PLC0415 - issue 37
+
     ort = pytest.importorskip("onnxruntime")
     gpu = "CUDAExecutionProvider" in ort.get_available_providers()
     with caplog.at_level(logging.WARNING, logger="agents_core.engines"):

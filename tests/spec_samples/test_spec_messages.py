@@ -14,8 +14,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-from agents_core import Launcher, Topic, supported_types
-from agents_core.callbacks import DetectionsCallback, GenericCallback, StreamingStringCallback, callback_for
+from agents_core import Launcher, Topic, callbacks, supported_types
+from agents_core.callbacks import GenericCallback, callback_for
 from agents_core.components import LLM, Component
 from agents_core.errors import ConfigError
 from agents_core.messages import DetectionsMsg, ImageMsg, PointsOfInterestMsg, StreamingStringMsg
@@ -73,7 +73,7 @@ def _forgetting(*names: str) -> Iterator[None]:
 
 @covers((26, "from ros_sugar.supported_types import SupportedType"))
 def test_block_26_a_wrapper_whose_convert_takes_stream_and_done() -> None:
-    namespace = run_block(26, {"StreamingStringCallback": StreamingStringCallback,
+    namespace = run_block(26, {"StreamingStringCallback": callbacks.StreamingStringCallback,
                                "ROSStreamingString": ros_msgs.StreamingString})
     wrapper = namespace["StreamingString"]
     out = Topic("tokens", wrapper)
@@ -81,7 +81,7 @@ def test_block_26_a_wrapper_whose_convert_takes_stream_and_done() -> None:
     got = _published(out, [("Hel", {"stream": True, "done": False}), ("lo", {"stream": True, "done": True})])
     assert [(m.data, m.stream, m.done) for m in got] == [("Hel", True, False), ("lo", True, True)]
     assert isinstance(got[0], ros_msgs.StreamingString)
-    assert isinstance(callback_for(out), StreamingStringCallback)
+    assert isinstance(callback_for(out), callbacks.StreamingStringCallback)
 
 
 @covers((27, "from ros_sugar.supported_types import add_additional_datatypes"))
@@ -142,7 +142,7 @@ def test_the_builtin_streaming_string_honours_stream_and_done_with_its_own_callb
     assert [(m.data, m.stream, m.done) for m in got] == [("partial", True, False), ("end", True, True),
                                                          ("plain", False, True)]
     callback = callback_for(out)
-    assert isinstance(callback, StreamingStringCallback)
+    assert isinstance(callback, callbacks.StreamingStringCallback)
     callback._receive(StreamingStringMsg(data="tok", stream=True, done=False))
     assert callback.get_output() == "tok" and callback.msg.stream is True
 
@@ -191,7 +191,7 @@ def test_detections_and_points_of_interest_carry_a_depth_image() -> None:
 def test_the_detections_callback_gives_dicts_and_prompts_still_read_labels() -> None:
     topic = Topic("objects", "Detections")
     callback = callback_for(topic)
-    assert isinstance(callback, DetectionsCallback)
+    assert isinstance(callback, callbacks.DetectionsCallback)
     callback._receive(DetectionsMsg(boxes=[[1, 2, 3, 4], [5, 6, 7, 8]], labels=["cup", "person"], scores=[0.9, 0.5]))
     assert callback.get_output() == [{"label": "cup", "score": pytest.approx(0.9), "box": [1.0, 2.0, 3.0, 4.0]},
                                      {"label": "person", "score": pytest.approx(0.5), "box": [5.0, 6.0, 7.0, 8.0]}]
