@@ -184,7 +184,7 @@ class LocalVLM(LocalLLM):
     Other parameters as :class:`LocalLLM`. Images are RGB uint8 arrays in the messages' ``images``.
     """
 
-    def __init__(self, model_path: str | None = None, device: str = "cpu", ncpu: int = 1,
+    def __init__(self, model_path: str | None = None, device: str = "auto", ncpu: int = 1,
                  n_ctx: int = 2048, seed: int = 0, mmproj_path: str | None = None) -> None:
         self._mmproj_arg = mmproj_path
         super().__init__(model_path=model_path, device=device, ncpu=ncpu, n_ctx=n_ctx, seed=seed)
