@@ -15,7 +15,7 @@ from typing import Any
 
 import pytest
 
-from .spec_blocks import REPO, SPEC
+from .spec_blocks import REPO, spec_text
 
 PORTING = REPO / "docs" / "porting.md"
 _CODE = re.compile(r"`([^`]+)`")
@@ -60,12 +60,12 @@ def test_the_table_has_the_rows_issue_37_asked_for() -> None:
 
 @pytest.mark.parametrize(("spec_name", "home"), ROWS, ids=[spec for spec, _ in ROWS])
 def test_every_spec_name_in_the_porting_table_exists_in_the_spec_and_here(spec_name: str, home: str) -> None:
-    assert spec_name in SPEC.read_text(encoding="utf-8"), f"{spec_name!r} is not a name of the spec"
+    assert spec_name in spec_text(), f"{spec_name!r} is not a name of the spec"
     assert _resolve(home) is not None
 
 
 def test_every_ros_sugar_module_the_spec_imports_has_a_home() -> None:
-    spec = SPEC.read_text(encoding="utf-8")
+    spec = spec_text()
     imported = set(re.findall(r"from (ros_sugar[\w.]*) import ([\w, ]+)", spec))
     assert imported, "the spec imports ros_sugar names"
     homes = {"ros_sugar.supported_types": "agents_core.supported_types",
