@@ -23,7 +23,7 @@ from typing import Any
 from .errors import ConfigError
 from .topics import FixedInput, Topic
 
-__all__ = ["FixedCallback", "GenericCallback", "callback_for"]
+__all__ = ["DetectionsCallback", "FixedCallback", "GenericCallback", "StreamingStringCallback", "callback_for"]
 
 _UNSET: Any = object()
 
@@ -119,6 +119,29 @@ class FixedCallback(GenericCallback):
 
     def _clear(self) -> None:
         """A fixed input never forgets its value."""
+
+
+class StreamingStringCallback(GenericCallback):
+    """The callback of ``StreamingString`` inputs: ``get_output()`` is the chunk's text (a ``str``).
+
+    ``msg`` keeps the whole chunk, with its ``stream`` and ``done`` flags.
+    """
+
+    def _msg_to_output(self, msg: Any) -> Any:
+        return msg if isinstance(msg, str) else msg.data
+
+
+class DetectionsCallback(GenericCallback):
+    """The callback of ``Detections`` inputs: ``get_output()`` gives one dict per detected object.
+
+    Each dict is ``{"label": str, "score": float, "box": [x1, y1, x2, y2]}`` (pixels), in the
+    message's order (messages.md: "For Detections, it parses bounding boxes into Python dicts").
+    ``msg`` keeps the whole :class:`~agents_core.messages.DetectionsMsg` (image, depth, header).
+    """
+
+    def _msg_to_output(self, msg: Any) -> Any:
+        return [{"label": str(label), "score": float(score), "box": [float(x) for x in box]}
+                for label, score, box in zip(msg.labels, msg.scores, msg.boxes, strict=True)]
 
 
 def callback_for(topic: Topic, node_name: str | None = None) -> GenericCallback:

@@ -175,8 +175,9 @@ class ModelComponentConfig(BaseComponentConfig):
 
     :param warmup: run one inference during configure so the first real one is fast.
     :param enable_local_model: use the built-in local model instead of a model client.
-    :param device_local_model: ``"cpu"`` or ``"cuda"`` for the local model (default cpu: robots
-        without a GPU are the common case, and llama.cpp on cuda needs a CUDA build anyway).
+    :param device_local_model: ``"auto"`` (default: the GPU when the local model's backend can use
+        one, else the CPU), ``"cuda"`` (the GPU; the CPU with a WARNING where the backend cannot use
+        one) or ``"cpu"``; see :mod:`agents_core.engines.device`.
     :param ncpu_local_model: CPU threads for the local model.
     :param local_model_path: a local file path or a hub repository id for the local model.
 
@@ -185,8 +186,8 @@ class ModelComponentConfig(BaseComponentConfig):
 
     warmup: bool = field(default=False, metadata=AT_CONFIGURE)
     enable_local_model: bool = field(default=False, metadata=AT_CONFIGURE)
-    device_local_model: Literal["cpu", "cuda"] = field(default="cpu", validator=base_validators.in_(["cpu", "cuda"]),
-                                                       metadata=AT_CONFIGURE)
+    device_local_model: Literal["auto", "cpu", "cuda"] = field(
+        default="auto", validator=base_validators.in_(["auto", "cpu", "cuda"]), metadata=AT_CONFIGURE)
     ncpu_local_model: int = field(default=1, validator=base_validators.gt(0), metadata=AT_CONFIGURE)
     local_model_path: str | None = field(default=None, metadata=AT_CONFIGURE)
 

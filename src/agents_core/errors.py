@@ -28,6 +28,7 @@ so code that does not know this module still handles them sensibly::
     │   └── AlgorithmFailure                a step ran but its result is unusable
     └── ModelClientError                    talking to a model / database server failed
         ├── ClientConnectionError (ConnectionError)
+        │   └── InferenceConnectionError    the server went away under a run-time inference
         ├── InferenceTimeoutError (TimeoutError)
         ├── HTTPStatusError                 the server answered with an error status
         ├── ProtocolError                   the server answered something the client cannot read
@@ -43,6 +44,7 @@ __all__ = [
     "ComponentError",
     "ConfigError",
     "HTTPStatusError",
+    "InferenceConnectionError",
     "InferenceError",
     "InferenceTimeoutError",
     "LifecycleError",
@@ -140,6 +142,25 @@ class ModelClientError(AgentsError):
 
 class ClientConnectionError(ModelClientError, ConnectionError):
     """The server cannot be reached (refused, DNS, closed mid-stream)."""
+
+
+class InferenceConnectionError(ClientConnectionError):
+    """The server went away during an inference (refused, reset, closed mid-stream) at run time.
+
+    A step that raises it is an ALGORITHM_FAILURE, as upstream marks every failed inference
+    (``on_algorithm_fail`` fallbacks run); a server unreachable while the component configures
+    stays a COMPONENT_FAILURE. Still a :class:`ClientConnectionError`, for code that catches that.
+    """
+
+    @classmethod
+    def from_connection_error(cls, exc: ClientConnectionError) -> InferenceConnectionError:
+        """The same error, marked as an inference's (``exc`` itself when it already is one)."""
+        if isinstance(exc, InferenceConnectionError):
+            return exc
+        error = cls(*exc.args)
+        error.__cause__ = exc.__cause__ or exc
+        error.__suppress_context__ = True
+        return error
 
 
 class InferenceTimeoutError(ModelClientError, TimeoutError):

@@ -292,11 +292,11 @@ def test_rag_without_a_db_client_is_a_wiring_error() -> None:
         _llm(ScriptedChatClient(), LLMConfig(enable_rag=True))
 
 
-def test_client_failure_sets_component_failure() -> None:
+def test_client_failure_at_run_time_sets_algorithm_failure() -> None:
     llm = _llm(ScriptedChatClient(fail=True))
     with running(llm) as launcher:
         launcher.transport.create_publisher(QUESTION).publish("hi")
-        assert wait_for(lambda: llm.health_status == HealthStatus.COMPONENT_FAILURE)
+        assert wait_for(lambda: llm.health_status == HealthStatus.ALGORITHM_FAILURE)
 
 
 def test_stalled_stream_ends_with_done_fails_health_and_falls_back() -> None:

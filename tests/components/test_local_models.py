@@ -78,7 +78,7 @@ def test_fallback_to_local_answers_after_the_client_fails() -> None:
     broken = ScriptedChatClient(fail=True)
     llm = LLM(inputs=[QUESTION], outputs=[ANSWER], model_client=broken, trigger=QUESTION,
               config=LLMConfig(temperature=0.0, max_new_tokens=12))
-    llm.on_component_fail(Action(llm.fallback_to_local), max_retries=1)
+    llm.on_algorithm_fail(Action(llm.fallback_to_local), max_retries=1)  # run time: an algorithm failure
     with running(llm) as launcher:
         answers = _collect(launcher, ANSWER)
         pub = launcher.transport.create_publisher(QUESTION)

@@ -176,7 +176,8 @@ def test_failed_inference_sets_health_and_fallback_switches_client() -> None:
     backup = DepthClient(DepthModel(name="depth", checkpoint="backup"))
     depth, camera, depth_map = _depth_recipe(broken, additional_model_clients={"backup": backup})
     depth.config.warmup = False
-    depth.on_component_fail(Action(depth.change_model_client, args=("backup",)), max_retries=1)
+    # A server unreachable at run time is an algorithm failure, as upstream (issue 37).
+    depth.on_algorithm_fail(Action(depth.change_model_client, args=("backup",)), max_retries=1)
     launcher = Launcher("memory")
     launcher.add_pkg(components=[depth])
     with launcher:
@@ -187,9 +188,9 @@ def test_failed_inference_sets_health_and_fallback_switches_client() -> None:
         t.create_subscription(depth_map, got.append)
         pub = t.create_publisher(camera)
         pub.publish(np.zeros((8, 8, 3), np.uint8))
-        assert wait_for(lambda: any(s.health == "COMPONENT_FAILURE" for s in statuses))
-        failure = next(s for s in statuses if s.health == "COMPONENT_FAILURE")
-        assert "ClientConnectionError" in failure.message
+        assert wait_for(lambda: any(s.health == "ALGORITHM_FAILURE" for s in statuses))
+        failure = next(s for s in statuses if s.health == "ALGORITHM_FAILURE")
+        assert "InferenceConnectionError" in failure.message
         assert wait_for(lambda: depth.model_client is backup)
         assert backup.events == ["check", "init"]
         pub.publish(np.full((8, 8, 3), 5, np.uint8))
@@ -444,7 +445,7 @@ def test_fallback_to_local_answers_after_client_failure() -> None:
     broken = DepthClient(DepthModel(name="depth", checkpoint="remote"), fail=True)
     camera, depth_map = Topic("camera", "Image"), Topic("depth", "Image")
     depth = DepthWithLocal(inputs=[camera], outputs=[depth_map], model_client=broken, trigger=camera)
-    depth.on_component_fail(Action(depth.fallback_to_local))
+    depth.on_algorithm_fail(Action(depth.fallback_to_local))
     launcher = Launcher("memory")
     launcher.add_pkg(components=[depth])
     with launcher:

@@ -2,8 +2,8 @@
 
 Each test names the upstream behaviour it keeps; the failure mapping follows upstream's
 ``model_component.py`` and its ``model_client_fallback`` recipe: a model setup that fails at
-configure is a COMPONENT_FAILURE, an inference that fails an ALGORITHM_FAILURE, a server that cannot
-be reached at all (or no model at all) a COMPONENT_FAILURE.
+configure is a COMPONENT_FAILURE, an inference that fails at run time (the server unreachable
+included, issue 37) an ALGORITHM_FAILURE, no model at all a COMPONENT_FAILURE.
 """
 
 from __future__ import annotations
@@ -204,7 +204,8 @@ def test_an_inference_error_answer_is_algorithm_failure_and_fires_on_algorithm_f
             assert llm.health_status == HealthStatus.ALGORITHM_FAILURE and fired == ["algorithm"]
 
 
-def test_a_server_that_cannot_be_reached_in_a_step_is_component_failure() -> None:
+def test_a_server_that_cannot_be_reached_in_a_step_is_an_algorithm_failure() -> None:
+    # As upstream's _call_inference: any failed inference at run time (issue 37).
     fired: list[str] = []
     llm = LLM(inputs=[QUESTION], outputs=[ANSWER], model_client=ScriptedChatClient(fail=True), trigger=QUESTION)
     llm.on_algorithm_fail(Action(lambda: fired.append("algorithm")))
@@ -212,7 +213,7 @@ def test_a_server_that_cannot_be_reached_in_a_step_is_component_failure() -> Non
     with running(llm) as launcher:
         launcher.transport.create_publisher(QUESTION).publish("hi")
         assert wait_for(lambda: bool(fired))
-        assert llm.health_status == HealthStatus.COMPONENT_FAILURE and fired == ["component"]
+        assert llm.health_status == HealthStatus.ALGORITHM_FAILURE and fired == ["algorithm"]
 
 
 # -- 5. upstream names: restart, stop, broadcast_status, on_giveup, Action(description) -------------
@@ -266,7 +267,7 @@ def test_on_giveup_accepts_max_retries_and_retries_a_raising_giveup_action() -> 
         raise RuntimeError("not yet")
 
     llm = LLM(inputs=[QUESTION], outputs=[ANSWER], model_client=ScriptedChatClient(fail=True), trigger=QUESTION)
-    llm.on_component_fail(Action(lambda: None), max_retries=1)
+    llm.on_algorithm_fail(Action(lambda: None), max_retries=1)
     llm.on_giveup(Action(flaky), max_retries=3)
     with running(llm) as launcher:
         pub = launcher.transport.create_publisher(QUESTION)

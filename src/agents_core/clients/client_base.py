@@ -246,8 +246,13 @@ class BaseClient:
     #: Attribute names holding secrets: included in serialize(), hidden from repr() and logs.
     secret_fields: ClassVar[tuple[str, ...]] = ("api_key",)
 
+    #: The hooks a subclass has not implemented yet (methods still marked ``@abstractmethod``).
+    _missing_hooks: ClassVar[tuple[str, ...]] = ()
+
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
+        cls._missing_hooks = tuple(sorted(name for name in dir(cls)
+                                          if getattr(getattr(cls, name, None), "__isabstractmethod__", False)))
         _client_types.register(cls.__name__, cls, replace=True)  # the last definition wins
 
     def __init__(
@@ -257,6 +262,13 @@ class BaseClient:
         init_on_activation: bool = True,
         logging_level: str = "info",
     ) -> None:
+        missing = type(self)._missing_hooks
+        if missing:
+            # At construction, as upstream's abstract methods promise: not at configure, or never.
+            base = next((b.__name__ for b in type(self).__mro__[1:] if b.__name__ in ("ModelClient", "DBClient")),
+                        "BaseClient")
+            raise TypeError(f"{type(self).__name__} must implement {', '.join(missing)} (the hooks every "
+                            f"{base} subclass implements); it cannot be constructed without them")
         if host is not None and (not isinstance(host, str) or not host.strip()):
             raise ConfigError(f"{type(self).__name__}: host must be a non-empty str, got {host!r}")
         if port is not None and (isinstance(port, bool) or not isinstance(port, int) or not 0 < port < 65536):

@@ -25,7 +25,7 @@ from abc import abstractmethod
 from collections.abc import Callable, Collection, Iterator, Mapping, MutableMapping, Sequence
 from typing import Any, ClassVar, TypeVar
 
-from ..errors import ConfigError, InferenceError, ProtocolError
+from ..errors import ClientConnectionError, ConfigError, InferenceConnectionError, InferenceError, ProtocolError
 from ..models import Model, model_types
 from .client_base import BaseClient
 from .deadline import CallWatch, check_seconds
@@ -203,7 +203,13 @@ class ModelClient(BaseClient):
     def inference(self, inference_input: dict[str, Any]) -> MutableMapping[str, Any]:
         """Run one inference; raises a typed error on failure or on a result without ``output``."""
         start = time.monotonic()
-        result = self._guard("inference", lambda: self._inference(inference_input))
+        try:
+            result = self._guard("inference", lambda: self._inference(inference_input))
+        except InferenceConnectionError:
+            raise
+        except ClientConnectionError as exc:
+            # The server went away under an inference: an algorithm failure at run time (as upstream).
+            raise InferenceConnectionError.from_connection_error(exc) from (exc.__cause__ or exc)
         self.last_inference_seconds = time.monotonic() - start
         if result is None:
             raise InferenceError(f"{self._label()}: inference with model {self.model_name!r} returned nothing")

@@ -54,7 +54,7 @@ import httpx
 import numpy as np
 
 from ..concurrency import CloseOnce
-from ..errors import InferenceError, ModelClientError, ProtocolError
+from ..errors import ClientConnectionError, InferenceConnectionError, InferenceError, ModelClientError, ProtocolError
 from .client_base import map_client_exception, scrub_exception
 from .deadline import CallWatch
 
@@ -142,6 +142,9 @@ class ChunkStream(Generic[T]):
             error = exc
         else:
             error = map_client_exception(f"{self._label}: reading the stream", exc)
+        if isinstance(error, ClientConnectionError):
+            # A stream is an inference: the server going away under it is an inference's failure.
+            error = InferenceConnectionError.from_connection_error(error)
         if error is not exc:
             error.__cause__ = exc
         return scrub_exception(error, self._secrets)

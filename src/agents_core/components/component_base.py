@@ -121,8 +121,7 @@ class Component:
 
         self.inputs: list[Topic] = check_topic_list(self.component_name, inputs, "inputs")
         self.outputs: list[Topic] = check_topic_list(self.component_name, outputs, "outputs")
-        validate_topics(self.component_name, type(self).__name__, self.inputs, self.allowed_inputs, "input")
-        validate_topics(self.component_name, type(self).__name__, self.outputs, self.allowed_outputs, "output")
+        self._validate_topics()
 
         self.run_type = resolve_run_type(self.component_name, trigger, run_type, self.inputs,
                                          type(self)._server_capable)
@@ -138,9 +137,17 @@ class Component:
         self.runtime = ComponentRuntime(self)
         self.publishers_dict: dict[str, ComponentPublisher] = {
             t.name: ComponentPublisher(t, self.component_name, self.runtime) for t in self.outputs}
+        self._wired_trigger_callbacks: set[str] = set()
 
-        for cb_name, cb in self.trig_callbacks.items():
-            cb.on_callback_execute(self._make_topic_trigger(self._topic(cb_name)))
+    def _validate_topics(self) -> None:
+        """Check the inputs and outputs against ``allowed_inputs`` / ``allowed_outputs`` (called by ``__init__``).
+
+        Every topic's type must match an entry (subclasses match), and every ``Required`` entry
+        needs a topic. Raises :class:`~agents_core.errors.WiringError` naming the component and topic.
+        A subclass may override it to check more (call ``super()._validate_topics()``).
+        """
+        validate_topics(self.component_name, type(self).__name__, self.inputs, self.allowed_inputs, "input")
+        validate_topics(self.component_name, type(self).__name__, self.outputs, self.allowed_outputs, "output")
 
     # -- construction helpers ---------------------------------------------------------------
 
@@ -407,6 +414,19 @@ class Component:
         return self.runtime.run_on_worker(func, timeout)
 
     # -- triggers and steps -----------------------------------------------------------------
+
+    def activate_all_triggers(self) -> None:
+        """Start what fires ``_execution_step``: called at activate, after the inputs are subscribed.
+
+        Wires each trigger topic's callback to a step (``on_callback_execute``, once per callback),
+        and starts the timer (a float trigger) or listens to the trigger ``Event``. Deactivate stops
+        them. A subclass overriding it calls ``super().activate_all_triggers()``.
+        """
+        for cb_name, cb in self.trig_callbacks.items():
+            if cb_name not in self._wired_trigger_callbacks:
+                cb.on_callback_execute(self._make_topic_trigger(self._topic(cb_name)))
+                self._wired_trigger_callbacks.add(cb_name)
+        self.runtime.start_triggers()
 
     def _make_topic_trigger(self, topic: Topic) -> Callable[[Any], None]:
         """What a value arriving on trigger ``topic`` does (by default: queue one step with it)."""

@@ -21,6 +21,7 @@ import jinja2
 
 from .._component_configs import LLMConfig
 from ..actions import component_action
+from ..callbacks import DetectionsCallback
 from ..clients.db_base import DBClient
 from ..clients.model_base import ModelClient
 from ..component_method import ComponentMethod
@@ -184,6 +185,10 @@ class LLM(ModelComponent):
                 continue
             if isinstance(value, DetectionsMsg):
                 value = ", ".join(value.labels) if value.labels else "nothing"
+            elif isinstance(cb, DetectionsCallback) and isinstance(value, list) \
+                    and all(isinstance(d, dict) and "label" in d for d in value):
+                # A Detections input reads as its labels in a prompt, as upstream's context string.
+                value = ", ".join(d["label"] for d in value) if value else "nothing"
             values[_variable_name(name)] = value
         return values
 

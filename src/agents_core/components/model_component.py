@@ -29,9 +29,8 @@ without a client (upstream's ``SecurityCamera`` example); one that does needs a 
 from __future__ import annotations
 
 import queue
-import threading
 from collections.abc import Callable, Mapping, MutableMapping, Sequence
-from typing import Any
+from typing import Any, cast
 
 from ..actions import component_fallback
 from ..clients.db_base import DBClient
@@ -44,11 +43,14 @@ from ..status import HealthStatus
 from ..supported_types import SupportedType
 from ..topics import Topic
 from .component_base import Component, TriggerType
+from .ws_streaming import WebSocketStreaming
 
 __all__ = ["ModelComponent"]
 
 #: How many times configure tries the model setup, fallbacks in between, before it gives up.
 _MAX_SETUP_ATTEMPTS = 5
+#: The hooks a model-calling subclass must implement (checked at construction).
+_MODEL_HOOKS = ("_execution_step", "_create_input", "_warmup")
 #: A timer faster than this on a model component gets a warning at construction (the float trigger).
 _MODEL_CALLS_PER_SECOND_WARNING = 1.0
 
@@ -84,6 +86,7 @@ class ModelComponent(Component):
         super().__init__(inputs=inputs, outputs=outputs, config=config, trigger=trigger,
                          component_name=component_name, **kwargs)
         self.config: ModelComponentConfig
+        self._check_model_hooks(model_client)
         if db_client is not None and not isinstance(db_client, DBClient):
             raise WiringError(f"component {self.component_name!r}: db_client must be a DBClient, "
                               f"got {type(db_client).__name__}")
@@ -107,10 +110,30 @@ class ModelComponent(Component):
         # client that is not it first (the setup failed at configure, the server may be back).
         self._ready_client: ModelClient | None = None
         self.local_model: Callable[..., Any] | None = None
+        #: The WebSocket streaming flow's queues (architecture.md, "Streaming"): ``_call_inference``
+        #: puts requests in ``req_queue``; the reply's parts arrive in ``resp_queue``.
         self.req_queue: queue.Queue[dict[str, Any]] = queue.Queue()
         self.resp_queue: queue.Queue[Any] = queue.Queue()
-        self._streaming_stop = threading.Event()
-        self._streaming_thread: threading.Thread | None = None
+        self._ws_streaming = WebSocketStreaming(self)
+
+    def _check_model_hooks(self, model_client: ModelClient | None) -> None:
+        """A TypeError at construction naming the hooks a model-calling subclass has not implemented.
+
+        A subclass that never calls a model (no client, no local model, no ``_create_input``:
+        upstream's ``SecurityCamera``) needs only ``_execution_step``.
+        """
+        calls_model = model_client is not None or self.config.enable_local_model or not self._runs_without_model()
+        hooks = _MODEL_HOOKS if calls_model else _MODEL_HOOKS[:1]
+        cls = type(self)
+        missing = [name for name in hooks
+                   if getattr(cls, name) is getattr(Component if name == "_execution_step" else ModelComponent, name)]
+        # A hook still marked @abstractmethod (as in custom_component.md's outline) is not implemented either.
+        missing += [name for name in (*_MODEL_HOOKS, "_handle_websocket_streaming")
+                    if name not in missing and getattr(getattr(cls, name), "__isabstractmethod__", False)]
+        if missing:
+            raise TypeError(f"{cls.__name__} (component {self.component_name!r}) must implement "
+                            f"{', '.join(missing)}: every ModelComponent subclass that calls a model implements "
+                            f"{', '.join(_MODEL_HOOKS)}")
 
     def _runs_without_model(self) -> bool:
         """Whether this component can work with neither a client nor a local model.
@@ -170,6 +193,19 @@ class ModelComponent(Component):
         if self.db_client is not None:
             self._start_client(self.db_client)
         self._set_up_model()
+        if self._streams_through_queues():
+            self._ws_streaming.start()
+            self._logger.info("streaming through the WebSocket client: requests in req_queue, replies in resp_queue")
+
+    def _streams_through_queues(self) -> bool:
+        """Whether inference goes through ``req_queue`` / ``resp_queue`` (architecture.md, "Streaming").
+
+        So it does when the config streams, the client is a WebSocket one (``RoboMLWSClient``)
+        and the component implements ``_handle_websocket_streaming`` (the built-in components
+        that do not stream through the client's chunk iterator instead, on every client).
+        """
+        return (bool(getattr(self.config, "stream", False)) and bool(getattr(self.model_client, "is_websocket", False))
+                and type(self)._handle_websocket_streaming is not ModelComponent._handle_websocket_streaming)
 
     def _set_up_model(self) -> None:
         """Connect the model client (or deploy the local model) and warm up, running the fallbacks
@@ -212,23 +248,23 @@ class ModelComponent(Component):
             client.initialize()
 
     def custom_on_activate(self) -> None:
-        # The queue-fed streaming thread only runs for components that consume it; the others
-        # (LLM among them) stream through the client's ChunkStream, the same for every client.
-        consumes_queue = type(self)._handle_websocket_streaming is not ModelComponent._handle_websocket_streaming
-        if consumes_queue and getattr(self.config, "stream", False) and getattr(self.model_client, "is_websocket",
-                                                                                False):
-            self._streaming_stop.clear()
-            self._streaming_thread = threading.Thread(target=self._streaming_loop,
-                                                      name=f"stream:{self.component_name}", daemon=True)
-            self._streaming_thread.start()
+        if self._streams_through_queues() and not self._ws_streaming.running:
+            self._ws_streaming.start()  # a component reactivated after cleanup, or whose client changed
 
     def custom_on_deactivate(self) -> None:
-        self._streaming_stop.set()
-        if self._streaming_thread is not None:
-            self._streaming_thread.join(timeout=5.0)
-            self._streaming_thread = None
+        # As upstream (custom_client.md: "_deinitialize ... called during the component's
+        # deactivate"): the model is released on the server; the next step (or activate) sets it
+        # up again. Pending streaming requests and replies are dropped.
+        self._ws_streaming.drain()
+        if self.model_client is not None:
+            self._release_client(self.model_client)
+            self._ready_client = None
+
+    def custom_on_cleanup(self) -> None:
+        self._ws_streaming.stop()
 
     def custom_on_shutdown(self) -> None:
+        self._ws_streaming.stop()
         if self.model_client is not None:
             self._release_client(self.model_client)
         if self.db_client is not None:
@@ -237,23 +273,21 @@ class ModelComponent(Component):
             except Exception as exc:
                 self._logger.warning("database client did not deinitialize cleanly: %s", exc)
 
-    def _streaming_loop(self) -> None:
-        # A short poll keeps token latency low without a busy loop (1 ms, as upstream).
-        while not self._streaming_stop.wait(0.001):
-            try:
-                self._handle_websocket_streaming()
-            except Exception:
-                self._logger.exception("streaming handler raised")
-
     # -- inference ----------------------------------------------------------------------------
 
     def _call_inference(self, inference_input: dict[str, Any], unpack: bool = False) -> MutableMapping[str, Any]:
         """Run inference on the client, or on the local model when there is no client.
 
-        Raises a :class:`~agents_core.errors.ModelClientError` subclass on failure.
+        Raises a :class:`~agents_core.errors.ModelClientError` subclass on failure (never returns
+        None for a failure; a ``None`` check after it is harmless). In the WebSocket streaming
+        flow (:meth:`_streams_through_queues`) the request goes into ``req_queue`` and None is
+        returned: the reply arrives in ``resp_queue``, for ``_handle_websocket_streaming``.
         """
         if self.model_client is not None:
             self._ensure_client_ready()
+            if self._streams_through_queues() and self._ws_streaming.running:
+                self.req_queue.put_nowait({**inference_input, "stream": True})
+                return cast("MutableMapping[str, Any]", None)
             return self.model_client.inference(inference_input)
         if self.local_model is not None:
             result = self.local_model(**inference_input) if unpack else self.local_model(inference_input)
@@ -263,10 +297,14 @@ class ModelComponent(Component):
         raise ComponentError(f"component {self.component_name!r} has neither a model client nor a local model")
 
     def _publish(self, result: Mapping[str, Any], **kwargs: Any) -> None:
-        """Publish ``result["output"]`` on every output topic."""
+        """Publish ``result["output"]`` on every output topic.
+
+        Keyword arguments (``stream=``, ``done=``, ``frame_id=``, ...) reach each output type's
+        ``convert(output, **kwargs)``, as upstream.
+        """
         output = result["output"]
         for pub in self.publishers_dict.values():
-            pub.publish(output)
+            pub.publish(output, **kwargs)
 
     # -- switching models ---------------------------------------------------------------------
 
@@ -315,7 +353,13 @@ class ModelComponent(Component):
         if self.local_model is None:
             self.config.enable_local_model = True
             self._deploy_local_model()
-        self.model_client = None
+        old, self.model_client = self.model_client, None
+        self._ready_client = None
+        if old is not None:
+            # As upstream: the remote model is unloaded, not left loaded on its server.
+            self._release_client(old)
+        # Maybe called by the client loop's own failure report: do not wait for it.
+        self._ws_streaming.stop(wait=False)
         self._logger.info("now using the local model")
         return True
 

@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING, Any
 
 from ..errors import ComponentError, TransportClosedError
 from ..topics import Topic
+from ..types.base import convert_published
 
 if TYPE_CHECKING:
     from ..runtime.component_runtime import ComponentRuntime
@@ -58,8 +59,11 @@ class ComponentPublisher:
         """Transform every value with ``func`` before it is published (in the order added)."""
         self._preprocessors.append(func)
 
-    def publish(self, value: Any) -> None:
+    def publish(self, value: Any, **kwargs: Any) -> None:
         """Apply pre-processors, validate against the topic type and send.
+
+        Keyword arguments (``stream=``, ``done=``, ``frame_id=``, ...) reach the topic type's
+        ``convert(output, **kwargs)`` (see :func:`~agents_core.types.base.convert_published`).
 
         An output of a step that a deactivate overtook is discarded and counted
         (``Component.discarded_outputs``), not an error: the component was asked to stop.
@@ -78,6 +82,8 @@ class ComponentPublisher:
                 logger.debug("component %r: a pre-processor of %r returned None; nothing published",
                              self._component_name, self.topic.name)
                 return
+        if kwargs:
+            value = convert_published(self.topic.msg_type, value, **kwargs)
         try:
             publisher.publish(value)
         except TransportClosedError:

@@ -191,20 +191,24 @@ class SemanticRouter(ModelComponent):
         raise ProtocolError(f"component {self.component_name!r}: the database returned unknown route {name!r}")
 
     def _route_by_llm(self, text: str) -> Route:
-        tools = [{"type": "function", "function": {
-            "name": self._tool_name(r),
-            "description": "Choose this route for messages like: " + "; ".join(r.samples),
-            "parameters": {"type": "object", "properties": {}, "required": []}}} for r in self.routes]
-        result = self._call_inference({
-            "query": [{"role": "system", "content": "You route robot requests. Call exactly one tool: the route "
-                                                    "that fits the user's message best."},
-                      {"role": "user", "content": text}],
-            "tools": tools, "stream": False, "temperature": 0.0, "max_new_tokens": 64})
+        result = self._call_inference(self._create_input(text))
         for call in result.get("tool_calls") or []:
             route = self._tool_routes.get(call["function"]["name"])
             if route is not None:
                 return route
         return self.default_route
+
+    def _create_input(self, text: str, *args: Any, **kwargs: Any) -> dict[str, Any]:
+        """The LLM-mode inference input for ``text``: one tool per route, the model calls the one that fits."""
+        tools = [{"type": "function", "function": {
+            "name": self._tool_name(r),
+            "description": "Choose this route for messages like: " + "; ".join(r.samples),
+            "parameters": {"type": "object", "properties": {}, "required": []}}} for r in self.routes]
+        return {
+            "query": [{"role": "system", "content": "You route robot requests. Call exactly one tool: the route "
+                                                    "that fits the user's message best."},
+                      {"role": "user", "content": text}],
+            "tools": tools, "stream": False, "temperature": 0.0, "max_new_tokens": 64}
 
     def _deploy_local_model(self) -> None:
         from ..engines.local_llm import LocalLLM  # noqa: PLC0415  (llama-cpp-python is optional)

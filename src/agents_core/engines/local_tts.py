@@ -38,6 +38,8 @@ import numpy.typing as npt
 
 from ..errors import ConfigError, InferenceError
 from ..install_hint import install_hint
+from .audio import wav_bytes
+from .device import resolve_device
 from .local_stt import import_sherpa_onnx
 
 __all__ = ["DEFAULT_VOICE_PACKAGE", "LocalTTS", "default_voice_dir", "split_sentences", "split_speakable"]
@@ -139,17 +141,20 @@ class LocalTTS:
     """An offline sherpa-onnx voice (see the module docs).
 
     :param model_path: a model directory (None: the default Piper voice).
+    :param device: ``"auto"``, ``"cuda"`` (a CUDA build of sherpa-onnx; else the CPU, with a warning) or
+        ``"cpu"`` (see :mod:`agents_core.engines.device`).
     :param ncpu: CPU threads.
-    :param device: ``"cpu"`` or ``"cuda"`` (a CUDA build of sherpa-onnx).
     :param data_dir: espeak-ng's data directory (None: from ``espeakng-loader`` when installed).
     :param speaker_id: the speaker of multi-speaker voices.
     :param speed: speaking rate (1.0: the voice's own).
     :param voice: the espeak-ng voice that phonemizes the text (``"en-us"``).
     """
 
-    def __init__(self, model_path: str | None = None, ncpu: int = 2, device: str = "cpu",
+    def __init__(self, model_path: str | None = None, device: str = "auto", ncpu: int = 2,
                  data_dir: str | None = None, speaker_id: int = 0, speed: float = 1.0, voice: str = "en-us") -> None:
         so = import_sherpa_onnx()
+        device = resolve_device(device, "sherpa_onnx", so, "LocalTTS")
+        self.device = device
         what = "text-to-speech local model"
         directory = Path(model_path).expanduser() if model_path else default_voice_dir()
         if directory.is_file():
@@ -230,8 +235,10 @@ class LocalTTS:
         return samples
 
     def __call__(self, inference_input: Mapping[str, Any]) -> dict[str, Any]:
-        """``{"query": text}`` -> ``{"output": samples, "sample_rate": Hz}``."""
-        return {"output": self.synthesize(str(inference_input["query"])), "sample_rate": self.sample_rate}
+        """``{"query": text}`` -> ``{"output": WAV file bytes, "sample_rate": Hz}`` (architecture.md: "returns
+        WAV bytes"); :meth:`synthesize` gives the float samples themselves."""
+        return {"output": wav_bytes(self.synthesize(str(inference_input["query"])), self.sample_rate),
+                "sample_rate": self.sample_rate}
 
 
 def _pick_int8(files: list[Path]) -> Path:

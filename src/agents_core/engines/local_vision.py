@@ -43,6 +43,7 @@ import numpy.typing as npt
 
 from ..errors import ConfigError, InferenceError
 from ..install_hint import install_hint
+from .device import DEVICES, resolve_device
 from .model_files import resolve_model_file
 
 __all__ = ["COCO80_LABELS", "DEFAULT_VISION_ENV_VAR", "DEFAULT_VISION_FILE", "DEFAULT_VISION_REPO",
@@ -187,25 +188,21 @@ class LocalVisionModel:
     :param input_height, input_width: the input size of float models whose size is not fixed in the graph.
     """
 
-    def __init__(self, model_path: str | None = None, device: str = "cpu", ncpu: int = 1, threshold: float = 0.5,
+    def __init__(self, model_path: str | None = None, device: str = "auto", ncpu: int = 1, threshold: float = 0.5,
                  nms_iou: float = 0.5, labels: Sequence[str] | Mapping[int, str] | None = None,
                  labels_path: str | None = None, input_height: int = 640, input_width: int = 640) -> None:
-        if device not in ("cpu", "cuda"):
-            raise ConfigError(f"LocalVisionModel: device must be 'cpu' or 'cuda', got {device!r}")
+        if device not in DEVICES:
+            raise ConfigError(f"LocalVisionModel: device must be one of {list(DEVICES)}, got {device!r}")
         if isinstance(ncpu, bool) or not isinstance(ncpu, int) or ncpu < 1:
             raise ConfigError(f"LocalVisionModel: ncpu must be an int >= 1, got {ncpu!r}")
         ort = _import_onnxruntime()
         self.model_path = self._resolve(model_path)
         self.threshold = float(threshold)
         self.nms_iou = float(nms_iou)
-        self.device = device
+        self.device = device = resolve_device(device, "onnxruntime", ort, "LocalVisionModel")
         self.providers = ["CPUExecutionProvider"]
         if device == "cuda":
-            if "CUDAExecutionProvider" in ort.get_available_providers():
-                self.providers = ["CUDAExecutionProvider", "CPUExecutionProvider"]
-            else:
-                _logger.warning("device 'cuda' asked, but this onnxruntime has no CUDA provider "
-                                "(pip install onnxruntime-gpu); running on the CPU")
+            self.providers = ["CUDAExecutionProvider", "CPUExecutionProvider"]
         options = ort.SessionOptions()
         options.intra_op_num_threads = ncpu
         options.inter_op_num_threads = 1

@@ -31,6 +31,7 @@ from ..errors import (
     ClientConnectionError,
     ComponentError,
     ConfigError,
+    InferenceConnectionError,
     ModelClientError,
     RequestTimeoutError,
     TransportError,
@@ -62,13 +63,14 @@ _ACTIVE = LifecycleState.ACTIVE
 def is_algorithm_failure(exc: BaseException) -> bool:
     """Whether a step's exception is an ALGORITHM_FAILURE rather than a COMPONENT_FAILURE.
 
-    As upstream: an inference that ran and failed (the server answered an error, timed out,
-    sent something unreadable or nothing) is an algorithm failure, and so is
-    :class:`~agents_core.errors.AlgorithmFailure`. A client that cannot reach its server at all
-    (:class:`~agents_core.errors.ClientConnectionError`) leaves the component unable to work: a
-    component failure, like a model setup that fails at configure.
+    As upstream: any inference that fails at run time (the server answered an error, timed out,
+    sent something unreadable or nothing, or went away: :class:`~agents_core.errors.InferenceConnectionError`)
+    is an algorithm failure, and so is :class:`~agents_core.errors.AlgorithmFailure`. A client
+    whose *setup* cannot reach its server (a plain :class:`~agents_core.errors.ClientConnectionError`
+    from ``check_connection``, a database client that cannot connect) is a component failure, like
+    a model setup that fails at configure.
     """
-    if isinstance(exc, AlgorithmFailure):
+    if isinstance(exc, AlgorithmFailure | InferenceConnectionError):
         return True
     return isinstance(exc, ModelClientError) and not isinstance(exc, ClientConnectionError)
 
@@ -279,15 +281,23 @@ class ComponentRuntime:
             # Inline: the middleware's thread stores the value and enqueues the step on this
             # component's worker, whose bounded queue is then the only queue of the hop.
             self._subscriptions.append(transport.create_subscription(t, cb._receive, owner=self._name, inline=True))
-        self._logger.info("%s", describe_trigger(c.trigger, c.run_type))
-        if c.run_type == ComponentRunType.TIMED:
-            assert isinstance(c.trigger, int | float)
-            self._timers.append(PeriodicTimer(float(c.trigger), self._submit_timed_step, f"{self._name}:trigger"))
-        elif isinstance(c.trigger, Event):
-            c.trigger.add_listener(self._on_trigger_event)
+        c.activate_all_triggers()
         self._status_timer = PeriodicTimer(c.config.status_rate, self.report_status, f"{self._name}:status")
         c.custom_on_activate()
         self._open_action_server()
+
+    def start_triggers(self) -> None:
+        """Start the timer of a float trigger, or listen to a trigger Event (``Component.activate_all_triggers``)."""
+        c = self._component
+        self._logger.info("%s", describe_trigger(c.trigger, c.run_type))
+        if c.run_type == ComponentRunType.TIMED:
+            assert isinstance(c.trigger, int | float)
+            if not self._timers:
+                self._timers.append(PeriodicTimer(float(c.trigger), self._submit_timed_step,
+                                                  f"{self._name}:trigger"))
+        elif isinstance(c.trigger, Event):
+            c.trigger.remove_listener(self._on_trigger_event)
+            c.trigger.add_listener(self._on_trigger_event)
 
     def _do_deactivate(self) -> None:
         c = self._component

@@ -73,6 +73,10 @@ class ComponentHooks(Protocol):
         """One step."""
         ...
 
+    def activate_all_triggers(self) -> None:
+        """Start the triggers (at activate; calls ``runtime.start_triggers()``)."""
+        ...
+
     def main_action_callback(self, goal_handle: GoalHandle) -> dict[str, Any]:
         """Run one goal."""
         ...

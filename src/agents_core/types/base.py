@@ -28,7 +28,9 @@ from ..registry import DuplicateNameError, Registry
 __all__ = [
     "SupportedType",
     "add_additional_datatypes",
+    "check_convertible",
     "check_ros_message",
+    "convert_published",
     "get_type",
     "install_builtin_types",
     "registered_types",
@@ -106,15 +108,70 @@ class SupportedType:
         raise NotImplementedError(f"{cls.type_name()} has no example value")
 
 
+def convert_published(cls: type[SupportedType], value: Any, **kwargs: Any) -> Any:
+    """What a publisher sends for ``value`` given publish keyword arguments (upstream's ``publish(output, **kwargs)``).
+
+    The keyword arguments (``stream=``, ``done=``, ``frame_id=``, ``time_stamp=``, ...) reach the
+    type's own ``convert(output, **kwargs)``; for a type without its own, ``frame_id`` and
+    ``time_stamp`` (float seconds) set the header of a value that has one (a copy: the value
+    given is not changed). Errors are :class:`TypeValidationError` naming the type.
+    """
+    if not kwargs:
+        return cls.validate(value)
+    message_class = cls.message_class()
+    if _overrides_convert(cls):
+        value = _converted(cls, value, message_class, kwargs)
+    value = cls.validate(value)
+    if not _overrides_convert(cls) and ("frame_id" in kwargs or "time_stamp" in kwargs):
+        value = _with_header(cls, value, kwargs.get("frame_id"), kwargs.get("time_stamp"))
+    return value
+
+
+def _with_header(cls: type[SupportedType], value: Any, frame_id: Any, time_stamp: Any) -> Any:
+    header = getattr(value, "header", None)
+    if header is None or not hasattr(header, "frame_id"):
+        return value
+    import copy  # noqa: PLC0415  (rarely needed)
+
+    if frame_id is not None and not isinstance(frame_id, str):
+        raise TypeValidationError(f"{cls.type_name()}: frame_id must be a str, got {type(frame_id).__name__}")
+    if time_stamp is not None and (isinstance(time_stamp, bool) or not isinstance(time_stamp, int | float)
+                                   or not math.isfinite(time_stamp) or time_stamp < 0):
+        raise TypeValidationError(f"{cls.type_name()}: time_stamp must be seconds >= 0, got {time_stamp!r}")
+    new_header = copy.copy(header)
+    if frame_id is not None:
+        new_header.frame_id = frame_id
+    if time_stamp is not None:
+        new_header.stamp_ns = round(float(time_stamp) * 1e9)
+    out = copy.copy(value)
+    out.header = new_header
+    return out
+
+
+def check_convertible(cls: type[SupportedType]) -> None:
+    """Refuse a type whose ``convert()`` output could not be checked: it defines ``convert`` but has
+    neither a ``_ros_type`` nor a ``value_class`` (its values would be published unconverted).
+
+    A type with neither and no ``convert`` of its own carries any JSON-like value as it is.
+    """
+    if cls.value_class is object and cls._ros_type is None and _overrides_convert(cls):
+        raise ConfigError(
+            f"message type {cls.type_name()!r} defines convert() but neither _ros_type nor value_class, so what "
+            "it publishes cannot be checked or sent: set value_class to the class convert() returns, or "
+            "_ros_type to the ROS message it builds")
+
+
 def _overrides_convert(cls: type[SupportedType]) -> bool:
     return cls.convert.__func__ is not SupportedType.convert.__func__  # type: ignore[attr-defined]
 
 
-def _converted(cls: type[SupportedType], value: Any, message_class: type[Any]) -> Any:
-    """``cls.convert(value)``, its failures as a TypeValidationError naming the type and, where known, the field."""
+def _converted(cls: type[SupportedType], value: Any, message_class: type[Any],
+               kwargs: dict[str, Any] | None = None) -> Any:
+    """``cls.convert(value, **kwargs)``, its failures as a TypeValidationError naming the type and, where known,
+    the field."""
     name = cls.type_name()
     try:
-        out = cls.convert(value)
+        out = cls.convert(value, **(kwargs or {}))
     except TypeValidationError as exc:
         raise TypeValidationError(f"{name}: {exc}") from exc
     except KeyError as exc:
@@ -278,6 +335,7 @@ def add_additional_datatypes(types: Iterable[type[SupportedType]]) -> None:
     for t in types:
         if not (isinstance(t, type) and issubclass(t, SupportedType)):
             raise ConfigError(f"{t!r} is not a SupportedType subclass")
+        check_convertible(t)
         name = t.type_name()
         existing = _registry.find(name)
         if existing is not None and existing is not t:
@@ -289,6 +347,7 @@ def get_type(name_or_type: str | type[SupportedType]) -> type[SupportedType]:
     """Resolve a registered type by name (or check a type token); unknown names list close matches."""
     if isinstance(name_or_type, type):
         if issubclass(name_or_type, SupportedType):
+            check_convertible(name_or_type)
             name_or_type.message_class()
             return name_or_type
         raise UnknownTypeError(f"{name_or_type.__name__} is not a SupportedType")

@@ -7,6 +7,7 @@ from typing import Any, ClassVar
 from attrs import define, field
 
 from .._numpy import np, npt
+from ..callbacks import DetectionsCallback
 from ..errors import TypeValidationError
 from .base import SupportedType
 from .fields import Header, Message, header_field, instance_of, is_str_list, named, to_array, wire
@@ -63,6 +64,9 @@ class DetectionsMsg(Message):
                                             converter=_scores, metadata=wire("[float, ...]", as_list=True))
     image: ImageMsg | None = field(default=None, validator=instance_of(ImageMsg, optional=True))
     header: Header = header_field()
+    #: The depth image the detections refer to (messages.md: "plus optional image and depth").
+    depth: ImageMsg | None = field(default=None, validator=instance_of(ImageMsg, optional=True),
+                                   metadata={"omit_when_none": True})
 
     def __attrs_post_init__(self) -> None:
         n = self.boxes.shape[0]
@@ -108,12 +112,20 @@ class PointsOfInterestMsg(Message):
                                             converter=_points, metadata=wire("[[x, y] float, ...]", as_list=True))
     image: ImageMsg | None = field(default=None, validator=instance_of(ImageMsg, optional=True))
     header: Header = header_field()
+    #: The depth image the points refer to (messages.md: "plus the source image/depth").
+    depth: ImageMsg | None = field(default=None, validator=instance_of(ImageMsg, optional=True),
+                                   metadata={"omit_when_none": True})
 
 
 class Detections(SupportedType):
-    """Detection results (:class:`~agents_core.messages.DetectionsMsg`)."""
+    """Detection results (:class:`~agents_core.messages.DetectionsMsg`).
+
+    Inputs get a :class:`~agents_core.callbacks.DetectionsCallback`: ``get_output()`` is one dict
+    per object (``label``, ``score``, ``box``); ``callback.msg`` is the DetectionsMsg.
+    """
 
     value_class = DetectionsMsg
+    callback = DetectionsCallback
 
     @classmethod
     def example(cls) -> Any:

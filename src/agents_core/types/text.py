@@ -6,6 +6,8 @@ from typing import Any, ClassVar
 
 from attrs import define, field
 
+from ..callbacks import StreamingStringCallback
+from ..errors import TypeValidationError
 from .base import SupportedType
 from .fields import Header, Message, header_field, is_bool, is_str, named
 
@@ -34,9 +36,25 @@ class String(SupportedType):
 
 
 class StreamingString(String):
-    """Streamed text chunks (:class:`~agents_core.messages.StreamingStringMsg`); a ``str`` is one final chunk."""
+    """Streamed text chunks (:class:`~agents_core.messages.StreamingStringMsg`); a ``str`` is one final chunk.
+
+    Published with ``stream=`` / ``done=`` (``publisher.publish(text, stream=True, done=False)``,
+    ``component._publish(result, stream=True, done=False)``), a ``str`` becomes a chunk with those
+    flags, as upstream. Inputs get a :class:`~agents_core.callbacks.StreamingStringCallback`.
+    """
 
     value_class = StreamingStringMsg
+    callback = StreamingStringCallback
+
+    @classmethod
+    def convert(cls, output: Any, stream: bool = False, done: bool = True, **_: Any) -> Any:
+        """A chunk holding ``output`` (a ``str``) with the ``stream`` and ``done`` flags given."""
+        if isinstance(output, StreamingStringMsg):
+            return output
+        if not isinstance(output, str):
+            raise TypeValidationError(f"StreamingString expects a str or StreamingStringMsg, "
+                                      f"got {type(output).__name__}")
+        return StreamingStringMsg(data=output, stream=bool(stream), done=bool(done))
 
     @classmethod
     def validate(cls, value: Any) -> Any:

@@ -40,13 +40,25 @@ def _detections_to_ros(v: m.DetectionsMsg) -> Any:
     header_to_ros(v.header, out.header)
     out.scores = seq("f", v.scores, np.float32)
     optional_image_to_ros(v.image, out.image)
+    _depth_to_ros(v.depth, out)
     return out
+
+
+def _depth_to_ros(depth: m.ImageMsg | None, out: Any) -> None:
+    # agents_interfaces built before the depth field was added has no such field: depth is not sent.
+    if depth is not None and hasattr(out, "depth"):
+        optional_image_to_ros(depth, out.depth)
+
+
+def _depth_from_ros(msg: Any) -> m.ImageMsg | None:
+    depth = getattr(msg, "depth", None)
+    return None if depth is None else optional_image_from_ros(depth)
 
 
 def _detections_from_ros(msg: Any) -> m.DetectionsMsg:
     return m.DetectionsMsg(boxes=_boxes_from_ros(msg.boxes), labels=list(msg.labels),
                            scores=as_numpy(msg.scores, np.float32), image=optional_image_from_ros(msg.image),
-                           header=header_from_ros(msg.header))
+                           header=header_from_ros(msg.header), depth=_depth_from_ros(msg))
 
 
 def _trackings_to_ros(v: m.TrackingsMsg) -> Any:
@@ -83,12 +95,13 @@ def _poi_to_ros(v: m.PointsOfInterestMsg) -> Any:
     out = ai.PointsOfInterest(points=_points_to_ros(v.points))
     header_to_ros(v.header, out.header)
     optional_image_to_ros(v.image, out.image)
+    _depth_to_ros(v.depth, out)
     return out
 
 
 def _poi_from_ros(msg: Any) -> m.PointsOfInterestMsg:
     return m.PointsOfInterestMsg(points=_points_from_ros(msg.points), image=optional_image_from_ros(msg.image),
-                                 header=header_from_ros(msg.header))
+                                 header=header_from_ros(msg.header), depth=_depth_from_ros(msg))
 
 
 #: The built-in conversions of this family.

@@ -249,8 +249,13 @@ def struct_codec(cls: type, seen: dict[type, Codec] | None = None) -> Codec:
         spec = f.metadata.get("wire", m.Wire())
         fields[f.name] = _kind_for(hints.get(f.name, Any), spec, seen)
 
+    # Fields added after the wire format was fixed (a Detections' depth) are left out while None,
+    # so the payloads of values without them stay byte for byte what they were.
+    omitted = {f.name for f in attrs.fields(cls) if f.metadata.get("omit_when_none")}
+
     def encode(value: Any) -> Any:
-        return {name: kind.encode(getattr(value, name)) for name, kind in fields.items()}
+        return {name: kind.encode(item) for name, kind in fields.items()
+                if (item := getattr(value, name)) is not None or name not in omitted}
 
     def decode(doc: Any) -> Any:
         if not isinstance(doc, dict):

@@ -265,6 +265,7 @@ class Cortex(ModelComponent):
             self._dispatcher.cancel_all()
         self._watch.close()
         super().custom_on_deactivate()
+        super().custom_on_deactivate()
 
     # -- tasks --------------------------------------------------------------------------------------
 

@@ -358,7 +358,7 @@ class VLA(ModelComponent):
         while not stop.is_set():
             started = time.monotonic()
             try:
-                observation = self._observation(task, queue.last_played + 1)
+                observation = self._create_input(task, queue.last_played + 1)
                 result = self._call_inference(observation)
                 first, chunk = int(result.get("timestep", observation["timestep"])), result["output"]
                 if first > observation["timestep"]:
@@ -420,6 +420,10 @@ class VLA(ModelComponent):
             raise _GoalFailure(f"the state on {self._state_topic.name!r} has no {field}", HealthStatus.SYSTEM_FAILURE)
         index = {name: i for i, name in enumerate(msg.name)}
         return np.array([float(values[index[j]]) for j in joints])
+
+    def _create_input(self, task: str, step: int, *args: Any, **kwargs: Any) -> dict[str, Any]:
+        """The policy's observation for ``step`` of ``task``: the joint state, the cameras, the task text."""
+        return self._observation(task, step)
 
     def _observation(self, task: str, step: int) -> dict[str, Any]:
         msg = self._fresh_state()
