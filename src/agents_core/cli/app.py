@@ -17,6 +17,7 @@ from ..install_hint import install_hint
 from ..transport.registry import TRANSPORT_ENV_VAR
 from . import components, recording, topics
 from .connection import fail, one_line_errors
+from .evals import eval_app
 from .foxglove import foxglove
 from .output import print_json, say
 
@@ -30,6 +31,7 @@ app = typer.Typer(name="agentsctl", no_args_is_help=True, add_completion=False, 
                   help="Run agents_core recipes and inspect a live graph on Zenoh or ROS 2.")
 app.add_typer(topics.app, name="topics")
 app.add_typer(components.app, name="components")
+app.add_typer(eval_app, name="eval")
 app.command("call")(components.call)
 app.command("record")(recording.record)
 app.command("play")(recording.play)

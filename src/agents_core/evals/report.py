@@ -393,9 +393,14 @@ def render_comparison(comparison: Comparison, a: EvaluationResults, b: Evaluatio
     return _page(f"Comparison: {sa.name} vs {sb.name}", body)
 
 
-def write_comparison_report(dir_a: str | Path, dir_b: str | Path, out: str | Path, *, alpha: float = 0.05) -> Path:
-    """Write the comparison of evaluation B (candidate) with A (reference) to the HTML file ``out``; its path."""
-    a, b = load_results(dir_a), load_results(dir_b)
+def write_comparison_report(dir_a: str | Path | EvaluationResults, dir_b: str | Path | EvaluationResults,
+                            out: str | Path, *, alpha: float = 0.05) -> Path:
+    """Write the comparison of evaluation B (candidate) with A (reference) to the HTML file ``out``; its path.
+
+    ``dir_a`` / ``dir_b`` are output directories, or results already loaded.
+    """
+    a = dir_a if isinstance(dir_a, EvaluationResults) else load_results(dir_a)
+    b = dir_b if isinstance(dir_b, EvaluationResults) else load_results(dir_b)
     comparison = compare_runs(a, b, alpha=alpha)
     return _write(Path(out), render_comparison(comparison, a, b))
 

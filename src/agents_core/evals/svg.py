@@ -18,6 +18,9 @@ __all__ = ["Series", "interval_chart", "line_chart", "nice_ticks", "strip_chart"
 #: A line chart draws at most this many points per line (longer episodes are thinned evenly).
 MAX_POINTS_PER_LINE = 300
 
+#: Row labels (run names) longer than this are cut, with an ellipsis.
+MAX_LABEL_CHARS = 32
+
 _MARGIN_LEFT, _MARGIN_RIGHT, _MARGIN_TOP, _MARGIN_BOTTOM = 64, 16, 12, 40
 
 
@@ -73,12 +76,13 @@ def nice_ticks(low: float, high: float, count: int = 5) -> list[float]:
 class _Axes:
     """Maps data coordinates into a ``width`` x ``height`` drawing with margins for the axes."""
 
-    def __init__(self, width: int, height: int, x_ticks: list[float], y_ticks: list[float]) -> None:
+    def __init__(self, width: int, height: int, x_ticks: list[float], y_ticks: list[float],
+                 left: int = _MARGIN_LEFT) -> None:
         self.width, self.height = width, height
         self.x_ticks, self.y_ticks = x_ticks, y_ticks
         self.x0, self.x1 = x_ticks[0], x_ticks[-1]
         self.y0, self.y1 = y_ticks[0], y_ticks[-1]
-        self.left, self.right = _MARGIN_LEFT, width - _MARGIN_RIGHT
+        self.left, self.right = left, width - _MARGIN_RIGHT
         self.top, self.bottom = _MARGIN_TOP, height - _MARGIN_BOTTOM
 
     def x(self, value: float) -> float:
@@ -108,6 +112,12 @@ class _Axes:
             parts.append(f'<text class="yl" transform="translate(14 {_num((self.top + self.bottom) / 2)}) '
                          f'rotate(-90)">{_e(y_label)}</text>')
         return parts
+
+
+def _row_labels(labels: Sequence[str]) -> tuple[list[str], int]:
+    """Row labels cut to :data:`MAX_LABEL_CHARS`, and the left margin that fits the longest."""
+    cut = [label if len(label) <= MAX_LABEL_CHARS else label[: MAX_LABEL_CHARS - 1] + "\u2026" for label in labels]
+    return cut, max(_MARGIN_LEFT, 16 + round(6.5 * max((len(c) for c in cut), default=0)))
 
 
 def _svg(width: int, height: int, label: str, parts: list[str]) -> str:
@@ -156,11 +166,12 @@ def strip_chart(rows: Sequence[Series], *, x_label: str, label: str, width: int 
     values = [v for row in rows for v in row.values if math.isfinite(v)]
     if not values:
         return _svg(width, 60, label, ['<text class="empty" x="8" y="32">no values to plot</text>'])
-    axes = _Axes(width, height, nice_ticks(min(0.0, *values), max(values)), [0.0, 1.0])
+    names, left = _row_labels([row.label for row in rows])
+    axes = _Axes(width, height, nice_ticks(min(0.0, *values), max(values)), [0.0, 1.0], left)
     parts = axes.frame(x_label, "", y_grid=False)
     for r, row in enumerate(rows):
         centre = _MARGIN_TOP + row_height * r + row_height / 2
-        parts.append(f'<text class="rl" x="{_MARGIN_LEFT - 6}" y="{_num(centre)}">{_e(row.label)}</text>')
+        parts.append(f'<text class="rl" x="{left - 6}" y="{_num(centre)}">{_e(names[r])}</text>')
         finite = sorted(v for v in row.values if math.isfinite(v))
         for j, value in enumerate(row.values):
             if not math.isfinite(value):
@@ -184,7 +195,8 @@ def interval_chart(rows: Sequence[tuple[str, float, float, float, str]], *, labe
     """Success rates on a 0-100 % axis: per row ``(label, rate, low, high, css_class)``, a dot and its interval."""
     row_height = 34
     height = _MARGIN_TOP + _MARGIN_BOTTOM + row_height * max(1, len(rows))
-    axes = _Axes(width, height, [0, 20, 40, 60, 80, 100], [0.0, 1.0])
+    names, left = _row_labels([row[0] for row in rows])
+    axes = _Axes(width, height, [0, 20, 40, 60, 80, 100], [0.0, 1.0], left)
     parts = axes.frame("success rate (%) with its 95 % interval", "", y_grid=False)
     for tick in axes.x_ticks[1:-1]:
         x = _num(axes.x(tick))
@@ -192,7 +204,7 @@ def interval_chart(rows: Sequence[tuple[str, float, float, float, str]], *, labe
     for r, (name, rate, low, high, css) in enumerate(rows):
         centre = _num(_MARGIN_TOP + row_height * r + row_height / 2)
         title = _e(f"{name}: {rate * 100:.1f} % ({low * 100:.1f}-{high * 100:.1f} %)")
-        parts.append(f'<text class="rl" x="{_MARGIN_LEFT - 6}" y="{centre}">{_e(name)}</text>'
+        parts.append(f'<text class="rl" x="{left - 6}" y="{centre}">{_e(names[r])}</text>'
                      f'<line class="ci {_e(css)}" x1="{_num(axes.x(low * 100))}" y1="{centre}" '
                      f'x2="{_num(axes.x(high * 100))}" y2="{centre}"><title>{title}</title></line>'
                      f'<circle class="dot {_e(css)}" cx="{_num(axes.x(rate * 100))}" cy="{centre}" r="5">'
