@@ -26,7 +26,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from .compare import Comparison, compare_runs
-from .results import EpisodeResult, EvaluationResults, load_results
+from .results import EpisodeResult, EvaluationResults, ResultsError, load_results, read_capped
 from .stats import MeanInterval, mean_interval, wilson_interval
 from .svg import Series, interval_chart, line_chart, strip_chart
 
@@ -248,11 +248,8 @@ def _image_uri(results: EvaluationResults, relative: str) -> str | None:
     if path is None:
         return None
     try:
-        with path.open("rb") as stream:
-            data = stream.read(results.limits.max_frame_bytes + 1)
-    except OSError:
-        return None
-    if len(data) > results.limits.max_frame_bytes:
+        data = read_capped(path, results.limits.max_frame_bytes)
+    except (OSError, ResultsError):
         return None
     if data.startswith(b"\xff\xd8\xff"):
         kind = "jpeg"

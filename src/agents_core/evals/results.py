@@ -15,6 +15,7 @@ files inside its own directory, so a report never embeds ``/etc/passwd`` or a sy
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -33,6 +34,7 @@ __all__ = [
     "ResultsError",
     "ResultsLimits",
     "load_results",
+    "read_capped",
 ]
 
 #: The run's description, written when it starts and again when it ends.
@@ -174,17 +176,31 @@ def load_results(out_dir: str | Path, limits: ResultsLimits | None = None) -> Ev
     return EvaluationResults(out_dir=root, info=info, episodes=episodes, partial_last_line=partial, limits=limits)
 
 
+def read_capped(path: Path, cap: int) -> bytes:
+    """The bytes of the file ``path``, or :class:`ResultsError` naming the limit if there are more than ``cap``.
+
+    The file's size is looked at first: ``read(cap + 1)`` alone would allocate ``cap`` bytes even for a small file.
+    """
+    with path.open("rb") as stream:
+        size = os.fstat(stream.fileno()).st_size
+        if size > cap:
+            raise ResultsError(f"{path} has {size} bytes, more than {cap}")
+        data = stream.read(size + 1)  # the file may have grown since
+    if len(data) > cap:
+        raise ResultsError(f"{path} has more than {cap} bytes")
+    return data
+
+
 def _read_info(path: Path, limits: ResultsLimits) -> EvaluationInfo:
     try:
-        with path.open("rb") as stream:
-            data = stream.read(limits.max_info_bytes + 1)
+        data = read_capped(path, limits.max_info_bytes)
+    except ResultsError as exc:
+        raise ResultsError(f"{exc} (ResultsLimits.max_info_bytes)") from None
     except FileNotFoundError:
         raise ResultsError(f"{path} does not exist: {path.parent} is not an evaluation's output "
                            "directory") from None
     except OSError as exc:
         raise ResultsError(f"{path} cannot be read: {exc}") from None
-    if len(data) > limits.max_info_bytes:
-        raise ResultsError(f"{path} is larger than {limits.max_info_bytes} bytes (ResultsLimits.max_info_bytes)")
     try:
         doc = loads(data, JsonLimits(max_bytes=limits.max_info_bytes, max_array_len=limits.max_lines * 10))
     except InvalidJsonError as exc:
