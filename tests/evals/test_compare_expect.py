@@ -45,7 +45,7 @@ def test_alpha_decides_the_verdict(tmp_path: Path) -> None:
     assert compare_runs(a, b, alpha=0.1).verdict == "worse"
     assert compare_runs(a, b, alpha=0.01).verdict == "no significant difference"
     for bad in (0, 1, -0.5, float("nan"), True):
-        with pytest.raises(ValueError, match="alpha"):
+        with pytest.raises(ValueError, match=r"alpha"):
             compare_runs(a, b, alpha=bad)
 
 
@@ -59,7 +59,7 @@ def test_different_seeds_are_noted_and_loaded_results_work_too(tmp_path: Path) -
 
 def test_an_unreadable_run_is_an_error(tmp_path: Path) -> None:
     a = make_run(tmp_path / "a", [True], frames=False)
-    with pytest.raises(ResultsError, match="evaluation.json does not exist"):
+    with pytest.raises(ResultsError, match=r"evaluation\.json does not exist"):
         compare_runs(a, tmp_path)
 
 
@@ -87,10 +87,10 @@ def test_expect_fails_with_rate_interval_episodes_and_failed_seeds(tmp_path: Pat
 
 def test_expect_fails_an_empty_or_too_short_run(tmp_path: Path) -> None:
     out = write_dir(tmp_path / "run", info(episodes=20, finished=None, interrupted=True), [])
-    with pytest.raises(AssertionError, match="only 0 episode"):
+    with pytest.raises(AssertionError, match=r"only 0 episode"):
         expect_success_rate(out, at_least=0.0)
     out = make_run(tmp_path / "short", [True] * 3, frames=False)
-    with pytest.raises(AssertionError, match="only 3 episode.*fewer than the 20 needed"):
+    with pytest.raises(AssertionError, match=r"only 3 episode.*fewer than the 20 needed"):
         expect_success_rate(out, at_least=0.5, min_episodes=20)
 
 
@@ -103,5 +103,5 @@ def test_expect_lists_at_most_30_failed_seeds(tmp_path: Path) -> None:
 @pytest.mark.parametrize("bad", [80, -0.1, 1.01, float("nan"), "0.8", None])
 def test_expect_refuses_a_threshold_that_is_not_a_rate(tmp_path: Path, bad: object) -> None:
     out = make_run(tmp_path / "run", [True], frames=False)
-    with pytest.raises(ValueError, match="between 0 and 1"):
+    with pytest.raises(ValueError, match=r"between 0 and 1"):
         expect_success_rate(out, at_least=bad)  # type: ignore[arg-type]

@@ -134,7 +134,7 @@ def test_an_interrupted_run_is_reported_as_such(tmp_path: Path) -> None:
     whole = json.dumps(episode(2, True))
     out = write_dir(tmp_path / "run", info(episodes=10, finished=None, interrupted=True),
                     [episode(0, True), episode(1, False), whole[:40]], newline_at_end=False)
-    source, page = _parse(write_report(out))
+    _, page = _parse(write_report(out))
     text = " ".join(page.text)
     assert "interrupted: 2 of 10 episodes finished" in text and "This run did not finish" in text
     assert "cut short" in text and page.by_id["successes"]["data-n"] == "2"

@@ -71,7 +71,7 @@ def test_a_cut_line_in_the_middle_is_not_taken_for_an_interruption(tmp_path: Pat
     # Only the very last line may be cut short: one with a newline after it was written whole, then damaged.
     out = write_dir(tmp_path / "run", info(), [episode(0, True), '{"episode": 1', episode(2, True)],
                     newline_at_end=False)
-    with pytest.raises(ResultsError, match="line 2"):
+    with pytest.raises(ResultsError, match=r"line 2"):
         load_results(out)
 
 
@@ -110,13 +110,13 @@ def test_a_missing_field_is_named(tmp_path: Path, field: str) -> None:
 @pytest.mark.parametrize("line", ["[1, 2]", "42", '"text"', "null"])
 def test_a_line_that_is_not_an_object(tmp_path: Path, line: str) -> None:
     out = write_dir(tmp_path / "run", info(), [line, episode(1, True)])
-    with pytest.raises(ResultsError, match="line 1: expected a JSON object"):
+    with pytest.raises(ResultsError, match=r"line 1: expected a JSON object"):
         load_results(out)
 
 
 def test_two_lines_of_one_episode_are_an_error(tmp_path: Path) -> None:
     out = write_dir(tmp_path / "run", info(), [episode(0, True), episode(1, True), episode(0, False)])
-    with pytest.raises(ResultsError, match="line 3: episode 0 is already on line 1"):
+    with pytest.raises(ResultsError, match=r"line 3: episode 0 is already on line 1"):
         load_results(out)
 
 
@@ -125,7 +125,7 @@ def test_hostile_lines_are_refused_with_a_message(tmp_path: Path) -> None:
     for bad in [nested.encode(), b'{"episode": 0, "seed": \xff\xfe}', b'{"episode": 1e999999}',
                 b'{"episode": ' + b"9" * 400 + b"}"]:
         out = write_dir(tmp_path / "run", info(), [bad, episode(1, True)])
-        with pytest.raises(ResultsError, match="line 1"):
+        with pytest.raises(ResultsError, match=r"line 1"):
             load_results(out)
 
 
@@ -167,21 +167,21 @@ def test_too_many_lines_and_too_many_bytes_are_refused(tmp_path: Path) -> None:
 def test_evaluation_json_errors_name_the_file(tmp_path: Path) -> None:
     out = tmp_path / "run"
     out.mkdir()
-    with pytest.raises(ResultsError, match="evaluation.json does not exist"):
+    with pytest.raises(ResultsError, match=r"evaluation\.json does not exist"):
         load_results(out)
-    with pytest.raises(ResultsError, match="is not a directory"):
+    with pytest.raises(ResultsError, match=r"is not a directory"):
         load_results(out / "nothing")
     (out / "evaluation.json").write_text("[1, 2]")
-    with pytest.raises(ResultsError, match="evaluation.json: expected a JSON object"):
+    with pytest.raises(ResultsError, match=r"evaluation\.json: expected a JSON object"):
         load_results(out)
     (out / "evaluation.json").write_text(json.dumps(info(interrupted="no")))
-    with pytest.raises(ResultsError, match="evaluation.json: field 'interrupted' must be true or false"):
+    with pytest.raises(ResultsError, match=r"evaluation\.json: field 'interrupted' must be true or false"):
         load_results(out)
     (out / "evaluation.json").write_text(json.dumps(info(seeds=[1, "two"])))
     with pytest.raises(ResultsError, match=r"field 'seeds\[1\]' must be an integer"):
         load_results(out)
     (out / "evaluation.json").write_text(json.dumps(info(limits={"max_steps": "many"})))
-    with pytest.raises(ResultsError, match="field 'limits.max_steps' must be an integer"):
+    with pytest.raises(ResultsError, match=r"field 'limits\.max_steps' must be an integer"):
         load_results(out)
     (out / "evaluation.json").write_text(json.dumps(info(name="x" * 2000)))
     with pytest.raises(ResultsError, match=r"ResultsLimits.max_info_bytes"):

@@ -68,12 +68,13 @@ def test_fisher_with_an_empty_side_is_no_evidence() -> None:
                                              ((1.0, 4, 1, 2), TypeError), ((True, 4, 1, 2), TypeError),
                                              ((1, 2, 3, 2), ValueError)])
 def test_fisher_refuses_impossible_counts(args: tuple[int, int, int, int], error: type[Exception]) -> None:
-    with pytest.raises(error, match="successes|must be an int"):
+    with pytest.raises(error, match=r"successes|must be an int"):
         compare_success(*args)
 
 
 def test_wilson_textbook_value() -> None:
-    # 15 of 20 at 95 %: 0.5313-0.8881 (Newcombe 1998's method 3; statsmodels proportion_confint(15, 20, method="wilson")).
+    # 15 of 20 at 95 %: 0.5313-0.8881 (Newcombe 1998's method 3; statsmodels'
+    # proportion_confint(15, 20, method="wilson")).
     low, high = wilson_interval(15, 20)
     assert (round(low, 4), round(high, 4)) == (0.5313, 0.8881)
     low, high = wilson_interval(0, 10)
@@ -101,7 +102,7 @@ def test_wilson_stays_in_the_unit_interval_and_contains_the_rate() -> None:
 
 @pytest.mark.parametrize("confidence", [0, 1, 1.5, -0.1, float("nan")])
 def test_wilson_refuses_a_confidence_outside_0_1(confidence: float) -> None:
-    with pytest.raises(ValueError, match="confidence"):
+    with pytest.raises(ValueError, match=r"confidence"):
         wilson_interval(3, 10, confidence)
 
 

@@ -27,7 +27,7 @@ from pathlib import Path
 
 from .compare import Comparison, compare_runs
 from .results import EpisodeResult, EvaluationResults, ResultsError, load_results, read_capped
-from .stats import MeanInterval, mean_interval, wilson_interval
+from .stats import mean_interval, wilson_interval
 from .svg import Series, interval_chart, line_chart, strip_chart
 
 __all__ = ["REPORT_FILE", "render_comparison", "render_report", "write_comparison_report", "write_report"]
@@ -51,7 +51,7 @@ h1{font-size:1.5em;margin:0 0 4px}h2{font-size:1.15em;margin:28px 0 8px;border-b
 table{border-collapse:collapse;font-size:.9em}td,th{padding:3px 10px;border-bottom:1px solid #eef1f4;
  text-align:left;vertical-align:top;unicode-bidi:isolate}th{background:#f5f7f9}
 table.info th{width:11em}td.num{text-align:right;font-variant-numeric:tabular-nums}
-.headline{font-size:1.6em;margin:8px 0}.muted{color:#66717d}.note{background:#fff6df;border-left:4px solid #e8b200;
+.headline{font-size:1.4em;margin:8px 0}.headline .muted{white-space:nowrap}.muted{color:#66717d}.note{background:#fff6df;border-left:4px solid #e8b200;
  padding:6px 10px;margin:8px 0}
 .yes{color:#17803d;font-weight:600}.no{color:#c0392b;font-weight:600}
 .chart{max-width:100%;height:auto;font-size:11px}.chart .axis{stroke:#7b8794}.chart .tick{stroke:#7b8794}
@@ -66,7 +66,9 @@ table.info th{width:11em}td.num{text-align:right;font-variant-numeric:tabular-nu
  font-size:.8em;color:#66717d}.film img{display:block;width:160px;height:auto;border:1px solid #dde3ea;
  image-rendering:auto}.film .missing{width:160px;height:120px;display:flex;align-items:center;
  justify-content:center;background:#f5f7f9;border:1px dashed #b8c2cc}
-.side{display:grid;grid-template-columns:1fr 1fr;gap:24px}.verdict{font-size:1.3em;padding:8px 12px;
+.side{display:grid;grid-template-columns:1fr 1fr;gap:24px}
+.two{display:grid;grid-template-columns:repeat(auto-fit,minmax(540px,1fr));gap:8px 32px}
+.verdict{font-size:1.3em;padding:8px 12px;
  border-radius:4px;display:inline-block}.verdict.worse{background:#fde8e6;color:#9b2c1f}
 .verdict.better{background:#e3f6ea;color:#17803d}.verdict.same{background:#eef1f4}
 footer{margin-top:32px;font-size:.8em;color:#66717d}
@@ -170,15 +172,6 @@ def _headline(results: EvaluationResults) -> str:
             f'<p class="muted">Ended: {ended_text}</p>')
 
 
-def _interval_text(m: MeanInterval, unit: str = "") -> str:
-    if m.mean is None:
-        return _DASH
-    text = f"{_num(m.mean)}{unit}"
-    if m.low is not None and m.high is not None:
-        text += f" (95 % interval {_num(m.low)} {_DASH} {_num(m.high)}{unit})"
-    return text
-
-
 def _figures_section(results: EvaluationResults) -> str:
     episodes = results.episodes
     rewards = mean_interval(e.reward_sum for e in episodes)
@@ -187,16 +180,19 @@ def _figures_section(results: EvaluationResults) -> str:
                              if e.success and e.steps_to_success is not None)
     steps = mean_interval(float(e.steps) for e in episodes)
     wall = mean_interval(e.wall_s for e in episodes)
-    rows = [("reward sum, mean", rewards, ""), ("time to success (successful episodes), mean", times, " s"),
-            ("steps to success (successful episodes), mean", steps_to, ""), ("steps per episode, mean", steps, ""),
-            ("wall time per episode, mean", wall, " s")]
+    rows = [("reward sum", rewards, ""), ("time to success (successes)", times, " s"),
+            ("steps to success (successes)", steps_to, ""), ("steps per episode", steps, ""),
+            ("wall time per episode", wall, " s")]
     cells = []
     for name, m, unit in rows:
+        mean = _DASH if m.mean is None else f"{_num(m.mean)}{unit}"
+        interval = _DASH if m.low is None or m.high is None else f"{_num(m.low)} {_DASH} {_num(m.high)}{unit}"
         median = _DASH if m.median is None else f"{_num(m.median)}{unit}"
         extra = f" ({m.non_finite} NaN or infinite left out)" if m.non_finite else ""
-        cells.append([f"<th>{_e(name)}</th>", f'<td class="num">{_e(_interval_text(m, unit))}{_e(extra)}</td>',
-                      f'<td class="num">{_e(median)}</td>', f'<td class="num">{m.n}</td>'])
-    return _table(["", "mean", "median", "n"], cells, "figures")
+        cells.append([f"<th>{_e(name)}</th>", f'<td class="num">{_e(mean + extra)}</td>',
+                      f'<td class="num">{_e(interval)}</td>', f'<td class="num">{_e(median)}</td>',
+                      f'<td class="num">{m.n}</td>'])
+    return _table(["", "mean", "95 % interval", "median", "n"], cells, "figures")
 
 
 def _curves_section(results: EvaluationResults, width: int = 640) -> str:
@@ -322,13 +318,13 @@ def _episode_rows(results: EvaluationResults) -> str:
 def render_report(results: EvaluationResults) -> str:
     """The report page of ``results`` as an HTML string."""
     name = results.info.name
+    rate = interval_chart([(name, results.success_rate, *wilson_interval(results.successes, results.n), "ok")],
+                          label="success rate")
     body = (f"<h1>Evaluation: {_e(name)}</h1>{_info_section(results)}"
-            f"<h2>Success rate</h2>{_headline(results)}"
-            + interval_chart([(name, results.success_rate, *wilson_interval(results.successes, results.n), "ok")],
-                             label="success rate")
-            + f"<h2>Figures</h2>{_figures_section(results)}"
-            f"<h2>Reward curves</h2>{_curves_section(results)}"
-            f"<h2>Time to success and reward sums</h2>{_strips_section(results)}"
+            f'<div class="two"><section><h2>Success rate</h2>{_headline(results)}{rate}</section>'
+            f"<section><h2>Figures</h2>{_figures_section(results)}</section></div>"
+            f'<div class="two"><section><h2>Reward curves</h2>{_curves_section(results)}</section>'
+            f"<section><h2>Time to success and reward sums</h2>{_strips_section(results)}</section></div>"
             f"<h2>Filmstrip</h2>{_filmstrip_section(results)}"
             f"<h2>Episodes</h2>{_episode_rows(results)}")
     return _page(f"Evaluation: {name}", body)
