@@ -177,7 +177,7 @@ def test_evaluation_json_errors_name_the_file(tmp_path: Path) -> None:
     (out / "evaluation.json").write_text(json.dumps(info(interrupted="no")))
     with pytest.raises(ResultsError, match=r"evaluation\.json: field 'interrupted' must be true or false"):
         load_results(out)
-    (out / "evaluation.json").write_text(json.dumps(info(seeds=[1, "two"])))
+    (out / "evaluation.json").write_text(json.dumps(info(seeds=[1, 2]) | {"seeds": [1, "two"]}))
     with pytest.raises(ResultsError, match=r"field 'seeds\[1\]' must be an integer"):
         load_results(out)
     (out / "evaluation.json").write_text(json.dumps(info(limits={"max_steps": "many"})))

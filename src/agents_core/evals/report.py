@@ -51,7 +51,8 @@ h1{font-size:1.5em;margin:0 0 4px}h2{font-size:1.15em;margin:28px 0 8px;border-b
 table{border-collapse:collapse;font-size:.9em}td,th{padding:3px 10px;border-bottom:1px solid #eef1f4;
  text-align:left;vertical-align:top;unicode-bidi:isolate}th{background:#f5f7f9}
 table.info th{width:11em}td.num{text-align:right;font-variant-numeric:tabular-nums}
-.headline{font-size:1.4em;margin:8px 0}.headline .muted{white-space:nowrap}.muted{color:#66717d}.note{background:#fff6df;border-left:4px solid #e8b200;
+.headline{font-size:1.4em;margin:8px 0}.headline .muted{white-space:nowrap}
+.muted{color:#66717d}.note{background:#fff6df;border-left:4px solid #e8b200;
  padding:6px 10px;margin:8px 0}
 .yes{color:#17803d;font-weight:600}.no{color:#c0392b;font-weight:600}
 .chart{max-width:100%;height:auto;font-size:11px}.chart .axis{stroke:#7b8794}.chart .tick{stroke:#7b8794}

@@ -284,32 +284,31 @@ def _read_episodes(path: Path, limits: ResultsLimits) -> tuple[tuple[EpisodeResu
 def _episode(doc: Any, where: str) -> EpisodeResult:
     if not isinstance(doc, dict):
         raise ResultsError(f"{where}: expected a JSON object, got {type(doc).__name__}")
+    # Checked in the order the fields are written, so the first error is the first bad field.
+    index = _check_int(_field(doc, "episode", int, where), "episode", where, minimum=0)
+    seed = _check_int(_field(doc, "seed", int, where), "seed", where)
+    success = _field(doc, "success", bool, where)
+    rewards = _field(doc, "rewards", list, where, default=[])
+    for i, value in enumerate(rewards):
+        _check_float(value, f"rewards[{i}]", where)
+    reward_sum = _check_float(doc.get("reward_sum", math.fsum(float(r) for r in rewards)), "reward_sum", where)
+    steps = _check_int(_field(doc, "steps", int, where), "steps", where, minimum=0)
+    time_to_success = _optional_float(doc.get("time_to_success_s"), "time_to_success_s", where)
+    steps_to_success = _optional_int(doc.get("steps_to_success"), "steps_to_success", where)
+    wall_s = _check_float(doc.get("wall_s", 0.0), "wall_s", where)
     ended = _field(doc, "ended", str, where)
     if not ended or len(ended) > _MAX_ENDED_LEN:
         raise ResultsError(f"{where}: field 'ended' must be a word such as {', '.join(ENDED_VALUES)}; got "
                            f"{ended[:_MAX_ENDED_LEN]!r}")
-    rewards = _field(doc, "rewards", list, where, default=[])
-    for i, value in enumerate(rewards):
-        _check_float(value, f"rewards[{i}]", where)
+    reason = _field(doc, "reason", str, where, default=None, optional=True)
     frames = _field(doc, "frames", list, where, default=[])
     for i, value in enumerate(frames):
         if not isinstance(value, str):
             raise ResultsError(f"{where}: field 'frames[{i}]' must be a string (a path relative to the output "
                                f"directory), got {type(value).__name__}")
-    return EpisodeResult(
-        episode=_check_int(_field(doc, "episode", int, where), "episode", where, minimum=0),
-        seed=_check_int(_field(doc, "seed", int, where), "seed", where),
-        success=_field(doc, "success", bool, where),
-        reward_sum=_check_float(doc.get("reward_sum", math.fsum(float(r) for r in rewards)), "reward_sum", where),
-        steps=_check_int(_field(doc, "steps", int, where), "steps", where, minimum=0),
-        time_to_success_s=_optional_float(doc.get("time_to_success_s"), "time_to_success_s", where),
-        steps_to_success=_optional_int(doc.get("steps_to_success"), "steps_to_success", where),
-        wall_s=_check_float(doc.get("wall_s", 0.0), "wall_s", where),
-        ended=ended,
-        reason=_field(doc, "reason", str, where, default=None, optional=True),
-        rewards=tuple(float(r) for r in rewards),
-        frames=tuple(frames),
-    )
+    return EpisodeResult(episode=index, seed=seed, success=success, reward_sum=reward_sum, steps=steps,
+                         time_to_success_s=time_to_success, steps_to_success=steps_to_success, wall_s=wall_s,
+                         ended=ended, reason=reason, rewards=tuple(float(r) for r in rewards), frames=tuple(frames))
 
 
 _MISSING = object()
