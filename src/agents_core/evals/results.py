@@ -14,7 +14,6 @@ files inside its own directory, so a report never embeds ``/etc/passwd`` or a sy
 
 from __future__ import annotations
 
-import math
 import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -291,7 +290,9 @@ def _episode(doc: Any, where: str) -> EpisodeResult:
     rewards = _field(doc, "rewards", list, where, default=[])
     for i, value in enumerate(rewards):
         _check_float(value, f"rewards[{i}]", where)
-    reward_sum = _check_float(doc.get("reward_sum", math.fsum(float(r) for r in rewards)), "reward_sum", where)
+    # Without a reward_sum, the rewards' plain sum (math.fsum raises on overflow and on inf + -inf).
+    reward_sum = _check_float(doc["reward_sum"], "reward_sum", where) if "reward_sum" in doc else \
+        sum(float(r) for r in rewards)
     steps = _check_int(_field(doc, "steps", int, where), "steps", where, minimum=0)
     time_to_success = _optional_float(doc.get("time_to_success_s"), "time_to_success_s", where)
     steps_to_success = _optional_int(doc.get("steps_to_success"), "steps_to_success", where)

@@ -180,10 +180,15 @@ def mean_interval(values: Iterable[float], confidence: float = 0.95) -> MeanInte
     if n == 0:
         return MeanInterval(None, None, None, 0, skipped)
     finite.sort()
-    median = finite[n // 2] if n % 2 else (finite[n // 2 - 1] + finite[n // 2]) / 2.0
-    mean = math.fsum(finite) / n
+    median = finite[n // 2] if n % 2 else finite[n // 2 - 1] / 2.0 + finite[n // 2] / 2.0
+    # Computed on the values divided by the largest magnitude, so that sums and squares of values near the
+    # float limit (an env's 1e308 reward) cannot overflow; an interval too wide for a float becomes infinite.
+    scale = max(abs(finite[0]), abs(finite[-1])) or 1.0
+    scaled = [v / scale for v in finite]
+    mean_scaled = math.fsum(scaled) / n
+    mean = mean_scaled * scale
     if n < 2:
         return MeanInterval(mean, None, None, n, skipped, median)
-    variance = math.fsum((v - mean) ** 2 for v in finite) / (n - 1)
-    half = student_t_quantile(confidence, n - 1) * math.sqrt(variance / n)
+    sd_scaled = math.sqrt(math.fsum((v - mean_scaled) ** 2 for v in scaled) / (n - 1))
+    half = student_t_quantile(confidence, n - 1) * (sd_scaled / math.sqrt(n)) * scale
     return MeanInterval(mean, mean - half, mean + half, n, skipped, median)

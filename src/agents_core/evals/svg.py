@@ -60,6 +60,9 @@ def nice_ticks(low: float, high: float, count: int = 5) -> list[float]:
         pad = abs(low) * 0.1 or 1.0
         low, high = low - pad, high + pad
     raw = (high - low) / max(1, count)
+    # Values near the float limits (an env's 1e308, or 5e-324 apart): no round steps, just the ends.
+    if not math.isfinite(raw) or raw < 1e-300:
+        return [low, 0.0, high] if low < 0.0 < high else [low, high]
     power = 10.0 ** math.floor(math.log10(raw))
     step = next(m * power for m in (1, 2, 5, 10) if m * power >= raw)
     first = math.floor(low / step) * step
@@ -85,13 +88,17 @@ class _Axes:
         self.left, self.right = left, width - _MARGIN_RIGHT
         self.top, self.bottom = _MARGIN_TOP, height - _MARGIN_BOTTOM
 
+    @staticmethod
+    def _fraction(value: float, start: float, end: float) -> float:
+        # Halved first, so that neither difference overflows for values near the float limit.
+        span = end / 2 - start / 2
+        return (value / 2 - start / 2) / span if span else 0.0
+
     def x(self, value: float) -> float:
-        span = self.x1 - self.x0 or 1.0
-        return self.left + (value - self.x0) / span * (self.right - self.left)
+        return self.left + self._fraction(value, self.x0, self.x1) * (self.right - self.left)
 
     def y(self, value: float) -> float:
-        span = self.y1 - self.y0 or 1.0
-        return self.bottom - (value - self.y0) / span * (self.bottom - self.top)
+        return self.bottom - self._fraction(value, self.y0, self.y1) * (self.bottom - self.top)
 
     def frame(self, x_label: str, y_label: str, *, y_grid: bool = True) -> list[str]:
         parts = [f'<line class="axis" x1="{self.left}" y1="{self.bottom}" x2="{self.right}" y2="{self.bottom}"/>']
