@@ -1,8 +1,12 @@
 """Debian's headless Chromium through Playwright, for the report's browser tests and the docs screenshot.
 
-``python -m tests.evals.browser docs/images/eval-report.png [RESULTS_DIR]`` writes the screenshot
-of docs/evaluate-report.md: of RESULTS_DIR's report when given (a real run), else of a
-hand-written Reacher evaluation (20 episodes, frames included).
+``python -m tests.evals.browser OUT.png [DIR | DIR_A DIR_B]`` writes a screenshot of the top of a
+report: of DIR's report, of the comparison of DIR_A and DIR_B, or with neither, of a hand-written
+Reacher evaluation. The images of docs/evaluate-report.md are of a real run::
+
+    python -m agents_core.demo eval --episodes 20 --out eval-demo     # the sim extra
+    python -m tests.evals.browser docs/images/eval-report.png eval-demo/expert
+    python -m tests.evals.browser docs/images/eval-compare.png eval-demo/expert eval-demo/random
 """
 
 from __future__ import annotations
@@ -52,13 +56,19 @@ def screenshot(report: Path, png: Path, *, width: int = 1320, max_height: int = 
 
 
 def main(argv: list[str]) -> None:
-    """Write the docs screenshot to ``argv[0]``, of the report of ``argv[1]`` if given."""
-    from agents_core.evals.report import write_report  # noqa: PLC0415
+    """Write a screenshot to ``argv[0]``: of the report of ``argv[1]``, or the comparison of ``argv[1:3]``."""
+    from agents_core.evals.report import write_comparison_report, write_report  # noqa: PLC0415
 
     from .results_dirs import make_run  # noqa: PLC0415
 
     target = Path(argv[0] if argv else "docs/images/eval-report.png").resolve()
     target.parent.mkdir(parents=True, exist_ok=True)
+    if len(argv) > 2:
+        with tempfile.TemporaryDirectory() as tmp:
+            page = write_comparison_report(Path(argv[1]), Path(argv[2]), Path(tmp) / "compare.html")
+            screenshot(page, target, max_height=1500)
+        print(f"{target}: {target.stat().st_size} bytes")
+        return
     if len(argv) > 1:
         screenshot(write_report(Path(argv[1])), target)
         print(f"{target}: {target.stat().st_size} bytes")

@@ -8,7 +8,6 @@ Playwright or ``/usr/bin/chromium`` (``nox -s tests`` installs both where it run
 
 from __future__ import annotations
 
-import shutil
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -161,9 +160,9 @@ def test_comparison_page_renders_the_verdict(browser: Any, tmp_path: Path) -> No
         watched.context.close()
 
 
-def test_docs_screenshot_is_small(tmp_path: Path) -> None:
-    # docs/images/eval-report.png is made by `python -m tests.evals.browser docs/images/eval-report.png`.
-    shot = Path(__file__).resolve().parents[2] / "docs" / "images" / "eval-report.png"
+@pytest.mark.parametrize("name", ["eval-report.png", "eval-compare.png"])
+def test_docs_screenshots_are_small_pngs(name: str) -> None:
+    # Made by `python -m tests.evals.browser docs/images/NAME DIR...` (see tests/evals/browser.py).
+    shot = Path(__file__).resolve().parents[2] / "docs" / "images" / name
     assert shot.is_file() and shot.stat().st_size < 300_000
     assert shot.read_bytes().startswith(b"\x89PNG\r\n\x1a\n")
-    shutil.copy(shot, tmp_path / "copy.png")

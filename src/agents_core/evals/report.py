@@ -23,6 +23,7 @@ import math
 import os
 from collections import Counter
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 from .compare import Comparison, compare_runs
@@ -64,8 +65,8 @@ table.info th{width:11em}td.num{text-align:right;font-variant-numeric:tabular-nu
 .chart .ci{stroke-width:4;stroke-linecap:round}.chart .ci.a,.chart .dot.a{stroke:#2b6cb0;fill:#2b6cb0}
 .chart .ci.b,.chart .dot.b{stroke:#b7791f;fill:#b7791f}.chart .ci.ok{stroke:#17803d}
 .film{display:flex;gap:6px;flex-wrap:wrap;margin:4px 0 12px}.film figure{margin:0;text-align:center;
- font-size:.8em;color:#66717d}.film img{display:block;width:160px;height:auto;border:1px solid #dde3ea;
- image-rendering:auto}.film .missing{width:160px;height:120px;display:flex;align-items:center;
+ font-size:.8em;color:#66717d}.film img{display:block;width:148px;height:auto;border:1px solid #dde3ea;
+ image-rendering:auto}.film .missing{width:148px;height:111px;display:flex;align-items:center;
  justify-content:center;background:#f5f7f9;border:1px dashed #b8c2cc}
 .side{display:grid;grid-template-columns:1fr 1fr;gap:24px}
 .two{display:grid;grid-template-columns:repeat(auto-fit,minmax(540px,1fr));gap:8px 32px}
@@ -196,14 +197,44 @@ def _figures_section(results: EvaluationResults) -> str:
     return _table(["", "mean", "95 % interval", "median", "n"], cells, "figures")
 
 
-def _curves_section(results: EvaluationResults, width: int = 640) -> str:
+def _cumulative(rewards: Sequence[float]) -> list[float]:
+    total, out = 0.0, []
+    for r in rewards:
+        total += r
+        out.append(total)
+    return out
+
+
+@dataclass(frozen=True)
+class _Scales:
+    """Values the charts of a run must cover, so that two runs side by side are drawn on the same scales."""
+
+    steps: tuple[float, ...] = ()
+    cumulative: tuple[float, ...] = ()
+    times: tuple[float, ...] = ()
+    reward_sums: tuple[float, ...] = ()
+
+    @staticmethod
+    def of(*runs: EvaluationResults) -> _Scales:
+        """The extremes of ``runs``' drawn values."""
+        def ends(values: list[float]) -> tuple[float, ...]:
+            finite = [v for v in values if math.isfinite(v)]
+            return (min(finite), max(finite)) if finite else ()
+
+        shown = [e for run in runs for e in run.episodes[:MAX_CURVES]]
+        return _Scales(steps=ends([float(len(e.rewards) - 1) for e in shown if e.rewards]),
+                       cumulative=ends([v for e in shown for v in _cumulative(e.rewards)]),
+                       times=ends([e.time_to_success_s for run in runs for e in run.episodes
+                                   if e.success and e.time_to_success_s is not None]),
+                       reward_sums=ends([e.reward_sum for run in runs for e in run.episodes]))
+
+
+def _curves_section(results: EvaluationResults, width: int = 640, scales: _Scales | None = None) -> str:
+    scales = scales or _Scales()
     shown = results.episodes[:MAX_CURVES]
     series = []
     for e in shown:
-        total, cumulative = 0.0, []
-        for r in e.rewards:
-            total += r
-            cumulative.append(total)
+        cumulative = _cumulative(e.rewards)
         series.append(Series(f"episode {e.episode} (seed {e.seed}): {'success' if e.success else e.ended}, "
                              f"reward sum {_num(e.reward_sum)}", cumulative, "ok" if e.success else "fail"))
     note = "" if len(results.episodes) <= MAX_CURVES else \
@@ -211,19 +242,20 @@ def _curves_section(results: EvaluationResults, width: int = 640) -> str:
     legend = ('<p class="muted">Cumulative reward over the steps of each episode: <span class="yes">green</span> '
               'succeeded, <span class="no">red</span> did not.</p>')
     return legend + line_chart(series, x_label="step", y_label="cumulative reward", label="reward curves",
-                               width=width) + note
+                               width=width, x_include=scales.steps, y_include=scales.cumulative) + note
 
 
-def _strips_section(results: EvaluationResults, width: int = 640) -> str:
+def _strips_section(results: EvaluationResults, width: int = 640, scales: _Scales | None = None) -> str:
+    scales = scales or _Scales()
     good = [e for e in results.episodes if e.success and e.time_to_success_s is not None]
     parts = []
     if good:
         parts.append('<p class="muted">Time from reset to the first success (simulated seconds), one dot per '
                      "successful episode; the bar is the median.</p>")
+        titles = [f"episode {e.episode}, seed {e.seed}: {_num(e.time_to_success_s)} s" for e in good]
         parts.append(strip_chart([Series("success", [e.time_to_success_s or 0.0 for e in good], "ok")],
                                  x_label="time to success (s)", label="time to success", width=width,
-                                 value_labels=[[f"episode {e.episode}, seed {e.seed}: {_num(e.time_to_success_s)} s"
-                                                for e in good]]))
+                                 x_include=scales.times, value_labels=[titles]))
     else:
         parts.append('<p class="muted">No episode succeeded, so there is no time to success to show.</p>')
     ok = [e for e in results.episodes if e.success]
@@ -233,9 +265,9 @@ def _strips_section(results: EvaluationResults, width: int = 640) -> str:
     rows = [(s, eps) for s, eps in rows if eps]
     if rows:
         parts.append('<p class="muted">Reward sum per episode, by outcome.</p>')
+        labels = [[f"episode {e.episode}, seed {e.seed}: {_num(e.reward_sum)}" for e in eps] for _, eps in rows]
         parts.append(strip_chart([s for s, _ in rows], x_label="reward sum", label="reward sums", width=width,
-                                 value_labels=[[f"episode {e.episode}, seed {e.seed}: {_num(e.reward_sum)}"
-                                                for e in eps] for _, eps in rows]))
+                                 x_include=scales.reward_sums, value_labels=labels))
     return "".join(parts)
 
 
@@ -374,11 +406,12 @@ def render_comparison(comparison: Comparison, a: EvaluationResults, b: Evaluatio
     chart = interval_chart([(f"A {sa.name}", sa.rate, sa.low, sa.high, "a"),
                             (f"B {sb.name}", sb.rate, sb.low, sb.high, "b")], label="success rates")
     columns = []
+    scales = _Scales.of(a, b)  # both runs' charts on the same scales, to be compared by eye
     for letter, results in (("A", a), ("B", b)):
         columns.append(f'<div class="run" id="run-{letter.lower()}"><h2>{letter}: {_e(results.info.name)}</h2>'
                        f"{_info_section(results)}{_headline(results)}{_figures_section(results)}"
-                       f"<h3>Reward curves</h3>{_curves_section(results, width=620)}"
-                       f"<h3>Time to success and reward sums</h3>{_strips_section(results, width=620)}</div>")
+                       f"<h3>Reward curves</h3>{_curves_section(results, 620, scales)}"
+                       f"<h3>Time to success and reward sums</h3>{_strips_section(results, 620, scales)}</div>")
     seeds_note = "" if comparison.same_seeds else \
         '<p class="note">The two runs did not use the same seeds: part of the difference may be the draw.</p>'
     body = (f"<h1>Comparison: A {_e(sa.name)} vs B {_e(sb.name)}</h1>{_verdict_html(comparison)}{seeds_note}"

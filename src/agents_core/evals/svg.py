@@ -141,14 +141,24 @@ def _thin(values: Sequence[float]) -> list[tuple[int, float]]:
     return [(i, values[i]) for i in picks if math.isfinite(values[i])]
 
 
+def _finite(values: Sequence[float]) -> list[float]:
+    return [v for v in values if math.isfinite(v)]
+
+
 def line_chart(series: Sequence[Series], *, x_label: str, y_label: str, label: str,
-               width: int = 640, height: int = 280) -> str:
-    """One line per series, x = the value's index (a step), y = the value; a note when there is nothing to draw."""
+               width: int = 640, height: int = 280, x_include: Sequence[float] = (),
+               y_include: Sequence[float] = ()) -> str:
+    """One line per series, x = the value's index (a step), y = the value; a note when there is nothing to draw.
+
+    The axes cover ``x_include`` / ``y_include`` too (so that two charts side by side share their scales).
+    """
     thinned = [(s, _thin(s.values)) for s in series]
     ys = [v for _, points in thinned for _, v in points]
-    xs = [i for _, points in thinned for i, _ in points]
+    xs: list[float] = [i for _, points in thinned for i, _ in points]
     if not ys:
         return _svg(width, 60, label, ['<text class="empty" x="8" y="32">no values to plot</text>'])
+    xs += _finite(x_include)
+    ys += _finite(y_include)
     axes = _Axes(width, height, nice_ticks(0, max(xs) or 1), nice_ticks(min(ys), max(ys)))
     parts = axes.frame(x_label, y_label)
     for s, points in thinned:
@@ -166,15 +176,19 @@ def line_chart(series: Sequence[Series], *, x_label: str, y_label: str, label: s
 
 
 def strip_chart(rows: Sequence[Series], *, x_label: str, label: str, width: int = 640,
-                value_labels: Sequence[Sequence[str]] | None = None) -> str:
-    """One row per series with a dot per value along x and a bar at the median; ``value_labels`` title the dots."""
+                value_labels: Sequence[Sequence[str]] | None = None, x_include: Sequence[float] = ()) -> str:
+    """One row per series with a dot per value along x and a bar at the median; ``value_labels`` title the dots.
+
+    The x axis covers ``x_include`` too.
+    """
     row_height = 34
     height = _MARGIN_TOP + _MARGIN_BOTTOM + row_height * max(1, len(rows))
     values = [v for row in rows for v in row.values if math.isfinite(v)]
     if not values:
         return _svg(width, 60, label, ['<text class="empty" x="8" y="32">no values to plot</text>'])
     names, left = _row_labels([row.label for row in rows])
-    axes = _Axes(width, height, nice_ticks(min(0.0, *values), max(values)), [0.0, 1.0], left)
+    span = values + _finite(x_include)
+    axes = _Axes(width, height, nice_ticks(min(0.0, *span), max(span)), [0.0, 1.0], left)
     parts = axes.frame(x_label, "", y_grid=False)
     for r, row in enumerate(rows):
         centre = _MARGIN_TOP + row_height * r + row_height / 2
