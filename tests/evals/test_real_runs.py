@@ -37,11 +37,11 @@ EPISODES = 5
 @pytest.fixture(scope="module")
 def runs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
     os.environ.setdefault("MUJOCO_GL", "egl")
-    from agents_core.evals.runner import run_evaluation  # noqa: PLC0415
+    from agents_core.evals.runner import run_evaluation  # type: ignore[import-not-found,unused-ignore]  # noqa: PLC0415
 
     sys.path.insert(0, str(EXAMPLES))
     try:
-        from evaluate_reacher import evaluation  # noqa: PLC0415
+        from evaluate_reacher import evaluation  # type: ignore[import-not-found,unused-ignore]  # noqa: PLC0415
     finally:
         sys.path.remove(str(EXAMPLES))
     root = tmp_path_factory.mktemp("reacher")
