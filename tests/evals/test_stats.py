@@ -18,8 +18,8 @@ def _fisher(k_a: int, n_a: int, k_b: int, n_b: int) -> float:
 
 def test_fisher_matches_scipy_on_every_small_table() -> None:
     worst = 0.0
-    for n_a in range(1, 13):
-        for n_b in range(1, 13):
+    for n_a in range(1, 9):
+        for n_b in range(1, 9):
             for k_a in range(n_a + 1):
                 for k_b in range(n_b + 1):
                     ours, theirs = compare_success(k_a, n_a, k_b, n_b), _fisher(k_a, n_a, k_b, n_b)
@@ -29,7 +29,7 @@ def test_fisher_matches_scipy_on_every_small_table() -> None:
 
 def test_fisher_matches_scipy_on_random_tables_of_evaluation_sizes() -> None:
     rng = random.Random(39)
-    for _ in range(1500):
+    for _ in range(800):
         n_a, n_b = rng.randint(1, 300), rng.randint(1, 300)
         # Rates that differ a lot, a little, and sit near 0 and 1.
         p_a = rng.choice([0.0, 0.02, 0.1, 0.5, 0.8, 0.97, 1.0, rng.random()])
