@@ -17,6 +17,7 @@ from ..install_hint import install_hint
 from ..transport.registry import TRANSPORT_ENV_VAR, available_transports
 from . import components, recipe, recording, topics
 from .connection import attachable_transports, fail, one_line_errors
+from .evals import eval_app
 from .foxglove import foxglove
 from .output import print_json, say
 
@@ -31,6 +32,7 @@ app = typer.Typer(name="agentsctl", no_args_is_help=True, add_completion=False, 
 app.add_typer(topics.app, name="topics")
 app.add_typer(components.app, name="components")
 app.add_typer(recipe.app, name="recipe")
+app.add_typer(eval_app, name="eval")
 app.command("call")(components.call)
 app.command("record")(recording.record)
 app.command("play")(recording.play)
