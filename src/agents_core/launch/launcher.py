@@ -164,6 +164,11 @@ class Launcher:
             if any(c.component_name == other.component_name for other in self.components):
                 raise WiringError(f"two components are named {c.component_name!r}; names must be unique")
             self.components.append(c)
+        names = [c.component_name for c in self.components]
+        for c in self.components:  # a Cortex offers the actions of its own recipe's components by default
+            note = getattr(c, "set_recipe_components", None)
+            if callable(note):
+                note(names)
         if self._multiprocessing:
             check_transferable(self.components)
             self._prepare_fork_server()
