@@ -27,9 +27,9 @@ CAMERA = Topic("camera", "Image")
 def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--transport", default="memory")
-    parser.add_argument("--max-clients", type=int, default=16)
-    parser.add_argument("--handshake-timeout", type=float, default=5.0)
-    parser.add_argument("--allow-origin", action="append", default=[])
+    parser.add_argument("--max-clients", type=int)
+    parser.add_argument("--handshake-timeout", type=float)
+    parser.add_argument("--allow-origin", action="append")
     args = parser.parse_args()
     with contextlib.ExitStack() as stack:
         transport: Any
@@ -46,8 +46,9 @@ def main() -> None:
                 "zenoh", mode="peer", listen=[endpoint], connect=[], multicast_scouting=False))
             camera_side = stack.enter_context(resolve_transport(
                 "zenoh", mode="peer", listen=[], connect=[endpoint], multicast_scouting=False))
-        settings = FoxgloveSettings(port=0, max_clients=args.max_clients, handshake_timeout=args.handshake_timeout,
-                                    allowed_origins=args.allow_origin)
+        given = {"max_clients": args.max_clients, "handshake_timeout": args.handshake_timeout,
+                 "allowed_origins": args.allow_origin}
+        settings = FoxgloveSettings(port=0, **{k: v for k, v in given.items() if v is not None})
         bridge = stack.enter_context(FoxgloveBridge(transport, [CAMERA], settings))
         publisher = camera_side.create_publisher(CAMERA)
         frame = np.random.default_rng(1).integers(0, 255, (480, 640, 3), dtype=np.uint8)

@@ -61,8 +61,9 @@ def main(path: str) -> None:
         send(AFTER)
         time.sleep(0.3)
         stats = recorder.stop()
-    print(json.dumps({"sent": sent, "received": stats.received, "written": stats.written, "lost": stats.lost,
-                      "errors": stats.errors, "dropped": stats.dropped, "write_failures": stats.write_failures,
+    print(json.dumps({"sent": sent, "received": stats.received, "written": stats.written,
+                      "lost": getattr(stats, "lost", None), "errors": stats.errors, "dropped": stats.dropped,
+                      "write_failures": getattr(stats, "write_failures", None),
                       "files": [str(f) for f in stats.files], "warnings": counter.count,
                       "warning_lines": counter.lines}))
 

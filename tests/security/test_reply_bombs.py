@@ -8,6 +8,7 @@ The servers are real: a ``ThreadingHTTPServer`` and a ``websockets`` server on 1
 
 from __future__ import annotations
 
+import contextlib
 import resource
 import threading
 import time
@@ -55,11 +56,12 @@ class _BombServer:
         class Handler(BaseHTTPRequestHandler):
             protocol_version = "HTTP/1.1"
 
-            def do_POST(self) -> None:  # noqa: N802 - http.server's naming
+            def do_POST(self) -> None:
                 self.rfile.read(int(self.headers.get("Content-Length", "0")))
                 owner.requests.append(self.path)
                 if self.path.endswith("/chat/completions"):
-                    body, kind = (bombs["sse"], "text/event-stream") if owner.stream else (bombs["json"], "application/json")
+                    body, kind = ((bombs["sse"], "text/event-stream") if owner.stream
+                                  else (bombs["json"], "application/json"))
                 elif self.path == "/api/chat":
                     body, kind = (bombs["ndjson"], "application/x-ndjson") if owner.stream else (bombs["json"],
                                                                                                "application/json")
@@ -73,10 +75,8 @@ class _BombServer:
                 self.send_header("Content-Encoding", encoding)
                 self.send_header("Content-Length", str(len(body)))
                 self.end_headers()
-                try:
+                with contextlib.suppress(OSError):  # the client stopped reading: what we want
                     self.wfile.write(body)
-                except OSError:
-                    pass  # the client stopped reading: what we want
 
             def log_message(self, format: str, *args: object) -> None:
                 pass
@@ -174,7 +174,7 @@ def test_a_reply_within_the_limit_still_reads(server: _BombServer) -> None:
     client = GenericHTTPClient(GenericLLM(name="llm", checkpoint="m"), port=server.port,
                                max_reply_bytes=INFLATED + 1024)
     try:
-        with pytest.raises(ModelClientError, match="choices|not JSON|message"):
+        with pytest.raises(ModelClientError, match=r"choices|not JSON|message"):
             client.inference(_chat(False))  # 200 MiB of spaces is not an answer, but it was read
     finally:
         client.close()

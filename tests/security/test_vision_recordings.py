@@ -120,14 +120,14 @@ def test_recordings_past_the_bound_are_refused_with_a_clear_error(peer: tuple[Vi
 
 @pytest.mark.parametrize("where", ["/etc", "../outside", "~", "/tmp", "sub/../../x", "\x00"])
 def test_a_save_path_outside_the_configured_folder_is_refused(peer: tuple[Vision, Any, Path], where: str) -> None:
-    vision, transport, folder = peer
+    vision, transport, _ = peer
     with pytest.raises(AgentsError, match="save_path"):
         _record(transport, duration=0.2, save_path=where)
     assert vision._recordings_running == 0
 
 
 def test_a_symlink_out_of_the_folder_is_refused_and_a_subfolder_is_fine(peer: tuple[Vision, Any, Path]) -> None:
-    vision, transport, folder = peer
+    _, transport, folder = peer
     folder.mkdir(parents=True, exist_ok=True)
     outside = folder.parent / "elsewhere"
     outside.mkdir()

@@ -13,14 +13,15 @@ requests say ``Accept-Encoding: gzip, deflate`` so a conforming server never sen
 from __future__ import annotations
 
 import zlib
+from collections.abc import Iterator
 from typing import Any
 
 import httpx
 
 from ..errors import ConfigError, ProtocolError
 
-__all__ = ["ACCEPT_ENCODING", "DEFAULT_MAX_REPLY_BYTES", "ReplyTooLargeError", "bound_reply",
-           "check_max_reply_bytes", "ReplyBudget"]
+__all__ = ["ACCEPT_ENCODING", "DEFAULT_MAX_REPLY_BYTES", "ReplyBudget", "ReplyTooLargeError", "bound_reply",
+           "check_max_reply_bytes"]
 
 #: The default ``max_reply_bytes`` of a model client: 64 MiB of decoded reply (a long answer is ~100 KB).
 DEFAULT_MAX_REPLY_BYTES = 64 * 1024 * 1024
@@ -104,7 +105,7 @@ class _Inflater:
 
 
 class _BoundedDecoder:
-    """httpx's ``ContentDecoder`` interface: inflate each layer within the budget, count the result."""
+    """Inflate each layer within the budget, count the result."""
 
     def __init__(self, encodings: list[str], budget: ReplyBudget) -> None:
         # Content-Encoding lists the layers in the order they were applied: undo them last first.
@@ -125,6 +126,26 @@ class _BoundedDecoder:
         return data
 
 
+class _BoundedStream(httpx.SyncByteStream):
+    """A response body stream giving the decoded bytes of ``stream`` through ``decoder``."""
+
+    def __init__(self, stream: Any, decoder: _BoundedDecoder) -> None:
+        self._stream = stream
+        self._decoder = decoder
+
+    def __iter__(self) -> Iterator[bytes]:
+        for raw in self._stream:
+            out = self._decoder.decode(raw)
+            if out:
+                yield out
+        tail = self._decoder.flush()
+        if tail:
+            yield tail
+
+    def close(self) -> None:
+        self._stream.close()
+
+
 def bound_reply(response: httpx.Response, budget: ReplyBudget) -> None:
     """Give ``response`` (body not read yet) a decoder that stops at ``budget``'s limit.
 
@@ -140,5 +161,8 @@ def bound_reply(response: httpx.Response, budget: ReplyBudget) -> None:
     length = response.headers.get("content-length", "")
     if not encodings and length.isdigit() and int(length) > budget.left():
         raise budget.error()
-    # httpx looks for this attribute before building its own decoder (httpx 0.2x).
-    response._decoder = _BoundedDecoder(encodings, budget)  # type: ignore[attr-defined]
+    # The body is inflated here, so httpx must not inflate it again: it sees an identity body.
+    for name in ("content-encoding", "content-length"):
+        if name in response.headers:
+            del response.headers[name]
+    response.stream = _BoundedStream(response.stream, _BoundedDecoder(encodings, budget))

@@ -393,9 +393,9 @@ def _note_subscriptions(payload: bytes, subscriptions: dict[int, int]) -> None:
         return
     if doc.get("op") == "subscribe" and isinstance(doc.get("subscriptions"), list):
         for item in doc["subscriptions"][:10_000]:
-            if isinstance(item, dict) and isinstance(item.get("id"), int) and isinstance(item.get("channelId"), int):
-                if len(subscriptions) < 100_000:
-                    subscriptions[item["id"]] = item["channelId"]
+            if isinstance(item, dict) and isinstance(item.get("id"), int) and isinstance(item.get("channelId"), int) \
+                    and len(subscriptions) < 100_000:
+                subscriptions[item["id"]] = item["channelId"]
     elif doc.get("op") == "unsubscribe" and isinstance(doc.get("subscriptionIds"), list):
         for sub in doc["subscriptionIds"][:10_000]:
             if isinstance(sub, int):

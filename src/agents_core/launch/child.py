@@ -12,8 +12,8 @@ launcher, whatever killed it) and, as a fallback, its parent pid changing; ``PR_
 makes Linux send SIGCONT when the launcher dies, so a stopped process runs again and notices
 (:mod:`.descendants`: a SIGTERM would wait, pending, for a continue that never comes). The
 processes the component starts end with it: the process is their subreaper, and every way out
-ends them first (:func:`~.descendants.end_descendants`). The first and the last are watched by threads of their own, which arm the exit
-deadline themselves, so user code stuck on the main thread (a deactivate that never returns)
+ends them first (:func:`~.descendants.end_descendants`). Both watches run on threads of their
+own, which arm the exit deadline themselves, so user code stuck on the main thread (a deactivate that never returns)
 cannot keep the process alive. Everything up to the activation (importing the recipe, building
 the component, opening the transport, configure, activate) runs on a startup thread, so the main
 thread stays free for the signal handlers and the commands. When the launcher dies, or a

@@ -166,9 +166,7 @@ class Launcher:
             self.components.append(c)
         names = [c.component_name for c in self.components]
         for c in self.components:  # a Cortex offers the actions of its own recipe's components by default
-            note = getattr(c, "set_recipe_components", None)
-            if callable(note):
-                note(names)
+            getattr(c, "set_recipe_components", lambda _names: None)(names)
         if self._multiprocessing:
             check_transferable(self.components)
             self._prepare_fork_server()

@@ -23,6 +23,7 @@ goes on.
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import logging
 import os
@@ -210,10 +211,8 @@ class McapSeriesWriter:
         self._pending = self._pending_bytes = 0
         stream, self._stream, self._writer = self._stream, None, None
         if isinstance(stream, _CheckedFile):
-            try:
+            with contextlib.suppress(OSError):  # else the file keeps a torn end; a reader stops there
                 stream.cut(self._good)
-            except OSError:
-                pass  # the file keeps a torn end; a reader stops there
             stream.close()
         now = time.monotonic()
         self._last_attempt = now
