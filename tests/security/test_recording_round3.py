@@ -6,6 +6,7 @@ player that skips a channel conflicting with the live recipe and refuses impossi
 from __future__ import annotations
 
 import json
+import os
 import struct
 import subprocess
 import sys
@@ -169,14 +170,21 @@ def _recording(path: Path, items: list[tuple[str, str, Any, int]]) -> Path:
     return path
 
 
-@pytest.fixture(params=["memory", "zenoh"])
+@pytest.fixture(params=["memory", "zenoh", "ros2"])
 def transport(request: pytest.FixtureRequest) -> Any:
     if request.param == "memory":
         with MemoryTransport() as t:
             yield t
         return
-    pytest.importorskip("zenoh")
+    from agents_core.testing.pairs import skip_unless_installed  # noqa: PLC0415
     from agents_core.transport.registry import resolve_transport  # noqa: PLC0415
+
+    skip_unless_installed(request.param)
+    if request.param == "ros2":
+        os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+        with resolve_transport("ros2") as t:
+            yield t
+        return
 
     with resolve_transport("zenoh", mode="peer", listen=[f"tcp/127.0.0.1:{free_tcp_port()}"], connect=[],
                            multicast_scouting=False) as t:
