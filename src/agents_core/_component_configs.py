@@ -185,6 +185,10 @@ class VisionConfig(ModelComponentConfig):
         None: from a labels file beside the model, the model's metadata, or COCO.
     :param dataset_labels_file: a labels file for the local model (see
         :func:`~agents_core.engines.local_vision.read_labels_file`).
+    :param recordings_dir: the folder ``record_video`` and ``take_picture`` save into; a ``save_path``
+        they are given must lie inside it (a relative one is taken inside it), else refused.
+    :param max_recordings: ``record_video`` recordings running at once; one more is refused.
+    :param max_recording_bytes: the pixel bytes one recording may keep before it stops early.
     :param enable_local_classifier: upstream's name of ``enable_local_model`` for Vision: True turns
         it on (and reads back whether the local detector is enabled).
     """
@@ -204,6 +208,9 @@ class VisionConfig(ModelComponentConfig):
                                                               metadata=AT_CONFIGURE)
     dataset_labels_file: str | None = field(default=None, validator=_optional_str, metadata=AT_CONFIGURE)
     enable_local_classifier: bool = field(default=False, metadata=AT_CONFIGURE)
+    recordings_dir: str = field(default="~/emos/videos", validator=_non_empty)
+    max_recordings: int = field(default=2, validator=base_validators.in_range(1, 64))
+    max_recording_bytes: int = field(default=256 * 1024 * 1024, validator=base_validators.in_range(1, 1 << 40))
 
     def __attrs_post_init__(self) -> None:
         # One setting under two names: either turns the local detector on, both read the same afterwards.

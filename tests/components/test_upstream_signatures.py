@@ -86,7 +86,8 @@ def test_take_picture_takes_upstreams_topic_name_and_save_path(tmp_path: Path) -
 
     objects = Topic("objects", "Detections")
     vision = Vision(inputs=[CAMERA, OTHER_CAMERA], outputs=[objects],
-                    config=VisionConfig(enable_local_classifier=True, local_model_path=needs_ssd()))
+                    config=VisionConfig(enable_local_classifier=True, local_model_path=needs_ssd(),
+                                        recordings_dir=str(tmp_path)))
     with running(vision) as launcher:
         launcher.transport.create_publisher(OTHER_CAMERA).publish(
             ImageMsg(data=photo("coffee.png"), encoding="rgb8"))

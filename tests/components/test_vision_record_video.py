@@ -26,9 +26,10 @@ CAMERA, OTHER_CAMERA = Topic("camera", "Image"), Topic("other_camera", "Image")
 PHOTOS = ("astronaut.png", "chelsea.png", "coffee.png", "motorcycle_left.png")
 
 
-def _vision() -> Vision:
+def _vision(folder: Path) -> Vision:
     return Vision(inputs=[CAMERA, OTHER_CAMERA], outputs=[Topic("objects", "Detections")],
-                  config=VisionConfig(enable_local_model=True, local_model_path=needs_ssd()))
+                  config=VisionConfig(enable_local_model=True, local_model_path=needs_ssd(),
+                                      recordings_dir=str(folder)))
 
 
 def _stream(publish: object, frames: list[np.ndarray], period: float, stop: threading.Event) -> None:
@@ -48,7 +49,7 @@ def _same_size(name: str, shape: tuple[int, int]) -> np.ndarray:
 def test_record_video_writes_the_camera_frames_as_an_animated_gif(tmp_path: Path) -> None:
     from PIL import Image as PILImage  # noqa: PLC0415
 
-    vision = _vision()
+    vision = _vision(tmp_path)
     first = photo(PHOTOS[0])
     frames = [first] + [_same_size(n, first.shape[:2]) for n in PHOTOS[1:]]
     stop = threading.Event()
@@ -89,7 +90,7 @@ def test_record_video_writes_the_camera_frames_as_an_animated_gif(tmp_path: Path
 def test_record_video_returns_at_once_and_the_file_appears_complete(tmp_path: Path) -> None:
     from PIL import Image as PILImage  # noqa: PLC0415
 
-    vision = _vision()
+    vision = _vision(tmp_path)
     stop = threading.Event()
     with running(vision) as launcher:
         publish = launcher.transport.create_publisher(CAMERA).publish
@@ -114,7 +115,7 @@ def test_record_video_returns_at_once_and_the_file_appears_complete(tmp_path: Pa
 
 
 def test_record_video_refuses_bad_arguments_and_reports_no_frames(tmp_path: Path) -> None:
-    vision = _vision()
+    vision = _vision(tmp_path)
     with running(vision):
         with pytest.raises(WiringError, match="not one of its cameras"):
             vision.record_video("nowhere", save_path=str(tmp_path))

@@ -115,6 +115,7 @@ def play(recording: Annotated[Path, typer.Argument(help="the MCAP file to play")
         time.sleep(0.2)  # let a networked middleware flush before the session closes
     doc = {"published": stats.published, "per_topic": stats.per_topic, "truncated": stats.read.truncated,
            "decode_errors": stats.read.decode_errors, "skipped_channels": stats.read.skipped_channels,
+           "skipped_channel_count": stats.read.skipped_channel_count,
            "p99_lateness_s": stats.p99_lateness_s}
     if json_out:
         print_json(doc)

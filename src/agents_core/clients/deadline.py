@@ -37,6 +37,7 @@ from typing import Any
 import httpx
 
 from ..errors import ConfigError, InferenceTimeoutError
+from .reply_limit import ACCEPT_ENCODING, DEFAULT_MAX_REPLY_BYTES, ReplyBudget, bound_reply
 
 __all__ = ["BoundedHTTP", "CallWatch", "check_seconds", "shutdown_socket"]
 
@@ -310,17 +311,22 @@ class BoundedHTTP:
     :param base_url: prefix of every request URL.
     :param headers: sent with every request (an ``Authorization`` header, ...).
     :param connect_timeout: the most a TCP connect may take (a smaller remaining deadline wins).
+    :param max_reply_bytes: the most bytes one reply's body may hold after decompression, a
+        streamed one included (:mod:`.reply_limit`); past it the read stops with
+        :class:`~agents_core.clients.reply_limit.ReplyTooLargeError`.
     """
 
     def __init__(self, base_url: str, *, headers: Mapping[str, str] | None = None,
-                 connect_timeout: float = DEFAULT_CONNECT_TIMEOUT) -> None:
+                 connect_timeout: float = DEFAULT_CONNECT_TIMEOUT,
+                 max_reply_bytes: int = DEFAULT_MAX_REPLY_BYTES) -> None:
         # The transport is ours so that close() can close its pool again once the requests that
         # were in flight at close() have ended: httpx returns their connections to the pool after
         # the client closed it, and nothing would close them (a leaked socket, a ResourceWarning).
         self._transport = httpx.HTTPTransport()
-        self.client = httpx.Client(base_url=base_url, headers=dict(headers or {}), timeout=connect_timeout,
-                                   transport=self._transport)
+        self.client = httpx.Client(base_url=base_url, headers={"Accept-Encoding": ACCEPT_ENCODING, **(headers or {})},
+                                   timeout=connect_timeout, transport=self._transport)
         self.connect_timeout = connect_timeout
+        self.max_reply_bytes = max_reply_bytes
         self._lock = threading.Lock()
         self._sockets: weakref.WeakValueDictionary[int, socket.socket] = weakref.WeakValueDictionary()
         self._claimed: dict[int, int] = {}
@@ -371,6 +377,13 @@ class BoundedHTTP:
         exchange.learn(response.extensions.get("network_stream"))
         # Released with the response: the connection goes back to the pool.
         original_close = response.close
+        try:
+            bound_reply(response, ReplyBudget(self.max_reply_bytes, watch.label))
+        except BaseException:
+            original_close()
+            exchange.release()
+            self._end()
+            raise
 
         ended = False
 

@@ -26,6 +26,7 @@ from httpx_sse import EventSource, SSEError
 from ..errors import ConfigError, HTTPStatusError, ProtocolError
 from .client_base import BaseClient
 from .deadline import BoundedHTTP, CallWatch
+from .reply_limit import DEFAULT_MAX_REPLY_BYTES
 
 __all__ = [
     "HTTPClientBase",
@@ -219,11 +220,15 @@ class HTTPClientBase(BaseClient):
         """``what`` prefixed by the client's label, as errors name an operation."""
         return f"{self._label()}: {what}"
 
+    def _reply_limit(self) -> int:
+        """The most bytes a reply may hold after decompression (a model client's ``max_reply_bytes``)."""
+        return int(getattr(self, "max_reply_bytes", DEFAULT_MAX_REPLY_BYTES))
+
     def _pool(self) -> BoundedHTTP:
         """The connection pool, opened on first use (and again after :meth:`close`)."""
         with _POOL_LOCK:
             if self._http is None or self._http.is_closed:
-                self._http = BoundedHTTP(self.base_url, headers=self._headers())
+                self._http = BoundedHTTP(self.base_url, headers=self._headers(), max_reply_bytes=self._reply_limit())
             return self._http
 
     def _request(self, method: str, path: str, what: str, *, seconds: float | None = None,
@@ -239,7 +244,8 @@ class HTTPClientBase(BaseClient):
         :param kwargs: what ``httpx.Client.build_request`` takes (``json``, ``params``, ``files``...).
         """
         budget = float(getattr(self, self.timeout_setting) if seconds is None else seconds)
-        http = BoundedHTTP(self.base_url, headers=self._headers()) if fresh else self._pool()
+        http = (BoundedHTTP(self.base_url, headers=self._headers(), max_reply_bytes=self._reply_limit()) if fresh
+                else self._pool())
         try:
             response = http.request(method, path, seconds=budget, label=self._context(what),
                                     what=setting or self.timeout_setting, **kwargs)

@@ -30,6 +30,7 @@ from ..models import Model, model_types
 from .client_base import BaseClient
 from .deadline import CallWatch, check_seconds
 from .payloads import ChunkStream
+from .reply_limit import DEFAULT_MAX_REPLY_BYTES, check_max_reply_bytes
 
 __all__ = ["ModelClient"]
 
@@ -52,6 +53,10 @@ class ModelClient(BaseClient):
         :class:`~agents_core.errors.InferenceTimeoutError`. Raise it for long streamed answers.
     :param stream_first_chunk_timeout: seconds from the start of a streamed inference to its first
         chunk (a model loading, a long prompt); None (default): only ``inference_timeout`` bounds it.
+    :param max_reply_bytes: the most bytes one reply may hold, counted after decompression (a
+        streamed answer's chunks together); past it the call fails with
+        :class:`~agents_core.clients.reply_limit.ReplyTooLargeError` naming the server and the limit.
+        64 MiB by default.
     :param stream_chunk_timeout: seconds a stream may go without a chunk after the first one
         (default 10; None: only ``inference_timeout``). Keep-alive comments do not count as chunks.
     :param init_on_activation: call ``_initialize()`` during configure.
@@ -75,6 +80,7 @@ class ModelClient(BaseClient):
         logging_level: str = "info",
         stream_first_chunk_timeout: int | float | None = None,
         stream_chunk_timeout: int | float | None = DEFAULT_STREAM_CHUNK_TIMEOUT,
+        max_reply_bytes: int = DEFAULT_MAX_REPLY_BYTES,
         **kwargs: Any,
     ) -> None:
         if kwargs:
@@ -105,6 +111,7 @@ class ModelClient(BaseClient):
                                                         stream_first_chunk_timeout, optional=True)
         self.stream_chunk_timeout = check_seconds(owner, "stream_chunk_timeout", stream_chunk_timeout,
                                                   optional=True)
+        self.max_reply_bytes = check_max_reply_bytes(owner, max_reply_bytes)
         self.initialized = False
         self.last_inference_seconds: float | None = None
 
@@ -246,4 +253,5 @@ class ModelClient(BaseClient):
         spec["inference_timeout"] = self.inference_timeout
         spec["stream_first_chunk_timeout"] = self.stream_first_chunk_timeout
         spec["stream_chunk_timeout"] = self.stream_chunk_timeout
+        spec["max_reply_bytes"] = self.max_reply_bytes
         return spec

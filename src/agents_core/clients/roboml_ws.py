@@ -29,6 +29,7 @@ from ..errors import (
 )
 from .deadline import CallWatch, shutdown_socket
 from .payloads import ChunkStream
+from .reply_limit import ReplyBudget, ReplyTooLargeError
 from .roboml_http import RoboMLHTTPClient
 from .roboml_protocol import (
     RESPONSE_ENDED,
@@ -90,6 +91,10 @@ class RoboMLWSClient(RoboMLHTTPClient):
         if isinstance(exc, ModelClientError):
             return exc
         if isinstance(exc, ConnectionClosed):
+            if exc.sent is not None and exc.sent.code == 1009:  # we closed it: a frame over max_size
+                limit = min(self.max_frame_size, self.max_reply_bytes)
+                return ReplyTooLargeError(f"{label}: a frame from {self.ws_url} is larger than {limit} bytes "
+                                          f"(max_reply_bytes={self.max_reply_bytes}); refused")
             close = exc.rcvd
             if close is not None and close.code not in _NORMAL_CLOSE:
                 # RoboML closes with 1007 and the error as reason when the input is invalid or
@@ -121,7 +126,7 @@ class RoboMLWSClient(RoboMLHTTPClient):
             try:
                 budget = float(self.inference_timeout) if watch is None else max(watch.wait_seconds(), 0.001)
                 connecting = connect(self.ws_url, open_timeout=min(budget, 10.0),
-                                     close_timeout=1.0, max_size=self.max_frame_size,
+                                     close_timeout=1.0, max_size=min(self.max_frame_size, self.max_reply_bytes),
                                      compression=None)  # images and audio do not compress; save the CPU
                 # Entering the context is how every websockets version (12 to 17 and the coming
                 # non-legacy connect()) hands over an open connection; _discard_ws closes it.
@@ -148,6 +153,9 @@ class RoboMLWSClient(RoboMLHTTPClient):
             return ws.recv(timeout=max(timeout, 0.0))
         except (ConnectionClosed, TimeoutError, OSError, WebSocketException) as exc:
             raise self._ws_error(exc, "inference") from exc
+
+    def _ws_budget(self) -> ReplyBudget:
+        return ReplyBudget(self.max_reply_bytes, f"{self._label()}: inference ({self.ws_url})")
 
     # -- inference --------------------------------------------------------------------------
 
@@ -191,7 +199,9 @@ class RoboMLWSClient(RoboMLHTTPClient):
 
     def _read_reply(self, ws: ClientConnection, watch: CallWatch) -> Any:
         deadline = time.monotonic() + watch.wait_seconds()
+        budget = self._ws_budget()
         parts = [self._recv(ws, deadline - time.monotonic())]
+        budget.add(len(parts[0]))
         # A frame of exactly WS_CHUNK_SIZE may be the first piece of a split reply.
         while len(parts[-1]) == WS_CHUNK_SIZE:
             try:
@@ -203,6 +213,7 @@ class RoboMLWSClient(RoboMLHTTPClient):
                 break
             if type(part) is not type(parts[0]):
                 raise ProtocolError(f"{self._label()}: inference: a split reply mixed text and binary frames")
+            budget.add(len(part))
             parts.append(part)
         if isinstance(parts[0], str):
             return "".join(p for p in parts if isinstance(p, str))
@@ -212,6 +223,7 @@ class RoboMLWSClient(RoboMLHTTPClient):
 
     def _stream_ws(self, ws: ClientConnection, watch: CallWatch) -> ChunkStream[str]:
         ended = threading.Event()
+        budget = self._ws_budget()
 
         def chunks() -> Iterator[str]:
             while True:
@@ -222,6 +234,7 @@ class RoboMLWSClient(RoboMLHTTPClient):
                 if message == RESPONSE_ENDED:
                     ended.set()
                     return
+                budget.add(len(message))  # the whole stream's characters, not one frame's
                 yield message
 
         def release() -> None:

@@ -5,9 +5,13 @@ contract (memory, Zenoh, ROS 2 alike) and logs what arrives to a ``foxglove-sdk`
 (:mod:`.feeds` says what each type becomes). The recipe never waits for it: each subscription's
 queue holds ``settings.queue_depth`` values (1 by default: drop-to-latest), a full one drops the
 oldest and counts it (:meth:`FoxgloveBridge.statistics`), and the conversion runs on that
-subscription's delivery thread. The server keeps ``settings.client_backlog`` messages per client
-and drops the oldest for a slow one. It advertises no client capability: a Foxglove client can
-look, not publish into the recipe.
+subscription's delivery thread. It advertises no client capability: a Foxglove client can look,
+not publish into the recipe.
+
+Clients do not reach the ``foxglove-sdk`` server itself: it listens on a hidden loopback port
+(TLS with a key of its own when ``cryptography`` is installed), and :class:`~.guard.FoxgloveGuard`
+on the port clients are given bounds what the SDK cannot: each client's buffer in bytes (latest
+frame wins for images), the number of clients, the handshake's time, and web page origins.
 """
 
 from __future__ import annotations
@@ -23,6 +27,7 @@ import foxglove
 from ..topics import Topic
 from ..transport.delivery import SubscriptionStatistics
 from .feeds import TopicFeed
+from .guard import FoxgloveGuard, GuardStatistics, hidden_hop_tls
 from .settings import FoxgloveSettings
 
 if TYPE_CHECKING:
@@ -50,13 +55,21 @@ class FoxgloveBridge:
         self._feeds: dict[str, tuple[TopicFeed, Subscription]] = {}
         self._lock = threading.Lock()
         self._server: Any = None
+        self._guard: FoxgloveGuard | None = None
 
     def start(self) -> FoxgloveBridge:
         """Listen, advertise the topics and subscribe to them; returns self."""
+        tls = hidden_hop_tls()
+        if tls is None:
+            logger.warning("Foxglove bridge: without the 'cryptography' package the hidden hop to the SDK's "
+                           "server is plain ws:// on loopback; a web page that finds its port could reach it")
         self._server = foxglove.start_server(
-            name="agents_core", host=self.settings.host, port=self.settings.port, context=self._context,
-            capabilities=[], message_backlog_size=self.settings.client_backlog)
+            name="agents_core", host="127.0.0.1", port=0, context=self._context, capabilities=[],
+            message_backlog_size=self.settings.client_backlog,
+            tls_cert=tls[0] if tls else None, tls_key=tls[1] if tls else None)
         try:
+            self._guard = FoxgloveGuard(self.settings.host, self.settings.port, int(self._server.port), self.settings,
+                                        tls[2] if tls else None).start()
             self.add_topics(self._pending)
         except BaseException:
             self.stop()
@@ -66,10 +79,16 @@ class FoxgloveBridge:
 
     @property
     def port(self) -> int:
-        """The TCP port the server listens on (the one picked when ``settings.port`` is 0)."""
-        if self._server is None:
+        """The TCP port clients connect to (the one picked when ``settings.port`` is 0)."""
+        if self._server is None or self._guard is None:
             raise RuntimeError("the Foxglove bridge is not started")
-        return int(self._server.port)
+        return self._guard.port
+
+    def guard_statistics(self) -> GuardStatistics:
+        """What the guard refused and dropped: clients and origins refused, handshakes timed out, ..."""
+        if self._guard is None:
+            raise RuntimeError("the Foxglove bridge is not started")
+        return self._guard.stats
 
     @property
     def url(self) -> str:
@@ -112,6 +131,9 @@ class FoxgloveBridge:
         with self._lock:
             feeds, self._feeds = list(self._feeds.values()), {}
             server, self._server = self._server, None
+            guard, self._guard = self._guard, None
+        if guard is not None:
+            guard.stop()
         for feed, sub in feeds:
             sub.close()
             feed.close()

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from attrs import define
+from attrs import define, field
 
 from ..errors import ConfigError
 from ..ui.settings import is_loopback
@@ -25,21 +25,40 @@ class FoxgloveSettings:
         Without this opt-in such a bind is refused; prefer an SSH tunnel to a loopback bind.
     :param queue_depth: values of one topic waiting to be converted; a full queue drops the oldest
         (drop-to-latest), counted in ``FoxgloveBridge.statistics()``. The recipe never waits.
-    :param client_backlog: messages the server buffers per client before dropping the oldest.
+    :param client_backlog: messages (of any size) the SDK's server queues per client before dropping
+        the oldest; it fills only while the client does not keep up (the guard then stops reading
+        for it), so it bounds a stalled client's cost with ``client_buffer_bytes``: keep it small.
     :param max_text_chars: the longest text (a Log message, a streamed reply) sent; longer is cut.
+    :param max_clients: Foxglove connections at once (handshakes included); one more is answered 503.
+    :param client_buffer_bytes: the bytes waiting for one client; past it an image channel keeps only
+        its newest frame and other data drops its oldest message (:mod:`.guard`).
+    :param handshake_timeout: seconds a connection has to send its whole WebSocket upgrade request.
+    :param allowed_origins: web page origins (``"https://app.foxglove.dev"``) whose WebSocket requests
+        are served; a request with any other ``Origin`` header is refused (403). Clients that are not
+        web pages (the desktop app, scripts) send none and are served.
     """
 
     host: str = "127.0.0.1"
     port: int = DEFAULT_PORT
     insecure_remote: bool = False
     queue_depth: int = 1
-    client_backlog: int = 256
+    client_backlog: int = 4
     max_text_chars: int = 64 * 1024
+    max_clients: int = 16
+    client_buffer_bytes: int = 8 * 1024 * 1024
+    handshake_timeout: float = 5.0
+    allowed_origins: tuple[str, ...] = field(default=(), converter=tuple)
 
     def __attrs_post_init__(self) -> None:
         if isinstance(self.port, bool) or not isinstance(self.port, int) or not 0 <= self.port <= 65535:
             raise ConfigError(f"Foxglove port must be an int from 0 to 65535, got {self.port!r}")
-        for name in ("queue_depth", "client_backlog", "max_text_chars"):
+        if isinstance(self.handshake_timeout, bool) or not isinstance(self.handshake_timeout, int | float) \
+                or not 0 < self.handshake_timeout <= 3600:
+            raise ConfigError(f"Foxglove handshake_timeout must be in (0, 3600] s, got {self.handshake_timeout!r}")
+        if not all(isinstance(o, str) and o.startswith(("http://", "https://")) for o in self.allowed_origins):
+            raise ConfigError(f"Foxglove allowed_origins must be origins such as 'https://app.foxglove.dev', "
+                              f"got {self.allowed_origins!r}")
+        for name in ("queue_depth", "client_backlog", "max_text_chars", "max_clients", "client_buffer_bytes"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= 100_000_000:
                 raise ConfigError(f"Foxglove {name} must be a positive int, got {value!r}")

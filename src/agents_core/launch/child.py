@@ -6,11 +6,14 @@ transport, rebuilds the component, configures and activates it, and reports each
 launcher as a JSON line on the inherited pipe ``--report-fd``. Further stdin lines are commands
 (``deactivate``, ``shutdown``).
 
-It never outlives the launcher, in any state. It notices the launcher's death three ways: the
-end of stdin (the launcher's end of the pipe closes with the launcher, whatever killed it),
-``PR_SET_PDEATHSIG`` (Linux sends SIGTERM when the launcher dies) and, as a fallback, its parent
-pid changing. The first and the last are watched by threads of their own, which arm the exit
-deadline themselves, so user code stuck on the main thread (a deactivate that never returns)
+It never outlives the launcher, in any state, stopped (SIGSTOP) included. It notices the
+launcher's death two ways: the end of stdin (the launcher's end of the pipe closes with the
+launcher, whatever killed it) and, as a fallback, its parent pid changing; ``PR_SET_PDEATHSIG``
+makes Linux send SIGCONT when the launcher dies, so a stopped process runs again and notices
+(:mod:`.descendants`: a SIGTERM would wait, pending, for a continue that never comes). The
+processes the component starts end with it: the process is their subreaper, and every way out
+ends them first (:func:`~.descendants.end_descendants`). Both watches run on threads of their
+own, which arm the exit deadline themselves, so user code stuck on the main thread (a deactivate that never returns)
 cannot keep the process alive. Everything up to the activation (importing the recipe, building
 the component, opening the transport, configure, activate) runs on a startup thread, so the main
 thread stays free for the signal handlers and the commands. When the launcher dies, or a
@@ -39,6 +42,8 @@ import threading
 import time
 from collections.abc import Callable
 from typing import IO, TYPE_CHECKING, Any, NoReturn
+
+from .descendants import end_descendants, guard_process
 
 if TYPE_CHECKING:
     from ..components.component_base import Component
@@ -131,8 +136,15 @@ def _next_command(commands: queue.SimpleQueue[str]) -> str:
             return commands.get(timeout=PARENT_POLL_S)
 
 
+def _leave(code: int) -> NoReturn:
+    """``os._exit(code)``, after ending the processes the component started."""
+    with contextlib.suppress(Exception):
+        end_descendants(0.2)
+    os._exit(code)
+
+
 def _exit_soon(code: int) -> None:
-    timer = threading.Timer(EXIT_DEADLINE_S, lambda: os._exit(code))
+    timer = threading.Timer(EXIT_DEADLINE_S, lambda: _leave(code))
     timer.daemon = True
     timer.start()
 
@@ -225,7 +237,7 @@ def _abandon_startup(startup: _Startup, reporter: _Reporter, why: str) -> NoRetu
         reporter.send(state="finalized")  # stopped on request: the supervisor does not respawn it
     with contextlib.suppress(Exception):
         sys.stderr.flush()
-    os._exit(0)
+    _leave(0)
 
 
 def _watch_launcher(parent_pid: int, stdin: _PipeLines, commands: queue.SimpleQueue[str],
@@ -318,8 +330,22 @@ def run(spec_line: bytes, reporter: _Reporter, stdin: _PipeLines, parent_pid: in
     return 0
 
 
+def _watch_parent_until(parent_pid: int, done: threading.Event) -> None:
+    """Until ``done``: end the process when its parent is gone (the spec has not come yet, so there
+    is nothing to shut down; PR_SET_PDEATHSIG only continues a stopped process)."""
+    while not done.wait(PARENT_POLL_S):
+        if os.getppid() != parent_pid:
+            _leave(1)
+
+
 def _serve(reporter: _Reporter, stdin: _PipeLines, parent_pid: int = 0) -> int:
-    spec_line = stdin.readline(MAX_SPEC_BYTES)
+    spec_read = threading.Event()
+    threading.Thread(target=_watch_parent_until, args=(parent_pid or os.getppid(), spec_read),
+                     name="launcher-watch-early", daemon=True).start()
+    try:
+        spec_line = stdin.readline(MAX_SPEC_BYTES)
+    finally:
+        spec_read.set()
     if spec_line is None:
         reporter.send(error="no complete component spec on stdin")
         return 2
@@ -329,6 +355,9 @@ def _serve(reporter: _Reporter, stdin: _PipeLines, parent_pid: int = 0) -> int:
         logger.exception("component process failed")
         reporter.send(error=f"{type(exc).__name__}: {exc}")
         return 1
+    finally:
+        with contextlib.suppress(Exception):
+            end_descendants()  # what the component started ends with it
 
 
 def run_forked(stdin_fd: int, report_fd: int, server_pid: int, name: str) -> int:
@@ -338,7 +367,7 @@ def run_forked(stdin_fd: int, report_fd: int, server_pid: int, name: str) -> int
     states go to ``report_fd``; the process ends when the server (its parent) or the launcher
     (the end of its command pipe) is gone.
     """
-    set_parent_death_signal(signal.SIGTERM)
+    guard_process()
     if os.getppid() != server_pid:
         return 1  # the server ended before PR_SET_PDEATHSIG was set
     if name:  # what ps and top show instead of the server's name (at most 15 bytes)
@@ -353,7 +382,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m agents_core.launch.child", description=__doc__)
     parser.add_argument("--report-fd", type=int, required=True, help="inherited pipe to report states on")
     args = parser.parse_args(argv)
-    set_parent_death_signal(signal.SIGTERM)
+    guard_process()
     return _serve(_Reporter(args.report_fd), _PipeLines(sys.stdin.fileno()))
 
 

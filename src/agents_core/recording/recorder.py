@@ -59,6 +59,9 @@ class RecorderStatistics:
     :param queued: values still waiting for the writer.
     :param topics: the topics being recorded.
     :param files: the files written so far.
+    :param lost: values lost to failed writes (a full disk, a file size limit): written before the
+        failure but after the last complete flush, or received while writing could not go on.
+    :param write_failures: writes that failed (each outage is logged once, and once when it ends).
     """
 
     received: int
@@ -70,6 +73,8 @@ class RecorderStatistics:
     queued: int
     topics: list[str]
     files: list[Path]
+    lost: int = 0
+    write_failures: int = 0
 
 
 _Item = tuple[str, type[SupportedType], Encoding, Any, int, int]
@@ -184,7 +189,7 @@ class Recorder:
         return RecorderStatistics(received=q.offered + self._dropped_for_bytes, written=w.written, dropped=dropped,
                                   oversize=w.oversize,
                                   over_limit=w.over_limit, errors=self._errors + q.errors, queued=q.queued,
-                                  topics=topics, files=list(w.files))
+                                  topics=topics, files=list(w.files), lost=w.lost, write_failures=w.write_failures)
 
     # -- subscribing ---------------------------------------------------------------------------------
 
@@ -242,7 +247,10 @@ class Recorder:
 
     def _flush_loop(self) -> None:
         while not self._stop.wait(self._flush_interval):
-            self._writer.flush()
+            try:
+                self._writer.flush()  # a failed write is handled (and counted) by the writer itself
+            except Exception:  # anything else: this thread must go on flushing
+                logger.exception("recorder: flushing failed")
 
     # -- writing (the queue's thread) ----------------------------------------------------------------
 

@@ -12,10 +12,20 @@ operating system; the recorder calls it every ``flush_interval_s``. A recorder k
 SIGKILL leaves a file without its summary and footer, whose chunks up to the last flush read
 back with any MCAP stream reader (the ``mcap`` package's ``StreamReader`` reads them and then
 reports the end of the file).
+
+A full disk or a file size limit (``ENOSPC``, ``EFBIG``, ``EDQUOT``: any ``OSError`` of a write)
+does not end the recording: the file is cut back to the end of its last complete flush (so it
+reads to that point, as a killed recorder's does), the values that were only in the lost part and
+every later one are counted as ``lost``, one warning says so, and every ``retry_interval_s`` the
+writer tries again with the next file of the series; when a write succeeds it says so once and
+goes on.
 """
 
 from __future__ import annotations
 
+import contextlib
+import errno
+import logging
 import os
 import threading
 import time
@@ -29,6 +39,8 @@ from ..install_hint import install_hint
 from .encodings import Encoding
 
 __all__ = ["Compression", "McapSeriesWriter", "RecordingLimits", "require_mcap"]
+
+logger = logging.getLogger(__name__)
 
 #: How each chunk is compressed.
 Compression = Literal["zstd", "lz4", "none"]
@@ -77,6 +89,50 @@ def _check_writable(path: Path) -> None:
         raise ConfigError(f"cannot record to {path}: its folder {path.parent} is not writable")
 
 
+class _CheckedFile:
+    """An unbuffered file for the ``mcap`` writer whose ``write`` writes everything or raises.
+
+    A buffered file reports a failed write late (at a later flush, or never for a short write);
+    here a short write is retried and an error is raised at the call that hit it, so the writer
+    knows which flush was the last complete one.
+    """
+
+    def __init__(self, path: Path) -> None:
+        self._fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
+        self._pos = 0
+
+    def write(self, data: bytes | bytearray | memoryview) -> int:
+        view = memoryview(data).cast("B")
+        done = 0
+        while done < len(view):
+            n = os.write(self._fd, view[done:])
+            if n <= 0:
+                raise OSError(errno.EIO, "a write made no progress")
+            done += n
+            self._pos += n
+        return done
+
+    def tell(self) -> int:
+        return self._pos
+
+    def flush(self) -> None:
+        pass
+
+    def fileno(self) -> int:
+        return self._fd
+
+    def cut(self, size: int) -> None:
+        """Cut the file back to ``size`` bytes (what a failed write left past it goes)."""
+        os.ftruncate(self._fd, size)
+        os.lseek(self._fd, size, os.SEEK_SET)
+        self._pos = size
+
+    def close(self) -> None:
+        if self._fd >= 0:
+            fd, self._fd = self._fd, -1
+            os.close(fd)
+
+
 def series_path(path: Path, index: int) -> Path:
     """The ``index``-th file of the series that starts at ``path`` (``run.mcap``, ``run_1.mcap``, ...)."""
     return path if index == 0 else path.with_name(f"{path.stem}_{index}{path.suffix}")
@@ -86,7 +142,7 @@ class McapSeriesWriter:
     """Writes messages into a series of MCAP files (see the module docstring); thread-safe."""
 
     def __init__(self, path: str | Path, limits: RecordingLimits, *, chunk_size: int = 1024 * 1024,
-                 compression: Compression = "lz4", fsync: bool = False) -> None:
+                 compression: Compression = "lz4", fsync: bool = False, retry_interval_s: float = 1.0) -> None:
         self._mcap = require_mcap()
         self._path = Path(path)
         _check_writable(self._path)
@@ -99,8 +155,16 @@ class McapSeriesWriter:
         self._started = time.monotonic()
         self.files: list[Path] = []
         self.written = self.oversize = self.over_limit = 0
+        #: Values lost to failed writes (a full disk, a file size limit), and how many writes failed.
+        self.lost = self.write_failures = 0
         self.total_bytes = 0
-        self._stream: BinaryIO | None = None
+        self._retry_interval = retry_interval_s
+        self._failing_since: float | None = None
+        self._last_attempt = 0.0
+        self._good = 0  # the file's size at its last complete flush
+        self._pending = self._pending_bytes = 0  # values (and bytes) written since then
+        self._lost_in_outage = 0
+        self._stream: _CheckedFile | BinaryIO | None = None
         self._writer: Any = None
         self._file_bytes = 0
         self._file_started = 0.0
@@ -110,13 +174,18 @@ class McapSeriesWriter:
         self._ended = False
 
     def _open_next(self) -> None:
+        healthy = self._failing_since is None
         self._close_current()
+        if healthy and self._failing_since is not None:
+            raise OSError(errno.EIO, "finishing the previous file failed")
         path = series_path(self._path, len(self.files))
         path.parent.mkdir(parents=True, exist_ok=True)
-        self._stream = open(path, "wb")  # noqa: SIM115 - closed by _close_current
+        self._stream = _CheckedFile(path)
+        self.files.append(path)
         self._writer = self._mcap.Writer(self._stream, chunk_size=self._chunk_size, compression=self._compression)
         self._writer.start(profile="ros2", library="agents_core")
-        self.files.append(path)
+        self._good = self._stream.tell()
+        self._pending = self._pending_bytes = 0
         self._channels.clear()
         self._schemas.clear()
         self._file_bytes = 0
@@ -124,9 +193,54 @@ class McapSeriesWriter:
 
     def _close_current(self) -> None:
         if self._writer is not None and self._stream is not None:
-            self._writer.finish()
+            try:
+                self._writer.finish()
+            except OSError as exc:
+                self._failed(exc)
+                return
             self._stream.close()
         self._writer = self._stream = None
+
+    def _failed(self, exc: OSError) -> None:
+        """A write failed: cut the file back to its last complete flush, count the loss, say so once."""
+        self.write_failures += 1
+        self.lost += self._pending
+        self._lost_in_outage += self._pending
+        self.written -= self._pending
+        self.total_bytes -= self._pending_bytes
+        self._pending = self._pending_bytes = 0
+        stream, self._stream, self._writer = self._stream, None, None
+        if isinstance(stream, _CheckedFile):
+            with contextlib.suppress(OSError):  # else the file keeps a torn end; a reader stops there
+                stream.cut(self._good)
+            stream.close()
+        now = time.monotonic()
+        self._last_attempt = now
+        if self._failing_since is None:
+            self._failing_since = now
+            name = errno.errorcode.get(exc.errno or 0, "error")
+            where = self.files[-1] if self.files else self._path
+            logger.warning("recorder: writing %s failed (%s: %s); it keeps what was flushed before, values are "
+                           "counted as lost, and writing is tried again every %.0f s with the next file",
+                           where, name, exc.strerror or exc, self._retry_interval)
+
+    def _resume(self, now: float) -> bool:
+        """Whether writing may go on: not failing, or the retry after a failure opened a new file."""
+        if self._failing_since is None:
+            return True
+        if now - self._last_attempt < self._retry_interval:
+            return False
+        self._last_attempt = now
+        try:
+            self._open_next()
+        except OSError as exc:
+            self._failed(exc)
+            return False
+        logger.warning("recorder: writing again, to %s, after %.1f s (%d values lost)", self.files[-1],
+                       now - self._failing_since, self._lost_in_outage)
+        self._failing_since = None
+        self._lost_in_outage = 0
+        return True
 
     def _channel(self, topic: str, agents_type: str, encoding: Encoding) -> int:
         key = (topic, agents_type)
@@ -168,14 +282,26 @@ class McapSeriesWriter:
             if len(data) > self._limits.max_message_bytes:
                 self.oversize += 1
                 return False
-            if self._needs_split(now, size):
-                self._open_next()
-            channel = self._channel(topic, agents_type, encoding)
-            self._writer.add_message(channel, log_time_ns, data, publish_time_ns, self._sequence % 2**32)
+            if not self._resume(now):
+                self.lost += 1
+                self._lost_in_outage += 1
+                return False
+            try:
+                if self._needs_split(now, size):
+                    self._open_next()
+                channel = self._channel(topic, agents_type, encoding)
+                self._writer.add_message(channel, log_time_ns, data, publish_time_ns, self._sequence % 2**32)
+            except OSError as exc:
+                self._failed(exc)
+                self.lost += 1  # this value too
+                self._lost_in_outage += 1
+                return False
             self._sequence += 1
             self._file_bytes += size
             self.total_bytes += size
             self.written += 1
+            self._pending += 1
+            self._pending_bytes += size
             return True
 
     def flush(self) -> None:
@@ -183,9 +309,15 @@ class McapSeriesWriter:
         with self._lock:
             if self._writer is None or self._stream is None:
                 return
-            self._writer.flush()
-            if self._fsync:
-                os.fsync(self._stream.fileno())
+            try:
+                self._writer.flush()
+                if self._fsync:
+                    os.fsync(self._stream.fileno())
+            except OSError as exc:
+                self._failed(exc)
+                return
+            self._good = self._stream.tell()
+            self._pending = self._pending_bytes = 0
 
     def close(self) -> None:
         """Finish the current file (summary and footer); idempotent."""

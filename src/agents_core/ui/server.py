@@ -113,7 +113,10 @@ class UIServer:
         config = uvicorn.Config(self.app, log_level="warning", access_log=False, ws="websockets-sansio", loop="asyncio",
                                 ws_max_size=MAX_CLIENT_MESSAGE, ws_per_message_deflate=self.settings.compress_frames,
                                 lifespan="on", timeout_graceful_shutdown=2, ssl_certfile=self.settings.tls_certfile,
-                                ssl_keyfile=self.settings.tls_keyfile)
+                                ssl_keyfile=self.settings.tls_keyfile,
+                                # Forwarded headers only from the proxies named in the settings (none by default).
+                                proxy_headers=bool(self.settings.trusted_proxies),
+                                forwarded_allow_ips=list(self.settings.trusted_proxies) or None)
         try:
             self._server = uvicorn.Server(config)
             config.load()  # reads the certificate now: a bad one is a clear error here, not a dead thread

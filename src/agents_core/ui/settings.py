@@ -55,6 +55,10 @@ class UISettings:
         it. Off by default: it deflates every frame on the event loop, and images (JPEG, or raw pixels on
         loopback) gain little from it for ~5 ms a 640x480 frame on each side (benchmarks/README.md); on
         for a slow link that carries mostly text.
+    :param trusted_proxies: addresses of reverse proxies whose ``X-Forwarded-For`` / ``-Proto``
+        headers are believed (the client address then comes from them: the login throttle counts
+        it). Empty by default: no forwarded header is trusted, not even from loopback, so a local
+        client cannot dodge the throttle or lock another address out by naming it.
     """
 
     host: str = "127.0.0.1"
@@ -74,12 +78,18 @@ class UISettings:
     tls_certfile: str | None = None
     tls_keyfile: str | None = None
     compress_frames: bool = False
+    trusted_proxies: tuple[str, ...] = field(default=(), converter=tuple)
 
     def __attrs_post_init__(self) -> None:
         if self.token is None:
             self.token = os.environ.get(TOKEN_ENV) or None
         self._check_limits()
         self._check_tls()
+        for proxy in self.trusted_proxies:
+            try:
+                ipaddress.ip_network(proxy, strict=False)
+            except (TypeError, ValueError):
+                raise ConfigError(f"UI trusted_proxies: {proxy!r} is not an IP address or network") from None
         if not isinstance(self.port, int) or not 0 <= self.port <= 65535:
             raise ConfigError(f"UI port must be an int from 0 to 65535, got {self.port!r}")
         if self.image_format not in ("jpeg", "png", "raw"):

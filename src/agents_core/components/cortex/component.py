@@ -26,6 +26,7 @@ from __future__ import annotations
 import contextlib
 import json
 import threading
+import time
 from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
@@ -46,6 +47,7 @@ from .config import CortexConfig
 from .dispatch import Dispatcher
 from .executor import Executor
 from .monitor import HealthWatch
+from .peers import DescribeRefused, allowed, checked_description
 from .planner import PLANNING_PROMPT, Planner
 from .tools import INSPECT, Tool, ToolBox, goal_schema
 from .transfer import ACTION_CODEC  # noqa: F401  (registers how its actions cross to a component process)
@@ -98,6 +100,7 @@ class Cortex(ModelComponent):
         for action in actions or []:
             self._add_action(action)
         self._described: dict[str, dict[str, Any]] = {}
+        self._refused: set[str] = set()
         self._watch = HealthWatch(self._logger)
         self._dispatcher: Dispatcher | None = None
         self._executor: Executor | None = None
@@ -156,8 +159,14 @@ class Cortex(ModelComponent):
                 self._logger.warning("component discovery failed: %s", exc)
         names.discard(self.component_name)
         for name in sorted(names - set(self._described)):
+            if not self._allowed(name):
+                if name not in self._refused:
+                    self._refused.add(name)
+                    self._logger.info("component %r is not in allowed_components (default: this recipe's "
+                                      "components); its actions are not offered", name)
+                continue
             try:
-                self._described[name] = describe_component(transport, name, timeout=self.config.discovery_timeout)
+                self._described[name] = self._describe(name)
             except Exception as exc:
                 self._logger.info("component %r does not describe itself (%s); its actions are not offered", name, exc)
                 continue
@@ -168,14 +177,31 @@ class Cortex(ModelComponent):
                           self.component_name)
         return known
 
+    def set_recipe_components(self, names: Sequence[str]) -> None:
+        """The names of the components of this Cortex's recipe (the Launcher calls it at ``add_pkg``).
+
+        With ``allowed_components`` None they are the components whose actions are offered.
+        """
+        self.config.recipe_components = [n for n in names if n != self.component_name]
+
+    def _allowed(self, name: str) -> bool:
+        owners = {a.component for a in self._tool_list() if a.kind == "action" and a.component}
+        return allowed(name, self.config.allowed_components, self.config.recipe_components,
+                       always={*self.config.action_servers, *owners})
+
+    def _describe(self, name: str) -> dict[str, Any]:
+        """Component ``name``'s describe reply, its shape checked (:func:`~.peers.checked_description`)."""
+        return checked_description(name, describe_component(self.transport, name,
+                                                            timeout=self.config.discovery_timeout))
+
     def _tool_list(self) -> list[Tool]:
         return [t for t in (self._tools.get(n) for n in self._tools.names()) if t is not None]
 
     def _offer(self, name: str, description: dict[str, Any]) -> None:
-        for method, raw in (description.get("actions") or {}).items():
-            function = raw.get("function", raw) if isinstance(raw, dict) else {}
+        for method, raw in description["actions"].items():  # shape checked by checked_description
+            function = raw["function"]
             tool_name = f"{name}.{method}"
-            phase = raw.get("phase") or function.get("phase") if isinstance(raw, dict) else None
+            phase = raw["phase"]
             parameters = function.get("parameters")
             self._tools.add(Tool(
                 name=tool_name, kind="component_action", component=name, target=method,
@@ -201,8 +227,12 @@ class Cortex(ModelComponent):
 
     def inspect_component(self, component: str) -> str:
         """A text description of ``component`` (from its ``describe`` service) and the tools acting on it."""
+        if not self._allowed(component):
+            return f"error: component {component!r} is not one this Cortex may use (allowed_components)"
         try:
-            info = describe_component(self.transport, component, timeout=self.config.discovery_timeout)
+            info = self._describe(component)
+        except DescribeRefused as exc:
+            return f"error: {exc}"
         except Exception as exc:
             return f"error: component {component!r} did not answer ({exc}); known: {sorted(self._described)}"
         lines = [f"{info['name']} ({info['component_type']}): {info['state']}, {info['health']}",
@@ -305,6 +335,9 @@ class Cortex(ModelComponent):
         task = str(handle.goal.get("task", ""))
         count = [0]
         feedback = self._feedback(handle, count)
+        deadline = time.monotonic() + self.config.task_timeout
+        self._executor.deadline = deadline
+        late = f"the task ran past task_timeout={self.config.task_timeout:g} s"
         self._dispatcher.forget()
         self.refresh_components()
         messages = self._planner.start(task, PLANNING_PROMPT, self._rag_context(task))
@@ -312,10 +345,14 @@ class Cortex(ModelComponent):
         for _ in range(self.config.max_execution_steps):
             if handle.cancel_requested:
                 return self._end(handle, "canceled", "canceled while planning", count[0])
+            if time.monotonic() >= deadline:
+                return self._end(handle, "aborted", late, count[0])
             plan = self._planner.plan(messages, self.config._get_inference_params(), self.config.max_planning_steps,
-                                      self.config.max_execution_steps)
+                                      self.config.max_execution_steps, deadline=deadline)
             if plan.error is not None:
                 return self._end(handle, "aborted", plan.error, count[0])
+            if time.monotonic() >= deadline:
+                return self._end(handle, "aborted", late, count[0])
             if plan.steps is None:
                 if not plan.text and count[0] == 0:
                     return self._end(handle, "aborted", "the planner returned neither a plan nor an answer", 0)

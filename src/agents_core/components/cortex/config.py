@@ -45,6 +45,17 @@ class CortexConfig(LLMConfig):
     :param action_servers: action-server components the planner may send goals to, with their
         action type (``{"navigation": "NavigateToPose"}``), for components whose ``describe`` does
         not name their action type.
+    :param allowed_components: the components whose actions and goals the planner is offered.
+        None (the default): the components of Cortex's own recipe (the Launcher tells Cortex their
+        names when they are added); ``["*"]``: any component the transport shows (peers from other
+        recipes included, an explicit opt-in); a list: those names only. Components named in
+        ``action_servers`` are always allowed. Another component is neither described nor offered.
+    :param task_timeout: seconds one task may run, planning and execution together (600 by
+        default); past it the task is aborted, its goals canceled, and the next task accepted.
+    :param max_confirmation_rounds: how many times in a row the confirmation model may answer
+        CONTINUE for one step (20 by default); one more is an ABORT of the task.
+    :param recipe_components: set by the Launcher (the names of the recipe's components); leave it
+        None and use ``allowed_components``.
 
     ``chat_history`` and ``stream`` are ignored: the planner keeps its own conversation per task
     and never streams.
@@ -61,6 +72,10 @@ class CortexConfig(LLMConfig):
     discovery_timeout: float = field(default=1.0, validator=base_validators.gt(0.0))
     planning_tools: list[str] = field(factory=list)
     action_servers: dict[str, str] = field(factory=dict)
+    allowed_components: list[str] | None = None
+    task_timeout: float = field(default=600.0, validator=base_validators.gt(0.0))
+    max_confirmation_rounds: int = field(default=20, validator=base_validators.in_range(1, 100_000))
+    recipe_components: list[str] | None = None
 
     def _get_inference_params(self) -> dict[str, Any]:
         # The planner reads whole answers (tool calls arrive whole): never streamed.

@@ -102,8 +102,11 @@ def schema_errors(schema: Mapping[str, Any], value: Any, where: str = "arguments
         for name, item in value.items():
             if name in properties:
                 errors.extend(schema_errors(properties[name], item, f"{where}.{name}"))
-            elif schema.get("additionalProperties") is False or (properties and "additionalProperties" not in schema):
-                # A field the tool does not declare is a field the model invented: refused, not dropped.
+            elif isinstance(schema.get("additionalProperties"), Mapping):
+                errors.extend(schema_errors(schema["additionalProperties"], item, f"{where}.{name}"))
+            elif schema.get("additionalProperties") is not True and ("properties" in schema or where == "arguments"):
+                # A field the tool does not declare is a field the model invented: refused, not dropped
+                # (an empty ``properties`` declares none: every field is refused).
                 errors.append(f"{where} has the unknown field {name!r} (known: {sorted(properties)})")
     if isinstance(value, list | tuple) and isinstance(schema.get("items"), Mapping):
         for i, item in enumerate(value):

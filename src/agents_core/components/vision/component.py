@@ -51,7 +51,7 @@ from ...supported_types import (
 from ...topics import Topic
 from ..component_base import TriggerType
 from ..model_component import ModelComponent
-from .recording import MAX_FPS, MAX_RECORDING_S, record_frames, recording_path, write_gif
+from .recording import MAX_FPS, MAX_RECORDING_S, confined_folder, record_frames, recording_path, write_gif
 from .tracking import ObjectTracker
 
 __all__ = ["Vision", "draw_detections", "frame_to_rgb"]
@@ -196,6 +196,8 @@ class Vision(ModelComponent):
         self.frames_refused = 0
         # Set at shutdown: background recordings end there and write what they have.
         self._recordings_stop = threading.Event()
+        self._recordings_lock = threading.Lock()
+        self._recordings_running = 0
         # Per camera: (arrivals, latest frame), for record_video. A callback's ``msg`` is pinned to
         # the frame being detected while a step runs, so a recording sampling it would repeat that one.
         self._arrivals_lock = threading.Lock()
@@ -394,7 +396,9 @@ class Vision(ModelComponent):
                             "boxes": det.boxes.round(1).tolist(), "stamp": image.header.stamp}
                            for (index, image, _), det in zip(frames, detections, strict=True)]}
         if save_path is not None:
-            answer["path"] = _save_picture(frames[0][2], self._sources[frames[0][0]].name, save_path)
+            folder = confined_folder(self.config.recordings_dir, save_path,
+                                     f"component {self.component_name!r}: take_picture")
+            answer["path"] = _save_picture(frames[0][2], self._sources[frames[0][0]].name, folder)
         return answer
 
     @component_action(description={
@@ -405,10 +409,14 @@ class Vision(ModelComponent):
             "save_path": {"type": "string", "description": "the folder to save the video in (optional)"}},
             "required": []},
     })
-    def record_video(self, topic_name: str | None = None, duration: float = 5.0, save_path: str = "~/emos/videos",
+    def record_video(self, topic_name: str | None = None, duration: float = 5.0, save_path: str | None = None,
                      fps: int = 30, wait: bool = False) -> str:
         """Record ``duration`` seconds of camera ``topic_name`` (None: the first camera) at up to ``fps``
         frames per second into an animated GIF in ``save_path``; returns the file's path.
+
+        ``save_path`` (default: ``config.recordings_dir``) must lie inside ``config.recordings_dir``;
+        at most ``config.max_recordings`` recordings run at once, and one more is refused with
+        :class:`~agents_core.errors.AlgorithmFailure` (each keeps at most ``config.max_recording_bytes``).
 
         As upstream, the recording runs in a background thread and the call returns at once; the
         file appears at the returned path, complete, when the recording ends (if no frame arrived
@@ -425,13 +433,25 @@ class Vision(ModelComponent):
             raise ConfigError(f"record_video: duration must be in (0, {MAX_RECORDING_S:.0f}] seconds, got {duration!r}")
         if isinstance(fps, bool) or not isinstance(fps, int) or not 1 <= fps <= MAX_FPS:
             raise ConfigError(f"record_video: fps must be an int in [1, {MAX_FPS}], got {fps!r}")
-        path = recording_path(save_path, name)
-        max_side = self.config.max_image_side
+        what = f"component {self.component_name!r}: record_video"
+        path = recording_path(confined_folder(self.config.recordings_dir, save_path, what), name)
+        max_side, max_bytes = self.config.max_image_side, self.config.max_recording_bytes
+        with self._recordings_lock:
+            if self._recordings_running >= self.config.max_recordings:
+                raise AlgorithmFailure(f"{what}: {self._recordings_running} recordings are running, the most "
+                                       f"allowed at once (config.max_recordings={self.config.max_recordings}); "
+                                       "try again when one ends")
+            self._recordings_running += 1
 
         def record() -> str:
-            frames, cut = record_frames(lambda: self._latest_arrival(name),
-                                        lambda value: frame_to_rgb(value, max_side)[1],
-                                        float(duration), fps, stop=self._recordings_stop.is_set)
+            try:
+                frames, cut = record_frames(lambda: self._latest_arrival(name),
+                                            lambda value: frame_to_rgb(value, max_side)[1],
+                                            float(duration), fps, stop=self._recordings_stop.is_set,
+                                            max_bytes=max_bytes)
+            finally:
+                with self._recordings_lock:
+                    self._recordings_running -= 1
             end = time.monotonic()
             if cut:
                 self._logger.warning("recording of %r ended early: %s", name, cut)
@@ -451,8 +471,13 @@ class Vision(ModelComponent):
             except Exception as exc:  # a background thread has no caller to raise to
                 self._logger.warning("record_video on %r: %s", name, exc)
 
-        threading.Thread(target=record_in_background, name=f"{self.component_name}-record-{name}",
-                         daemon=True).start()
+        try:
+            threading.Thread(target=record_in_background, name=f"{self.component_name}-record-{name}",
+                             daemon=True).start()
+        except BaseException:
+            with self._recordings_lock:
+                self._recordings_running -= 1
+            raise
         self._logger.info("recording %r for %s s into %s", name, duration, path)
         return str(path)
 

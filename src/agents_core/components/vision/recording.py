@@ -21,11 +21,11 @@ from typing import Any, Final
 import numpy as np
 import numpy.typing as npt
 
-from ...errors import AlgorithmFailure
+from ...errors import AlgorithmFailure, ConfigError
 from ...install_hint import install_hint
 
-__all__ = ["MAX_FPS", "MAX_RECORDING_BYTES", "MAX_RECORDING_S", "RecordedFrame", "record_frames",
-           "recording_path", "write_gif"]
+__all__ = ["MAX_FPS", "MAX_RECORDING_BYTES", "MAX_RECORDING_S", "RecordedFrame", "confined_folder",
+           "record_frames", "recording_path", "write_gif"]
 
 #: The longest recording one call may ask for (s).
 MAX_RECORDING_S: Final[float] = 3600.0
@@ -45,6 +45,25 @@ def _pillow() -> Any:
         raise AlgorithmFailure("recording a video needs Pillow: pip install pillow "
                                f"(or {install_hint('local')})") from exc
     return PILImage
+
+
+def confined_folder(base: str, wanted: str | None, what: str) -> str:
+    """The folder ``wanted`` (None: ``base``), refused unless it lies inside ``base`` once resolved.
+
+    ``~`` is expanded in both; a relative ``wanted`` is taken inside ``base``; symbolic links are
+    followed before the check, so a link inside ``base`` that leads out of it is refused too.
+    """
+    root = Path(base).expanduser().resolve()
+    if wanted is None:
+        return str(root)
+    if not isinstance(wanted, str) or not wanted or "\x00" in wanted:
+        raise ConfigError(f"{what}: save_path must be a folder name, got {str(wanted)[:200]!r}")
+    given = Path(wanted).expanduser()
+    folder = (given if given.is_absolute() else root / given).resolve()
+    if folder != root and root not in folder.parents:
+        raise ConfigError(f"{what}: save_path {wanted[:200]!r} is outside the configured folder {str(root)!r} "
+                          "(config.recordings_dir)")
+    return str(folder)
 
 
 def recording_path(folder: str, source: str) -> Path:

@@ -1,0 +1,63 @@
+"""A recipe whose one component starts processes: ``python spawning_recipe.py --port P --markers DIR``.
+
+Its ``Spawner`` runs in a process of its own (``multiprocessing=True``, Zenoh on loopback). On
+activate it starts a ``sleep`` child directly and another one through ``sh -c 'sleep ... &'``
+(orphaned at once: the double fork a daemon does), and writes ``pids.<component pid>`` (the two
+sleeps' pids, one a line) in the marker folder.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+from agents_core import Component, Topic
+from agents_core.launch.launcher import Launcher
+from agents_core.supported_types import String
+
+
+class Spawner(Component):
+    """Starts two long sleeps when activated; see the module docstring."""
+
+    def __init__(self, component_name: str, markers: str, **kwargs: Any) -> None:
+        self.allowed_inputs = {"Required": [String]}
+        source = Topic("spawn/in", "String")
+        super().__init__(inputs=[source], trigger=source, component_name=component_name, **kwargs)
+        self.markers = markers
+
+    def custom_on_activate(self) -> None:
+        direct = subprocess.Popen(["sleep", "300"])
+        marker = Path(self.markers, f"orphan.{os.getpid()}")
+        subprocess.run(["sh", "-c", f"sleep 300 & echo $! > {marker}"], check=True)
+        deadline = time.monotonic() + 5
+        while not marker.exists() or not marker.read_text().strip():
+            if time.monotonic() > deadline:
+                raise RuntimeError("the orphan's pid did not appear")
+            time.sleep(0.01)
+        orphan = int(marker.read_text())
+        Path(self.markers, f"pids.{os.getpid()}").write_text(f"{direct.pid}\n{orphan}\n")
+
+    def _execution_step(self, **kwargs: Any) -> None:
+        pass
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--port", type=int, required=True)
+    parser.add_argument("--markers", required=True)
+    args = parser.parse_args()
+    logging.basicConfig(level=logging.INFO, stream=sys.stderr)
+    launcher = Launcher(transport="zenoh", transport_options={
+        "mode": "peer", "listen": [f"tcp/127.0.0.1:{args.port}"], "connect": [], "multicast_scouting": False})
+    launcher.add_pkg(components=[Spawner("spawner", args.markers)], multiprocessing=True)
+    launcher.bringup()
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,109 @@
+"""A component process never outlives its launcher, stopped or not, and what it starts ends with it
+(issue 36, item 11). Real processes: a launcher running ``spawning_recipe.py`` on Zenoh with the
+component in a process of its own, which starts two ``sleep`` processes (one orphaned at once)."""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from agents_core.testing.helpers import free_tcp_port
+from agents_core.testing.pairs import skip_unless_installed
+
+from ..launch.helpers import REPO, alive, child_pids, wait_for
+
+pytestmark = pytest.mark.timeout(120)
+RECIPE = Path(__file__).with_name("spawning_recipe.py")
+GONE_WITHIN_S = 10.0
+
+
+class _Run:
+    def __init__(self, tmp: Path) -> None:
+        self.markers = tmp / "markers"
+        self.markers.mkdir()
+        self.log_path = tmp / "launcher.log"
+        self._log = self.log_path.open("wb")
+        self.proc = subprocess.Popen([sys.executable, str(RECIPE), "--port", str(free_tcp_port()),
+                                      "--markers", str(self.markers)], stdout=self._log,
+                                     stderr=subprocess.STDOUT, cwd=REPO)
+        self.pids: set[int] = set()
+
+    def log(self) -> str:
+        self._log.flush()
+        return self.log_path.read_text(errors="replace")
+
+    def started(self) -> tuple[int, list[int]]:
+        """The component process's pid and the pids of the sleeps it started, once both are up."""
+        def found() -> tuple[int, list[int]] | None:
+            if self.proc.poll() is not None:
+                raise AssertionError(f"the launcher exited with {self.proc.returncode}:\n{self.log()[-3000:]}")
+            files = sorted(self.markers.glob("pids.*"))
+            if not files or files[0].read_text().count("\n") < 2:
+                return None
+            return int(files[0].suffix[1:]), [int(p) for p in files[0].read_text().split()]
+
+        component, sleeps = wait_for(found, timeout=60.0, what="the component to start its processes")
+        self.pids |= {component, *sleeps, *child_pids(self.proc.pid)}
+        return component, sleeps
+
+    def close(self) -> None:
+        if self.proc.poll() is None:
+            self.proc.kill()
+        self.proc.wait(timeout=10)
+        for pid in self.pids:  # whatever the test left, by pid
+            if alive(pid):
+                with contextlib.suppress(ProcessLookupError):
+                    os.kill(pid, signal.SIGCONT)
+                    os.kill(pid, signal.SIGKILL)
+        self._log.close()
+
+
+@pytest.fixture
+def run(tmp_path: Path) -> Iterator[_Run]:
+    skip_unless_installed("zenoh")
+    if not sys.platform.startswith("linux"):
+        pytest.skip("PR_SET_CHILD_SUBREAPER and /proc are Linux's")
+    r = _Run(tmp_path)
+    try:
+        yield r
+    finally:
+        r.close()
+
+
+def _gone_within(pids: list[int], limit: float) -> float | None:
+    start = time.monotonic()
+    while time.monotonic() - start < limit:
+        if not any(alive(p) for p in pids):
+            return time.monotonic() - start
+        time.sleep(0.05)
+    return None
+
+
+def test_a_stopped_component_process_ends_when_its_launcher_is_killed(run: _Run) -> None:
+    component, sleeps = run.started()
+    os.kill(component, signal.SIGSTOP)
+    time.sleep(0.2)
+    run.proc.send_signal(signal.SIGKILL)
+    run.proc.wait(timeout=10)
+    gone = _gone_within([component], GONE_WITHIN_S)
+    assert gone is not None, f"the SIGSTOPped component process {component} outlived its launcher"
+    print(f"stopped component gone {gone:.2f} s after its launcher's SIGKILL")
+    assert _gone_within(sleeps, GONE_WITHIN_S) is not None, "what the component started outlived it"
+
+
+def test_what_a_component_starts_ends_with_a_clean_stop(run: _Run) -> None:
+    component, sleeps = run.started()
+    assert all(alive(p) for p in sleeps)
+    run.proc.send_signal(signal.SIGTERM)
+    run.proc.wait(timeout=30)
+    assert _gone_within([component], GONE_WITHIN_S) is not None
+    assert _gone_within(sleeps, GONE_WITHIN_S) is not None, \
+        f"processes {[p for p in sleeps if alive(p)]} started by the component outlived a clean stop"
