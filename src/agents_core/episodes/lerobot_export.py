@@ -202,8 +202,8 @@ def _plan(info: EpisodeInfo, specs: Mapping[str, LeRobotFeature], kinds: Mapping
     else:
         start = max(ts[0] for ts in times.values())
         end = max(ts[-1] for ts in times.values())
-        step = 1e9 / fps
-        frame_times = [int(start + k * step) for k in range(int((end - start) // step) + 1)]
+        # Integer nanoseconds: a float of ~1.7e18 ns would be off by a hundred ns.
+        frame_times = [start + k * 10**9 // fps for k in range((end - start) * fps // 10**9 + 1)]
     picks: dict[str, list[int]] = {k: [] for k in specs}
     tolerance = int(tolerance_s * 1e9)
     kept = 0
@@ -277,18 +277,22 @@ def export_lerobot_dataset(episodes: Sequence[EpisodeInfo] | str | os.PathLike[s
         raise ConfigError(f"repo_id {repo_id!r}: LeRobot names a dataset 'user/name'")
     specs = _as_specs(features)
     infos = load_episodes(episodes) if isinstance(episodes, (str, os.PathLike)) else list(episodes)
+    kinds = _kinds(specs, infos)
     root = Path(out_dir)
     if root.exists():
         if not overwrite:
             raise ConfigError(f"{root} exists; pass overwrite=True (--overwrite) to replace it")
         shutil.rmtree(root)
-    root.mkdir(parents=True)
-    kinds = _kinds(specs, infos)
     if tolerance_s is None:
         tolerance_s = 0.5 / fps if frame_topic else 0.0
+    root.mkdir(parents=True)
     writer = _Writer(root, pa, specs, kinds, fps, frame_topic, vcodec, crf, gop)
     writer.tolerance_s = float(tolerance_s)
-    summary = writer.run(infos, robot_type)
+    try:
+        summary = writer.run(infos, robot_type)
+    except BaseException:
+        shutil.rmtree(root, ignore_errors=True)  # no half-written dataset left to be mistaken for one
+        raise
     summary.seconds = time.monotonic() - started
     return summary
 
@@ -379,7 +383,8 @@ class _Writer:
             rows = [values[i] for i in plan.picks[key]]
             width = {len(r) for r in rows}
             if len(width) != 1 or 0 in width:
-                raise ConfigError(f"feature {key!r}: episode {info.episode} has vectors of lengths {sorted(width)}")
+                raise ConfigError(f"feature {key!r}: episode {info.episode} has vectors of lengths {sorted(width)} "
+                                  f"(from {self.specs[key].topic!r}; an empty field of a JointState?)")
             matrix = np.stack(rows).astype(np.float32)
             self._declare(key, {"dtype": "float32", "shape": [matrix.shape[1]], "names": plan.names[key]},
                           info.episode)
