@@ -24,7 +24,7 @@ from ..conftest import free_tcp_port, wait_for
 
 pytest.importorskip("mcap", reason="pip install 'agents-core[record]'")
 
-from agents_core.episodes import EpisodeLimits, EpisodeRecorder, load_episodes  # noqa: E402
+from agents_core.episodes import EpisodeLimits, EpisodeRecorder, load_episodes
 
 REPO = Path(__file__).resolve().parents[2]
 MiB = 2**20

@@ -19,7 +19,7 @@ from ..conftest import wait_for
 
 pytest.importorskip("mcap", reason="pip install 'agents-core[record]'")
 
-from agents_core.episodes import (  # noqa: E402 - after the skip
+from agents_core.episodes import (
     EpisodeError,
     EpisodeInfo,
     EpisodeLimits,
@@ -29,8 +29,8 @@ from agents_core.episodes import (  # noqa: E402 - after the skip
     load_episodes,
     value_bytes,
 )
-from agents_core.episodes.buffer import BufferedValue  # noqa: E402
-from agents_core.recording import read_recording  # noqa: E402
+from agents_core.episodes.buffer import BufferedValue
+from agents_core.recording import read_recording
 
 JOINTS = Topic("joints", "JointState")
 CAMERA = Topic("camera", "Image")

@@ -33,7 +33,7 @@ def _decode(path: Path) -> tuple[list[np.ndarray], list[float]]:
         return [f.to_ndarray(format="rgb24") for f in frames], [float(f.pts * f.time_base) for f in frames]
 
 
-def test_the_folder_has_the_v3_layout_and_the_recorded_frames(recorded: Recorded, tmp_path: Path) -> None:
+def test_the_folder_has_the_v3_layout_and_the_recorded_frames(recorded: Recorded, tmp_path: Path) -> None:  # noqa: PLR0915
     out = tmp_path / "ds"
     summary = export_lerobot_dataset(recorded.directory, out, repo_id="agents/test", fps=FPS, frame_topic="joints",
                                      features=FEATURES, robot_type="arm3")

@@ -121,7 +121,8 @@ def test_a_policy_built_from_recorded_episodes_drives_the_world_through_lerobot(
                                     "wall_s": round(time.monotonic() - started, 2),
                                     "distance": float(np.abs(world.env.q - world.env.target).max())})
                     hooks.on_episode_end(results[-1])
-                    assert status == GoalStatus.SUCCEEDED, (outcome, (tmp_path / "policy_server.log").read_text()[-3000:])
+                    log = (tmp_path / "policy_server.log").read_text()[-3000:]
+                    assert status == GoalStatus.SUCCEEDED, (outcome, log)
                     assert outcome["steps"] == STEPS
             finally:
                 hooks.close()

@@ -1,5 +1,5 @@
 """The ``agentsctl`` command tree: ``run``, ``topics``, ``components``, ``call``, ``ui``, ``router``, ``record``,
-``play``, ``foxglove``."""
+``play``, ``episodes``, ``foxglove``."""
 
 from __future__ import annotations
 
@@ -15,7 +15,7 @@ from ..console import QUIET_ENV_VAR
 from ..errors import AgentsError, ConfigError
 from ..install_hint import install_hint
 from ..transport.registry import TRANSPORT_ENV_VAR
-from . import components, recording, topics
+from . import components, episodes, recording, topics
 from .connection import fail, one_line_errors
 from .foxglove import foxglove
 from .output import print_json, say
@@ -30,6 +30,7 @@ app = typer.Typer(name="agentsctl", no_args_is_help=True, add_completion=False, 
                   help="Run agents_core recipes and inspect a live graph on Zenoh or ROS 2.")
 app.add_typer(topics.app, name="topics")
 app.add_typer(components.app, name="components")
+app.add_typer(episodes.app, name="episodes")
 app.command("call")(components.call)
 app.command("record")(recording.record)
 app.command("play")(recording.play)

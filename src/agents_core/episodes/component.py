@@ -21,7 +21,7 @@ was written). Example::
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
 from attrs import define, field
@@ -70,7 +70,7 @@ class EpisodeRecorderConfig(BaseComponentConfig):
 
 def _summary(info: EpisodeInfo) -> dict[str, Any]:
     return {"episode": info.episode, "mcap": str(info.mcap), "task": info.task, "trigger": info.trigger,
-            "ended": info.ended if not info.ended_ns == 0 else None, "reason": info.reason,
+            "ended": info.ended if info.ended_ns != 0 else None, "reason": info.reason,
             "messages": info.messages, "bytes": info.bytes, "dropped": info.dropped, "success": info.success}
 
 
@@ -94,16 +94,18 @@ class EpisodeRecorderComponent(Component):
         self.recorder: EpisodeRecorder | None = None
         for topic in self.inputs:
             callback = self.callbacks.get(topic.name) or self.trig_callbacks[topic.name]
-            callback.on_callback_execute(lambda value, _t=topic: self._offer(_t, value))
+            callback.on_callback_execute(self._offer_for(topic))
 
     @classmethod
     def _server_capable(cls) -> bool:
         return True
 
-    def _offer(self, topic: Topic, value: Any) -> None:
-        recorder = self.recorder
-        if recorder is not None:
-            recorder.offer(topic.name, topic.msg_type, value)
+    def _offer_for(self, topic: Topic) -> Callable[[Any], None]:
+        def offer(value: Any) -> None:
+            recorder = self.recorder
+            if recorder is not None:
+                recorder.offer(topic.name, topic.msg_type, value)
+        return offer
 
     def custom_on_activate(self) -> None:
         self.recorder = EpisodeRecorder(self.config.directory, limits=self.config.limits(),

@@ -28,7 +28,7 @@ import shutil
 import time
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 from attrs import define, field
 
@@ -129,11 +129,11 @@ class _VideoFile:
         path.parent.mkdir(parents=True, exist_ok=True)
         self.path = path
         self.size = (width, height)
-        self._container = av.open(str(path), "w")
+        self._container: Any = cast(Any, av.open(str(path), "w"))
         options = {"g": str(gop), "crf": str(crf)}
         if vcodec in ("libx264", "h264"):
             options["bf"] = "0"  # no B-frames: decode order = presentation order, no edit list
-        self._stream = self._container.add_stream(vcodec, rate=fps, options=options)
+        self._stream: Any = cast(Any, self._container.add_stream(vcodec, rate=fps, options=options))
         self._stream.width, self._stream.height, self._stream.pix_fmt = width, height, "yuv420p"
         from fractions import Fraction  # noqa: PLC0415
 
@@ -160,7 +160,7 @@ def _video_info(path: Path, fps: int) -> dict[str, Any]:
     import av  # noqa: PLC0415
 
     with av.open(str(path)) as container:
-        stream = container.streams.video[0]
+        stream: Any = cast(Any, container.streams.video[0])
         return {"video.height": stream.height, "video.width": stream.width,
                 "video.codec": stream.codec_context.codec.canonical_name, "video.pix_fmt": stream.pix_fmt,
                 "video.is_depth_map": False, "video.fps": fps, "video.channels": 3, "has_audio": False}

@@ -49,7 +49,7 @@ def require_pyarrow() -> Any:
     """The ``pyarrow`` module, or ConfigError naming the extra."""
     try:
         import pyarrow  # noqa: PLC0415 - the 'dataset' extra
-        import pyarrow.parquet  # noqa: PLC0415, F401
+        import pyarrow.parquet  # noqa: PLC0415
     except ImportError as exc:
         raise ConfigError(f"exporting a LeRobot dataset needs the 'dataset' extra ({exc}); "
                           "pip install 'agents-core[dataset]'") from None
@@ -162,8 +162,12 @@ class StatsAccumulator:
     def of_column(cls, values: npt.NDArray[Any]) -> dict[str, npt.NDArray[Any]]:
         """The statistics of a whole column at once (one row per frame)."""
         acc = cls()
-        acc._rows = [np.asarray(values, np.float64).reshape(len(values), -1)]
+        acc.add_rows(np.asarray(values, np.float64).reshape(len(values), -1))
         return acc.finish(len(values))
+
+    def add_rows(self, rows: npt.NDArray[Any]) -> None:
+        """Several frames' values at once (one row each)."""
+        self._rows.append(np.asarray(rows, np.float64))
 
     def finish(self, count: int) -> dict[str, npt.NDArray[Any]]:
         """The statistics of what was added (``count``: the frames they stand for)."""

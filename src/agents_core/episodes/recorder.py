@@ -35,7 +35,7 @@ import os
 import re
 import threading
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
@@ -64,6 +64,9 @@ _NAME = re.compile(r"^episode_(\d{6,})\.(json|mcap)$")
 _MiB = 2**20
 
 
+_optional_positive: Any = validators.optional(validators.gt(0))
+
+
 class EpisodeError(AgentsError, RuntimeError):
     """An episode request that cannot be done now (one already running, none running, recorder closed)."""
 
@@ -82,8 +85,8 @@ class EpisodeLimits:
     buffer_s: float = field(default=10.0, validator=validators.ge(0))
     buffer_bytes: int = field(default=256 * _MiB, validator=validators.gt(0))
     queue_bytes: int = field(default=128 * _MiB, validator=validators.gt(0))
-    max_episode_bytes: int | None = field(default=2048 * _MiB, validator=validators.optional(validators.gt(0)))
-    max_episode_s: float | None = field(default=3600.0, validator=validators.optional(validators.gt(0)))
+    max_episode_bytes: int | None = field(default=2048 * _MiB, validator=_optional_positive)
+    max_episode_s: float | None = field(default=3600.0, validator=_optional_positive)
 
 
 @define(kw_only=True)
@@ -253,9 +256,13 @@ class EpisodeRecorder:
         for topic in topics:
             if not isinstance(topic, Topic):
                 raise ConfigError(f"{self.name}: attach() takes Topic objects, got {type(topic).__name__}")
-            self._subscriptions.append(transport.create_subscription(
-                topic, lambda value, _t=topic: self.offer(_t.name, _t.msg_type, value), inline=True))
+            self._subscriptions.append(transport.create_subscription(topic, self._offer_for(topic), inline=True))
         return self
+
+    def _offer_for(self, topic: Topic) -> Callable[[Any], None]:
+        def offer(value: Any) -> None:
+            self.offer(topic.name, topic.msg_type, value)
+        return offer
 
     def _encoding(self, topic: str, msg_type: type[SupportedType]) -> Encoding | None:
         key = (topic, msg_type.type_name())
