@@ -28,7 +28,8 @@ def list_episodes(directory: Annotated[Path, typer.Argument(help="the episodes f
     if json_out:
         print_json([info.to_json() for info in infos])
         return
-    print_table(f"episodes in {directory}", ["episode", "task", "success", "ended", "seconds", "values", "MiB", "topics"],
+    columns = ["episode", "task", "success", "ended", "seconds", "values", "MiB", "topics"]
+    print_table(f"episodes in {directory}", columns,
                 [[str(i.episode), i.task, str(i.success), i.ended + (f" ({i.reason})" if i.reason else ""),
                   f"{i.duration_s:.1f}", str(i.messages), f"{i.bytes / 2**20:.1f}", ", ".join(sorted(i.topics))]
                  for i in infos])
