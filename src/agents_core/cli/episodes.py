@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
@@ -11,6 +11,9 @@ from ..errors import ConfigError
 from .connection import one_line_errors
 from .output import print_json, print_table, say
 from .topics import JsonOpt
+
+if TYPE_CHECKING:
+    from ..episodes import LeRobotFeature
 
 __all__ = ["app"]
 
@@ -35,10 +38,10 @@ def list_episodes(directory: Annotated[Path, typer.Argument(help="the episodes f
                  for i in infos])
 
 
-def _features(pairs: list[str]) -> dict[str, object]:
+def _features(pairs: list[str]) -> dict[str, str | LeRobotFeature]:
     from ..episodes import LeRobotFeature  # noqa: PLC0415
 
-    features: dict[str, object] = {}
+    features: dict[str, str | LeRobotFeature] = {}
     for pair in pairs:
         key, sep, source = pair.partition("=")
         if not sep or not key or not source:
