@@ -237,7 +237,7 @@ def test_hooks_record_one_episode_per_evaluated_episode(memory: MemoryTransport,
         (False, 11, "reach"), (True, 12, "reach"), (None, 13, "reach"), (None, 14, "reach")]
     assert infos[0].extra["result"]["reward_sum"] == 1.5 and "rewards" not in infos[0].extra["result"]
     assert infos[3].ended == "closed"
-    assert [e.episode for e in hooks.recorded] == [0, 1, 2]
+    assert [e["episode"] for e in hooks.recorded] == [0, 1, 2]
 
 
 def test_a_bad_sidecar_is_named(tmp_path: Path) -> None:
@@ -248,3 +248,24 @@ def test_a_bad_sidecar_is_named(tmp_path: Path) -> None:
                                                   '"mcap": "../../etc/passwd", "bogus": 1}')
     with pytest.raises(ConfigError, match="bogus"):
         EpisodeInfo.from_json(tmp_path / "episode_000000.json")
+
+
+def test_hooks_drive_a_recorder_component_of_the_recipe(tmp_path: Path) -> None:
+    from agents_core.episodes import EpisodeRecorderComponent, EpisodeRecorderConfig  # noqa: PLC0415
+
+    component = EpisodeRecorderComponent(inputs=[JOINTS], component_name="rec",
+                                         config=EpisodeRecorderConfig(directory=str(tmp_path)))
+    hooks = EpisodeRecordingHooks.for_component(component, task="t")
+    with pytest.raises(ConfigError, match="a component name needs the transport"):
+        EpisodeRecordingHooks.for_component("rec")
+    with pytest.raises(ConfigError, match="'rec' is not active here"):
+        hooks.on_episode_start(0, 1)
+    launcher = Launcher("memory")
+    launcher.add_pkg(components=[component])
+    with launcher:
+        pubs = _publishers(launcher.transport)
+        hooks.on_episode_start(0, 5)
+        _step(pubs, 1)
+        hooks.on_episode_end({"episode": 0, "seed": 5, "success": True})
+    (info,) = load_episodes(tmp_path)
+    assert info.success is True and info.extra["seed"] == 5 and info.messages == 1

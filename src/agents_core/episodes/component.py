@@ -139,18 +139,40 @@ class EpisodeRecorderComponent(Component):
     @component_action(description={
         "description": "Start recording an episode now.",
         "parameters": {"type": "object", "properties": {
-            "task": {"type": "string", "description": "what the episode is about"}}, "required": []}})
-    def start_episode(self, task: str = "") -> dict[str, Any]:
-        """Start recording an episode now (an error if one is running)."""
-        return _summary(self._require().start_episode(str(task)))
+            "task": {"type": "string", "description": "what the episode is about"},
+            "before_s": {"type": "number", "description": "seconds of the pre-buffer to keep (default 0)"}},
+            "required": []}})
+    def start_episode(self, task: str = "", before_s: float = 0.0, extra: dict[str, Any] | None = None
+                      ) -> dict[str, Any]:
+        """Start recording an episode now (an error if one is running); ``extra`` goes into its sidecar."""
+        return _summary(self._require().start_episode(str(task), before_s=float(before_s), extra=_extra(extra)))
 
     @component_action(description={
         "description": "End the running episode and write its file.",
         "parameters": {"type": "object", "properties": {
             "success": {"type": ["boolean", "null"], "description": "whether the episode's task succeeded"}},
             "required": []}})
-    def stop_episode(self, success: bool | None = None) -> dict[str, Any]:
+    def stop_episode(self, success: bool | None = None, extra: dict[str, Any] | None = None) -> dict[str, Any]:
         """End the running episode, write its file; returns what was written."""
         if success is not None and not isinstance(success, bool):
             raise ConfigError(f"component {self.component_name!r}: success must be true, false or null")
-        return _summary(self._require().stop_episode(success))
+        return _summary(self._require().stop_episode(success, extra=_extra(extra)))
+
+    @component_action(description={
+        "description": "The episode being recorded now (null when none), and how many were written.",
+        "parameters": {"type": "object", "properties": {}, "required": []}})
+    def episode_status(self) -> dict[str, Any]:
+        """The running episode (None when none runs), the episodes written, the pre-buffer's fill."""
+        recorder = self._require()
+        running = recorder.recording
+        stats = recorder.statistics()
+        return {"recording": None if running is None else _summary(running), "episodes": stats.episodes,
+                "buffered_bytes": stats.buffered_bytes, "received": stats.received}
+
+
+def _extra(extra: Any) -> dict[str, Any] | None:
+    if extra is None:
+        return None
+    if not isinstance(extra, dict) or not all(isinstance(k, str) for k in extra):
+        raise ConfigError("extra must be a JSON object (a dict with string keys)")
+    return extra
