@@ -14,18 +14,18 @@ from typing import Any
 import numpy as np
 import pytest
 
+from agents_core.errors import RequestTimeoutError, ServiceUnavailableError
 from agents_core.messages import ImageMsg, JointStateMsg
 from agents_core.testing.recipes import RecipeTransport, run_recipe
-from agents_core.errors import RequestTimeoutError, ServiceUnavailableError
 
 from ..conftest import wait_for
 
 pytest.importorskip("mcap", reason="pip install 'agents-core[record]'")
 
-from agents_core.episodes import EpisodeRecordingHooks, load_episodes  # noqa: E402
-from agents_core.recording import read_recording  # noqa: E402
+from agents_core.episodes import EpisodeRecordingHooks, load_episodes
+from agents_core.recording import read_recording
 
-from .episodes_recipe import CAMERA, JOINTS  # noqa: E402
+from .episodes_recipe import CAMERA, JOINTS
 
 REPO = Path(__file__).resolve().parents[2]
 
