@@ -269,3 +269,10 @@ def test_hooks_drive_a_recorder_component_of_the_recipe(tmp_path: Path) -> None:
         hooks.on_episode_end({"episode": 0, "seed": 5, "success": True})
     (info,) = load_episodes(tmp_path)
     assert info.success is True and info.extra["seed"] == 5 and info.messages == 1
+
+
+def test_an_episode_with_nothing_in_it_is_an_empty_file(tmp_path: Path) -> None:
+    with EpisodeRecorder(tmp_path) as recorder:
+        recorder.start_episode()
+        info = recorder.stop_episode()
+    assert info.messages == 0 and info.mcap.is_file() and list(read_recording(info.mcap)) == []

@@ -34,7 +34,7 @@ SIDE = 32
 class ToyReach(gym.Env):  # type: ignore[misc]
     """Reach a seeded target in joint space (see the module docstring)."""
 
-    metadata = {"render_modes": ["rgb_array"]}  # noqa: RUF012 - gymnasium's convention
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 20}  # noqa: RUF012 - gymnasium's convention
 
     def __init__(self) -> None:
         self.observation_space = gym.spaces.Box(-1.0, 1.0, (2,), np.float64)
@@ -63,6 +63,40 @@ class ToyReach(gym.Env):  # type: ignore[misc]
 
     def success(self) -> bool:
         return bool(np.abs(self.q - self.target).max() < TOLERANCE)
+
+
+class ToyReachDict(ToyReach):
+    """``ToyReach`` as the framework's Gymnasium world reads one: ``{"agent_pos": q}`` observations,
+    ``info["is_success"]`` (the world's default success rule), ``render_mode`` taken. Registered as
+    ``ENV_ID`` by :func:`register`."""
+
+    def __init__(self, render_mode: str | None = "rgb_array") -> None:
+        super().__init__()
+        self.render_mode = render_mode
+        self.observation_space = gym.spaces.Dict({"agent_pos": gym.spaces.Box(-1.0, 1.0, (2,), np.float64)})
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Any, dict[str, Any]]:
+        q, info = super().reset(seed=seed, options=options)
+        return {"agent_pos": q}, {**info, "is_success": self.success()}
+
+    def step(self, action: Any) -> tuple[Any, float, bool, bool, dict[str, Any]]:
+        q, reward, terminated, truncated, info = super().step(action)
+        return {"agent_pos": q}, reward, terminated, truncated, {**info, "is_success": self.success()}
+
+
+ENV_ID = "AgentsToyReach-v0"
+
+
+def register() -> str:
+    """Register :class:`ToyReachDict` with Gymnasium (once); returns its id."""
+    if ENV_ID not in gym.registry:
+        gym.register(ENV_ID, entry_point="tests.lerobot.toy_world:ToyReachDict", max_episode_steps=200)
+    return ENV_ID
+
+
+def target_of(env: Any) -> np.ndarray:
+    """The privileged state a scripted expert gets (GymWorld appends it to the observation vector)."""
+    return np.asarray(env.unwrapped.target, np.float64)
 
 
 class RealTimeWorld:

@@ -206,6 +206,15 @@ class _Episode:
 _Close = collections.namedtuple("_Close", "episode")
 
 
+def _empty_mcap(path: Path) -> None:
+    """An MCAP file with no message (an episode during which nothing arrived)."""
+    mcap_writer = require_mcap()
+    with open(path, "wb") as stream:
+        writer = mcap_writer.Writer(stream)
+        writer.start(profile="ros2", library="agents_core")
+        writer.finish()
+
+
 class EpisodeRecorder:
     """Records episodes of the values it is offered into ``directory`` (see the module docstring).
 
@@ -458,9 +467,9 @@ class EpisodeRecorder:
         info = episode.info
         try:
             if episode.writer is None:  # nothing arrived: still an (empty) file, so the numbering holds
-                episode.writer = McapSeriesWriter(info.mcap, RecordingLimits(), compression=self._compression)
-                episode.writer.flush()
-            episode.writer.close()
+                _empty_mcap(info.mcap)
+            else:
+                episode.writer.close()
             tmp = info.sidecar.with_suffix(".json.tmp")
             tmp.write_text(json.dumps(info.to_json(), indent=1, default=str), encoding="utf-8")
             os.replace(tmp, info.sidecar)
