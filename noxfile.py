@@ -77,7 +77,7 @@ def tests(session: nox.Session) -> None:
     """
     # voice-gpl (espeak-ng, GPL-3.0) only in this test environment, never in the core install.
     _install_with_local_models(session, "dev,zenoh,ros2,local,voice,voice-gpl,roboml,vla,servers,cli,ui,memory,"
-                                        "record,foxglove")
+                                        "record,foxglove,dataset")
     _install_ros2_interfaces(session)
     _install_browser(session)
     _private_ros_discovery(session)
