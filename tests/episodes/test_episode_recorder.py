@@ -246,8 +246,16 @@ def test_a_bad_sidecar_is_named(tmp_path: Path) -> None:
         load_episodes(tmp_path)
     (tmp_path / "episode_000000.json").write_text('{"format": "agents_core.episode/1", "episode": 0, '
                                                   '"mcap": "../../etc/passwd", "bogus": 1}')
-    with pytest.raises(ConfigError, match="bogus"):
+    with pytest.raises(ConfigError, match="unknown field 'bogus'"):
         EpisodeInfo.from_json(tmp_path / "episode_000000.json")
+    (tmp_path / "episode_000000.json").write_text('{"format": "agents_core.episode/1", "episode": "0", '
+                                                  '"mcap": "episode_000000.mcap"}')
+    with pytest.raises(ConfigError, match="field 'episode' is a str"):
+        load_episodes(tmp_path)
+    (tmp_path / "episode_000000.json").write_text('{"format": "agents_core.episode/1", "episode": 0, '
+                                                  '"mcap": "../x.mcap", "topics": {"t": {"type": 1}}}')
+    with pytest.raises(ConfigError, match="topic 't': expected"):
+        load_episodes(tmp_path)
 
 
 def test_hooks_drive_a_recorder_component_of_the_recipe(tmp_path: Path) -> None:

@@ -156,9 +156,32 @@ class EpisodeInfo:
                                  if isinstance(doc, dict) else "not a JSON object")
             doc.pop("format")
             mcap = path.parent / Path(str(doc.pop("mcap"))).name  # never outside the sidecar's folder
+            _check_sidecar(doc)
             return cls(mcap=mcap, **doc)
         except (OSError, ValueError, TypeError, KeyError) as exc:
             raise ConfigError(f"episode sidecar {path}: {exc}") from None
+
+
+#: The sidecar's fields and the types each may hold (a file is untrusted input: checked before use).
+_SIDECAR_TYPES: dict[str, tuple[type, ...]] = {
+    "episode": (int,), "task": (str,), "trigger": (str,), "started_ns": (int,), "ended_ns": (int,), "ended": (str,),
+    "reason": (str, type(None)), "success": (bool, type(None)), "messages": (int,), "bytes": (int,),
+    "dropped": (int,), "topics": (dict,), "extra": (dict,)}
+
+
+def _check_sidecar(doc: dict[str, Any]) -> None:
+    for name, value in doc.items():
+        allowed = _SIDECAR_TYPES.get(name)
+        if allowed is None:
+            raise ValueError(f"unknown field {name[:60]!r}")
+        if not isinstance(value, allowed) or (isinstance(value, bool) and bool not in allowed):
+            raise ValueError(f"field {name!r} is a {type(value).__name__}")
+    if doc.get("trigger", "explicit") not in ("explicit", "event"):
+        raise ValueError(f"trigger {str(doc['trigger'])[:40]!r} is not 'explicit' nor 'event'")
+    for topic, entry in doc.get("topics", {}).items():
+        if not (isinstance(entry, dict) and isinstance(entry.get("type"), str)
+                and isinstance(entry.get("messages"), int)):
+            raise ValueError(f"topic {str(topic)[:60]!r}: expected {{'type': str, 'messages': int}}")
 
 
 def load_episodes(directory: str | os.PathLike[str]) -> list[EpisodeInfo]:
