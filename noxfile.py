@@ -296,7 +296,11 @@ def lerobot(session: nox.Session) -> None:
     Not in the default list: it installs torch (about 3 GB with its CUDA libraries, run on the CPU) and LeRobot.
     Everything runs offline (``HF_HUB_OFFLINE=1``); the policy has random weights.
     """
-    session.install("-e", ".[dataset,zenoh,vla]", "pytest>=8", "pytest-timeout>=2.2", "hypothesis>=6.100")
+    project = _pyproject()["project"]
+    assert isinstance(project, dict)
+    # The sim extra (the framework's Gymnasium world) where this checkout has it: tests/lerobot/test_sim_world_vla.py.
+    extras = "dataset,zenoh,vla" + (",sim" if "sim" in project["optional-dependencies"] else "")
+    session.install("-e", f".[{extras}]", "pytest>=8", "pytest-timeout>=2.2", "hypothesis>=6.100")
     session.install(*LEROBOT_TORCH)
     # 0.4.4 is the last LeRobot for Python 3.10 / 3.11; its dataset format (v3.0) is the current one.
     session.install("--no-deps", "lerobot==0.4.4" if sys.version_info < (3, 12) else "lerobot>=0.4.4,<0.7")
