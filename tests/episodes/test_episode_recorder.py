@@ -191,6 +191,8 @@ def test_the_component_s_actions_drive_it_through_execute_method(tmp_path: Path)
 
     with pytest.raises(ConfigError, match="give the topics to record as inputs"):
         EpisodeRecorderComponent(inputs=[])
+    with pytest.raises(ConfigError, match=r"max_episode_mb: expected a number > 0 or None, got -1"):
+        EpisodeRecorderConfig(max_episode_mb=-1)
     component = EpisodeRecorderComponent(inputs=[JOINTS, COMMAND], component_name="episodes",
                                          config=EpisodeRecorderConfig(directory=str(tmp_path), buffer_s=2.0))
     launcher = Launcher("memory")

@@ -39,6 +39,11 @@ __all__ = ["EpisodeRecorderComponent", "EpisodeRecorderConfig"]
 _MiB = 2**20
 
 
+def _optional_positive(instance: Any, attribute: Any, value: Any) -> None:
+    if value is not None and (isinstance(value, bool) or not isinstance(value, int | float) or not value > 0):
+        raise ConfigError(f"{type(instance).__name__}.{attribute.name}: expected a number > 0 or None, got {value!r}")
+
+
 @define(kw_only=True)
 class EpisodeRecorderConfig(BaseComponentConfig):
     """Settings of the :class:`EpisodeRecorderComponent`.
@@ -56,8 +61,8 @@ class EpisodeRecorderConfig(BaseComponentConfig):
     buffer_s: float = field(default=10.0, validator=base_validators.in_range(0.0, 3600.0))
     buffer_mb: float = field(default=256.0, validator=base_validators.in_range(0.01, 1_000_000.0))
     queue_mb: float = field(default=128.0, validator=base_validators.in_range(0.01, 1_000_000.0))
-    max_episode_mb: float | None = field(default=2048.0)
-    max_episode_s: float | None = field(default=3600.0)
+    max_episode_mb: float | None = field(default=2048.0, validator=_optional_positive)
+    max_episode_s: float | None = field(default=3600.0, validator=_optional_positive)
     encoding: str = field(default="cdr", validator=base_validators.in_(["cdr", "msgpack"]))
 
     def limits(self) -> EpisodeLimits:
