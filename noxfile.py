@@ -77,7 +77,7 @@ def tests(session: nox.Session) -> None:
     """
     # voice-gpl (espeak-ng, GPL-3.0) only in this test environment, never in the core install.
     _install_with_local_models(session, "dev,zenoh,ros2,local,voice,voice-gpl,roboml,vla,servers,cli,ui,memory,"
-                                        "record,foxglove")
+                                        "record,foxglove,dataset")
     _install_ros2_interfaces(session)
     _install_browser(session)
     _private_ros_discovery(session)
@@ -262,3 +262,49 @@ def bench(session: nox.Session) -> None:
     session.install("matplotlib")
     _install_ros2_interfaces(session)
     session.run("python", "-m", "benchmarks.run", *session.posargs)
+
+
+#: LeRobot for the ``lerobot`` session, installed without its pins (torch < 2.11, torchcodec < 0.11, rerun, wandb,
+#: pynput): a torch / torchvision / torchcodec triple that agree with each other, and the packages its dataset and
+#: policy-server code import.
+LEROBOT_TORCH = ["torch==2.14.1", "torchvision==0.29.1", "torchcodec==0.14.0"]
+LEROBOT_RUNTIME = ["datasets>=4,<5", "diffusers>=0.27.2,<0.36", "huggingface-hub>=0.34.2,<0.36", "accelerate>=1.10,<2",
+                   "einops>=0.8,<0.9", "opencv-python-headless>=4.9,<4.13", "av>=15,<16", "jsonlines>=4",
+                   "packaging>=24.2,<26", "draccus==0.10.0", "gymnasium>=1.1.1,<2", "deepdiff>=7,<9",
+                   "imageio[ffmpeg]>=2.34,<3", "termcolor>=2.4,<4", "grpcio==1.73.1", "protobuf>=6.31.1,<6.32",
+                   "pyserial>=3.5"]
+
+
+def _install_ffmpeg_libraries(session: nox.Session) -> None:
+    """FFmpeg's shared libraries, which torchcodec (LeRobot's video decoder) loads: from apt when root and missing."""
+    if any(Path(d).glob("libavcodec.so.*") for d in ("/usr/lib/x86_64-linux-gnu", "/usr/lib/aarch64-linux-gnu",
+                                                    "/usr/lib", "/usr/local/lib")):
+        return
+    if hasattr(os, "geteuid") and os.geteuid() == 0 and shutil.which("apt-get"):
+        session.log("installing Debian's ffmpeg (its libraries decode LeRobot's videos through torchcodec)")
+        session.run("apt-get", "update", "-qq", external=True)
+        session.run("apt-get", "install", "-y", "-qq", "--no-install-recommends", "ffmpeg", external=True,
+                    env={"DEBIAN_FRONTEND": "noninteractive"})
+    else:
+        session.warn("no FFmpeg libraries and no root apt: LeRobot cannot decode the exported videos")
+
+
+@nox.session
+def lerobot(session: nox.Session) -> None:
+    """Exported episodes against LeRobot itself: ``LeRobotDataset`` loads them, its policy server drives a world.
+
+    Not in the default list: it installs torch (about 3 GB with its CUDA libraries, run on the CPU) and LeRobot.
+    Everything runs offline (``HF_HUB_OFFLINE=1``); the policy has random weights.
+    """
+    project = _pyproject()["project"]
+    assert isinstance(project, dict)
+    # The sim extra (the framework's Gymnasium world) where this checkout has it: tests/lerobot/test_sim_world_vla.py.
+    extras = "dataset,zenoh,vla" + (",sim" if "sim" in project["optional-dependencies"] else "")
+    session.install("-e", f".[{extras}]", "pytest>=8", "pytest-timeout>=2.2", "hypothesis>=6.100")
+    session.install(*LEROBOT_TORCH)
+    # 0.4.4 is the last LeRobot for Python 3.10 / 3.11; its dataset format (v3.0) is the current one.
+    session.install("--no-deps", "lerobot==0.4.4" if sys.version_info < (3, 12) else "lerobot>=0.4.4,<0.7")
+    session.install(*LEROBOT_RUNTIME)
+    _install_ffmpeg_libraries(session)
+    session.env["HF_HUB_OFFLINE"] = "1"
+    session.run("pytest", *(session.posargs or ["tests/lerobot", "-p", "no:cacheprovider"]))

@@ -1,5 +1,5 @@
 """The ``agentsctl`` command tree: ``run``, ``recipe``, ``topics``, ``components``, ``call``, ``ui``, ``router``,
-``record``, ``play``, ``foxglove``."""
+``record``, ``play``, ``episodes``, ``eval``, ``foxglove``."""
 
 from __future__ import annotations
 
@@ -15,7 +15,7 @@ from ..console import QUIET_ENV_VAR
 from ..errors import AgentsError, ConfigError
 from ..install_hint import install_hint
 from ..transport.registry import TRANSPORT_ENV_VAR, available_transports
-from . import components, recipe, recording, topics
+from . import components, episodes, recipe, recording, topics
 from .connection import attachable_transports, fail, one_line_errors
 from .evals import eval_app
 from .foxglove import foxglove
@@ -33,6 +33,7 @@ app.add_typer(topics.app, name="topics")
 app.add_typer(components.app, name="components")
 app.add_typer(recipe.app, name="recipe")
 app.add_typer(eval_app, name="eval")
+app.add_typer(episodes.app, name="episodes")
 app.command("call")(components.call)
 app.command("record")(recording.record)
 app.command("play")(recording.play)

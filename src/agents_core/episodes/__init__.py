@@ -1,0 +1,58 @@
+"""Episodes as data: record a recipe's topics as episodes and export them as a LeRobot dataset.
+
+- :class:`EpisodeRecorder`: values in, episodes out (an MCAP file and a JSON sidecar each), with a
+  pre-buffer bounded in bytes and seconds, event-triggered (``record_episode(before_s, after_s)``)
+  or explicit (``start_episode`` / ``stop_episode``) episodes, and size / duration caps
+  (:mod:`.recorder`, :mod:`.buffer`).
+- :class:`EpisodeRecorderComponent`: the same as a recipe component whose actions drive it
+  (:mod:`.component`).
+- :class:`EpisodeRecordingHooks`: one recorded episode per evaluated episode (:mod:`.hooks`).
+- :func:`export_lerobot_dataset`: episodes to a LeRobotDataset v3.0 folder (parquet, mp4, ``meta/``),
+  with ``pip install 'agents-core[dataset]'`` (pyarrow, PyAV); no LeRobot or torch needed
+  (:mod:`.lerobot_export`).
+
+Recording needs the ``record`` extra (the MCAP writer). See ``docs/episodes.md``.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from .._lazy import lazy_exports
+from .buffer import PreBuffer, value_bytes
+from .hooks import EpisodeRecordingHooks
+from .recorder import (
+    EpisodeError,
+    EpisodeInfo,
+    EpisodeLimits,
+    EpisodeRecorder,
+    EpisodeRecorderStatistics,
+    load_episodes,
+)
+
+# The component pulls in the component runtime, the export pyarrow / PyAV: loaded when first used.
+_EXPORTS = {".component": ("EpisodeRecorderComponent", "EpisodeRecorderConfig"),
+            ".lerobot_export": ("ExportSummary", "LeRobotFeature", "export_lerobot_dataset")}
+
+if TYPE_CHECKING:
+    from .component import EpisodeRecorderComponent, EpisodeRecorderConfig
+    from .lerobot_export import ExportSummary, LeRobotFeature, export_lerobot_dataset
+else:
+    __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
+
+__all__ = [
+    "EpisodeError",
+    "EpisodeInfo",
+    "EpisodeLimits",
+    "EpisodeRecorder",
+    "EpisodeRecorderComponent",
+    "EpisodeRecorderConfig",
+    "EpisodeRecorderStatistics",
+    "EpisodeRecordingHooks",
+    "ExportSummary",
+    "LeRobotFeature",
+    "PreBuffer",
+    "export_lerobot_dataset",
+    "load_episodes",
+    "value_bytes",
+]
