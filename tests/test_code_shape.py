@@ -42,7 +42,7 @@ LAYERS: tuple[tuple[str, frozenset[str]], ...] = (
     ("runtime", frozenset({"runtime"})),
     ("clients", frozenset({"clients", "engines"})),
     ("components", frozenset({"components"})),
-    ("wings", frozenset({"launch", "recording", "foxglove", "ui"})),
+    ("wings", frozenset({"launch", "recording", "foxglove", "ui", "episodes", "evals"})),
     ("entry points", frozenset({"cli", "testing", "demo", "ros"})),
 )
 ADAPTER_LAYER = "runtime"
