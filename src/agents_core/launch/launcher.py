@@ -10,16 +10,10 @@ Non-blocking, for tests and embedding: ``with Launcher(transport="memory") as la
 on enter, stop() on exit; ``launcher.transport`` reaches the components).
 
 What ``add_pkg``, ``on_fail``, ``enable_ui``, ... are given is held as data in
-:attr:`Launcher.recipe` (``agentsctl recipe show`` prints it). :meth:`Launcher.start` opens the
-transport and starts one run (:mod:`agents_core.launch.runs`): every component in this process,
-or with ``add_pkg(..., multiprocessing=True)`` a process per component, respawned when it
-crashes (``on_process_fail``); the events (:mod:`agents_core.launch.event_wiring`) and the run's
-attachments (web UI, Foxglove, recording: :mod:`agents_core.launch.attachments`). With
-``multiprocessing=True`` and no transport named anywhere (argument, ``AGENTS_TRANSPORT``, config
-file) it runs on the first installed cross-process transport (Zenoh), saying so, else in one
-process with a WARNING; an in-process transport named explicitly is refused.
-``Launcher(config_file="robot.yaml")`` reads a ``transport`` section (``name`` and its options)
-and one section per component name (its config fields) from one YAML or TOML file.
+:attr:`Launcher.recipe` (``agentsctl recipe show`` prints it); :meth:`Launcher.start` opens the
+transport and starts one run (:mod:`agents_core.launch.runs`: this process, or a process per
+component with ``add_pkg(..., multiprocessing=True)``), the events
+(:mod:`agents_core.launch.event_wiring`) and the attachments (:mod:`agents_core.launch.attachments`).
 """
 
 from __future__ import annotations
@@ -50,7 +44,6 @@ from .preflight import (
     launch_settings,
     refuse_inside_component_process,
 )
-from .process_start import process_start as choose_process_start
 from .recipe import Recipe, stop_if_capturing
 from .report import LaunchReport
 from .runs import ProcessRun, Run, ThreadRun, prepare_fork_server
@@ -87,11 +80,7 @@ class Launcher:
                  config_file: str | os.PathLike[str] | None = None, quiet: bool | None = None,
                  process_start: str | None = None) -> None:
         self._quiet = quiet
-        try:
-            start = choose_process_start(process_start)
-        except ValueError as exc:
-            raise ConfigError(str(exc)) from None
-        settings, self._component_sections = launch_settings(transport, transport_options, config_file, start)
+        settings, self._component_sections = launch_settings(transport, transport_options, config_file, process_start)
         #: What this launcher runs, as data (:mod:`agents_core.launch.recipe`).
         self.recipe = Recipe(settings=settings)
         self._fork_server: ForkServer | None = None
@@ -271,8 +260,9 @@ class Launcher:
         return self
 
     def _choose_default_transport(self) -> None:
-        """``multiprocessing=True`` with no transport named anywhere: a cross-process one if installed, else one
-        process. Then (before the transport opens) the fork server is prepared for the transport's adapter."""
+        """``multiprocessing=True`` with no transport named anywhere (argument, ``AGENTS_TRANSPORT``, config file):
+        the first installed cross-process one (Zenoh), saying so, else one process with a WARNING. Then (before
+        the transport opens) the fork server is prepared for the transport's adapter."""
         settings = self.recipe.settings
         named = settings.transport is not None or os.environ.get(TRANSPORT_ENV_VAR, "").strip()
         if settings.multiprocessing and not named:

@@ -19,6 +19,7 @@ from ..config import load_config_file
 from ..errors import ConfigError, WiringError
 from ..events import Event
 from ..transport.registry import TRANSPORT_ENV_VAR
+from .process_start import process_start as choose_process_start
 from .recipe import RecipeSettings
 
 __all__ = ["LIFECYCLE_METHODS", "apply_fail_action", "apply_launch_file", "check_remote_action", "check_transferable",
@@ -77,9 +78,13 @@ def read_launch_file(path: str) -> tuple[dict[str, Any], dict[str, dict[str, Any
 
 
 def launch_settings(transport: Any, transport_options: Mapping[str, Any] | None, config_file: Any,
-                    process_start: str) -> tuple[RecipeSettings, dict[str, dict[str, Any]]]:
+                    process_start: str | None) -> tuple[RecipeSettings, dict[str, dict[str, Any]]]:
     """The Launcher's constructor arguments, with the launch file's ``transport`` section, as recipe settings;
     and the file's component sections (applied at start). What is passed explicitly wins over the file."""
+    try:
+        start = choose_process_start(process_start)
+    except ValueError as exc:
+        raise ConfigError(str(exc)) from None
     config = str(config_file) if config_file is not None else None
     file_transport: dict[str, Any] = {}
     sections: dict[str, dict[str, Any]] = {}
@@ -90,7 +95,7 @@ def launch_settings(transport: Any, transport_options: Mapping[str, Any] | None,
         transport = file_name
     options = {**(file_transport if isinstance(transport, str | None) else {}), **dict(transport_options or {})}
     return RecipeSettings(transport=transport, transport_options=options, config_file=config,
-                          process_start=process_start), sections
+                          process_start=start), sections
 
 
 def apply_launch_file(components: Sequence[Component], sections: Mapping[str, Mapping[str, Any]],
