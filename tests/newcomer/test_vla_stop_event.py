@@ -83,7 +83,7 @@ def test_event_reaches_a_vla_in_its_own_process(tmp_path: Path) -> None:
         with PolicyTestServer(ReachPolicy(FAR, step=0.01)) as server, \
                 run_recipe("tests.newcomer.vla_stop_recipe", transport, tmp_path,
                            ["--policy-port", str(server.port), "--multiprocessing"], cwd=REPO):
-            status, result, before = _run_goal_and_stop(transport.open_asker())
+            status, result, _ = _run_goal_and_stop(transport.open_asker())
     finally:
         transport.close()
     assert status == GoalStatus.SUCCEEDED, result
