@@ -11,6 +11,7 @@ outputs and actions, and serves the UI until Ctrl+C. :func:`main` is meant to be
 from __future__ import annotations
 
 import argparse
+import os
 import signal
 import sys
 import threading
@@ -25,7 +26,7 @@ if TYPE_CHECKING:
     from ..transport.contract import Transport
     from .server import UIServer
 
-__all__ = ["attach", "main"]
+__all__ = ["attach", "main", "session_options"]
 
 
 def attach(transport: Transport, *, components: Sequence[str] | None = None,
@@ -43,12 +44,24 @@ def attach(transport: Transport, *, components: Sequence[str] | None = None,
     return UIServer(view, transport, inputs=inputs, outputs=outputs, settings=settings).start()
 
 
+def session_options(connect: Sequence[str], mode: str = "peer") -> dict[str, Any]:
+    """The UI's Zenoh options: with ``connect``, a ``mode`` session of those endpoints; without, what every other
+    ``agentsctl`` command opens (the host's recipes: the loopback rendezvous or ``AGENTS_ZENOH_*``), never an
+    isolated session."""
+    if connect:
+        return {"mode": mode, "connect": list(connect), "listen": []}
+    return {"zenoh_options": {"scouting/delay": 100}}  # as agents_core.cli.connection.zenoh_options(None)
+
+
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="agentsctl ui", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--transport", default="zenoh", help="zenoh or ros2 (default: zenoh)")
-    parser.add_argument("--connect", action="append", default=[], help="Zenoh endpoint to connect to (repeat)")
-    parser.add_argument("--mode", default="peer", help="Zenoh session mode (peer or client)")
+    parser.add_argument("--transport", default=None,
+                        help="zenoh or ros2 (default: AGENTS_TRANSPORT, else zenoh, as every agentsctl command)")
+    parser.add_argument("--connect", action="append", default=[],
+                        help="Zenoh endpoint to connect to (repeat); none: the recipes on this host (the loopback "
+                             "rendezvous, or AGENTS_ZENOH_CONNECT), as every agentsctl command")
+    parser.add_argument("--mode", default="peer", help="Zenoh session mode with --connect (peer or client)")
     parser.add_argument("--component", action="append", default=None, help="show only these components (repeat)")
     parser.add_argument("--host", default="127.0.0.1", help="bind address (off loopback needs AGENTS_UI_TOKEN)")
     parser.add_argument("--port", type=int, default=5001)
@@ -61,12 +74,13 @@ def _parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the attached UI until SIGINT / SIGTERM (or ``--seconds``)."""
     args = _parser().parse_args(argv)
-    from ..transport.registry import resolve_transport  # noqa: PLC0415
+    from ..transport.registry import TRANSPORT_ENV_VAR, resolve_transport  # noqa: PLC0415
 
+    name = (args.transport or os.environ.get(TRANSPORT_ENV_VAR, "").strip() or "zenoh").strip().lower()
     options: dict[str, Any] = {}
-    if args.transport == "zenoh":
-        options = {"mode": args.mode, "connect": list(args.connect), "listen": []}
-    transport = resolve_transport(args.transport, **options)
+    if name == "zenoh":
+        options = session_options(args.connect, args.mode)
+    transport = resolve_transport(name, **options)
     try:
         settings = UISettings(host=args.host, port=args.port, tls_certfile=args.tls_certfile,
                               tls_keyfile=args.tls_keyfile)
