@@ -95,7 +95,7 @@ def test_arguments_by_name_through_execute_method() -> None:
         ask = launcher.transport.request
         by_name = ask("arm/execute_method", {"method": "move", "args": [{"joint": "wrist", "angle": 1}]}, timeout=5)
         positional = ask("arm/execute_method", {"method": "move", "args": ["wrist", 1]}, timeout=5)
-        with pytest.raises(Exception, match="missing a required argument: 'angle'.*takes \\(joint, angle"):
+        with pytest.raises(Exception, match=r"missing a required argument: 'angle'.*takes \(joint, angle"):
             ask("arm/execute_method", {"method": "move", "args": [{"joint": "wrist"}]}, timeout=5)
     assert by_name["result"] == positional["result"] == "wrist 1 2 abs None None"
 

@@ -55,7 +55,7 @@ def test_agentsctl_ui_without_connect_shows_the_recipe(tmp_path: Path) -> None:
         assert ui.stdout is not None
         first = ui.stdout.readline()
         assert "UI for ['listener', 'talker']" in first, (first, ui.stderr.read() if ui.poll() is not None else "")
-        with urllib.request.urlopen(f"http://127.0.0.1:{port}/api/interfaces", timeout=10) as reply:  # noqa: S310
+        with urllib.request.urlopen(f"http://127.0.0.1:{port}/api/interfaces", timeout=10) as reply:
             shown = json.loads(reply.read())
         names = sorted(c["name"] for c in shown["components"])
         assert names == ["listener", "talker"]
