@@ -41,7 +41,10 @@ def describe_transport(transport: Any) -> str:
         config = getattr(driver, "config", None)
         if config is None:
             return name
-        return f"zenoh ({_zenoh_endpoints(config)})"
+        joined = ("; joined the peers already there: another recipe on this host shares its topics (give each "
+                  "recipe its own AGENTS_ZENOH_PORT to keep them apart)") if getattr(driver, "joined_rendezvous",
+                                                                                     False) else ""
+        return f"zenoh ({_zenoh_endpoints(config)}{joined})"
     if name == "ros2":
         return f"ros2 (domain {_ros_domain(driver)}; discovery range {_ros_range()})"
     return name
