@@ -58,7 +58,7 @@ def _expected(default: object) -> str:
 
 
 def test_the_config_reference_shows_each_fields_real_default() -> None:
-    import agents_core.config as config  # noqa: PLC0415
+    from agents_core import config  # noqa: PLC0415
 
     rows = _rows(_hook().config_sections(REPO, CONFIG_FILES))
     names = [n for n in config.__all__ if n.endswith("Config") and n != "VLMConfig"]

@@ -20,7 +20,8 @@ EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 
 
 def _talker(port: int, log: Path) -> subprocess.Popen[bytes]:
-    env = {k: v for k, v in os.environ.items() if not k.startswith(("AGENTS_ZENOH_", "AGENTS_TRANSPORT", "AGENTS_QUIET"))}
+    inherited = ("AGENTS_ZENOH_", "AGENTS_TRANSPORT", "AGENTS_QUIET")
+    env = {k: v for k, v in os.environ.items() if not k.startswith(inherited)}
     with log.open("wb") as out:
         return subprocess.Popen([sys.executable, str(EXAMPLES / "talker.py"), "--transport", "zenoh", "--seconds",
                                  "60"], cwd=EXAMPLES, stdout=out, stderr=subprocess.STDOUT,
