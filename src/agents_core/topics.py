@@ -39,9 +39,20 @@ def validate_topic_name(name: Any, what: str = "topic") -> str:
     if not _NAME_RE.match(name):
         raise TopicNameError(
             f"invalid {what} name {name!r}: use letters, digits and '_' in '/'-separated tokens that do "
-            "not start with a digit (no spaces, '-', '.', wildcards, or empty/trailing '/')"
+            "not start with a digit (no spaces, '-', '.', wildcards, or empty/trailing '/')" + _name_fix(name)
         )
     return name
+
+
+def _name_fix(name: str) -> str:
+    """Why, and the name to use instead, when one is near (``my-talker`` -> ``my_talker``)."""
+    fixed = re.sub(r"[^A-Za-z0-9_/]", "_", name.strip()).strip("/")
+    fixed = re.sub(r"/+", "/", fixed)
+    fixed = "/".join(f"_{part}" if part[:1].isdigit() else part for part in fixed.split("/"))
+    why = (": ROS 2 names (nodes, topics, services) allow no '-' or '.', and every transport must carry the "
+           "same name" if any(c in name for c in "-.") else "")
+    return f"{why}; use {fixed!r}" if fixed and _NAME_RE.match(fixed) else why
+
 
 
 @define(kw_only=True, frozen=True)

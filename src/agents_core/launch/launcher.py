@@ -67,6 +67,7 @@ from .preflight import (
 from .process_start import process_start as choose_process_start
 from .report import LaunchReport, component_row
 from .stop_signals import stop_signals
+from .upstream_args import apply_add_pkg_extras
 
 if TYPE_CHECKING:
     from .fork_server import ForkServer
@@ -147,13 +148,13 @@ class Launcher:
 
     def add_pkg(self, components: Sequence[Component],
                 events_actions: Mapping[Event, Action | Sequence[Action]] | None = None,
-                multiprocessing: bool = False, package_name: str | None = None) -> None:
+                multiprocessing: bool = False, package_name: str | None = None, **upstream: Any) -> None:
         """Add components (and event -> action wiring) to launch.
 
         ``multiprocessing=True`` (one process per component) needs a transport whose capabilities
         say ``cross_process``; the memory transport, which lives in one process, is refused at start.
-        ``package_name`` is accepted for upstream recipes (ROS packages) and not needed here. Any
-        other argument is refused, as components refuse theirs.
+        ``package_name`` is accepted for upstream recipes (ROS packages) and not needed here; so is
+        ``ros_log_level`` (:mod:`.upstream_args`); any other argument is a ConfigError naming it.
         """
         if self._started:
             raise ConfigError("add_pkg() must be called before the launcher starts")
@@ -164,6 +165,7 @@ class Launcher:
             if any(c.component_name == other.component_name for other in self.components):
                 raise WiringError(f"two components are named {c.component_name!r}; names must be unique")
             self.components.append(c)
+        apply_add_pkg_extras(components, upstream)  # upstream's ros_log_level, ... (upstream_args)
         if self._multiprocessing:
             check_transferable(self.components)
             self._prepare_fork_server()
