@@ -91,7 +91,7 @@ def open_session(config: ZenohConfig) -> zenoh.Session:
             except zenoh.ZError:
                 # Someone (another recipe, a router) already holds the rendezvous port: join it, and say so
                 # (two unrelated recipes on one host would otherwise see each other's topics silently).
-                logger.info("Zenoh: %s is taken, joining the Zenoh peers there (another recipe or agentsctl on "
+                logger.debug("Zenoh: %s is taken, joining the Zenoh peers there (another recipe or agentsctl on "
                             "this host: they share topics with this one; to keep recipes apart give each its own "
                             "AGENTS_ZENOH_PORT or AGENTS_ZENOH_NAMESPACE)", rendezvous)
                 _JOINED.add(id(config))

@@ -40,6 +40,9 @@ import time
 from collections.abc import Callable
 from typing import IO, TYPE_CHECKING, Any, NoReturn
 
+from ..errors import AgentsError
+from .short_errors import debug_requested
+
 if TYPE_CHECKING:
     from ..components.component_base import Component
     from ..transport.contract import Transport
@@ -173,6 +176,7 @@ class _Startup:
         from .spec import RECIPE_MODULE, decode_value  # noqa: PLC0415
 
         spec = self.spec
+        stage = "build"  # what failed, in the error the launcher shows ("failed to configure: ...")
         try:
             spec.extend_import_path()  # the recipe's sibling modules, wherever it was started from
             if spec.recipe_path is not None:
@@ -182,13 +186,17 @@ class _Startup:
             with self._lock:
                 self.component, self.transport = component, transport
             component.runtime.bind(transport)
+            stage = "configure"
             component.configure()
             with self._lock:
                 if self._abandoned:
                     return
                 self._activating = True
+            stage = "activate"
             component.activate()
         except BaseException as exc:  # carried to the main thread, which raises it (SystemExit included)
+            with contextlib.suppress(AttributeError, TypeError):
+                exc._agents_stage = stage  # type: ignore[union-attr]
             self.error = exc
             self._commands.put("failed")
             return
@@ -326,8 +334,13 @@ def _serve(reporter: _Reporter, stdin: _PipeLines, parent_pid: int = 0) -> int:
     try:
         return run(spec_line, reporter, stdin, parent_pid)
     except Exception as exc:
-        logger.exception("component process failed")
-        reporter.send(error=f"{type(exc).__name__}: {exc}")
+        stage = getattr(exc, "_agents_stage", None)
+        failed = f"failed to {stage}: " if stage else ""
+        if isinstance(exc, AgentsError) and not debug_requested():  # the one line (AGENTS_DEBUG=1: the traceback)
+            logger.error("component process %s%s: %s", failed, type(exc).__name__, exc)
+        else:
+            logger.exception("component process %sfailed", failed)
+        reporter.send(error=f"{failed}{type(exc).__name__}: {exc}")
         return 1
 
 

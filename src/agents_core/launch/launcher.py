@@ -66,6 +66,7 @@ from .preflight import (
 )
 from .process_start import process_start as choose_process_start
 from .report import LaunchReport, component_row
+from .short_errors import short_errors
 from .stop_signals import stop_signals
 from .upstream_args import apply_add_pkg_extras
 
@@ -573,7 +574,7 @@ class Launcher:
         finish); a second one makes it hurry (nothing more is waited for, the transport is still
         closed); a third exits the process at once with status 128 + the signal number.
         """
-        with stop_signals(self._stop_requested.set, self.hurry, quiet=self._quiet):
+        with short_errors(), stop_signals(self._stop_requested.set, self.hurry, quiet=self._quiet):
             try:
                 self.start()
                 while not self._stop_requested.wait(0.5):

@@ -131,6 +131,8 @@ class ChildProcess:
         self.proc: subprocess.Popen[bytes] | ForkedProcess | None = None
         self.state = "unconfigured"
         self.error: str | None = None
+        #: Whether a process of this component ever became active (else a give-up is a failed start).
+        self.was_active = False
         self.restarts = 0
         self.crashes = 0
         self.gave_up = False
@@ -216,6 +218,7 @@ class ChildProcess:
                 with self.state_changed:
                     if "state" in report:
                         self.state = str(report["state"])
+                        self.was_active = self.was_active or self.state == "active"
                     if "error" in report:
                         self.error = str(report["error"])[:2000]
                     self.state_changed.notify_all()
@@ -376,6 +379,13 @@ class Supervisor:
         with child.state_changed:
             child.state = "crashed"
             child.state_changed.notify_all()
+        if child.restarts >= self.max_retries and not child.was_active and child.error:
+            # It never started (a missing model file, a bad config): not a crash, and a respawn would fail alike;
+            # start() raises with the child's error, which names what failed ("failed to configure: ...").
+            child.gave_up = True
+            logger.debug("component %r did not start in its process (pid %d): %s", child.name, proc.pid, child.error)
+            self.remove_orphan_shm()
+            return
         if child.restarts >= self.max_retries:
             child.gave_up = True
             logger.error("giving up on component %r after %d restart(s) (%d/%d): its process (pid %d) exited with "
