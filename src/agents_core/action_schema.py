@@ -186,8 +186,8 @@ def parameters_text(description: Any) -> str:
         return ""
     required = schema.get("required") if isinstance(schema.get("required"), list) else []
     parts = []
-    for name, spec in properties.items():
-        spec = spec if isinstance(spec, Mapping) else {}
+    for name, raw in properties.items():
+        spec = raw if isinstance(raw, Mapping) else {}
         kind = spec.get("type", "enum" if "enum" in spec else "any")
         text = f"{name}: {'|'.join(map(str, kind)) if isinstance(kind, list) else kind}"
         if "default" in spec:

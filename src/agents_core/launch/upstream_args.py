@@ -18,7 +18,7 @@ from ..errors import ConfigError
 if TYPE_CHECKING:
     from ..components.component_base import Component
 
-__all__ = ["ADD_PKG_ARGUMENTS", "apply_add_pkg_extras"]
+__all__ = ["ADD_PKG_ARGUMENTS", "AddPkgArgumentError", "apply_add_pkg_extras"]
 
 logger = logging.getLogger(__name__)
 
@@ -29,12 +29,17 @@ _LEVELS = {"debug": "debug", "info": "info", "warn": "warning", "warning": "warn
            "fatal": "error"}
 
 
+class AddPkgArgumentError(ConfigError, TypeError):
+    """An argument ``add_pkg`` does not take (a TypeError too, as Python's own would be)."""
+
+
 def apply_add_pkg_extras(components: Sequence[Component], others: Mapping[str, Any]) -> None:
     """Apply ``ros_log_level`` to ``components``; accept or refuse the other upstream arguments (see the module)."""
     ros_log_level = others.get("ros_log_level")
     unknown = sorted(set(others) - {"ros_log_level", "executable_entry_point", "activate_all_components_on_start"})
     if unknown:
-        raise ConfigError(f"add_pkg() got unexpected argument(s) {unknown}; it takes {', '.join(ADD_PKG_ARGUMENTS)}")
+        raise AddPkgArgumentError(f"add_pkg() got unexpected argument(s) {unknown}; it takes "
+                                  f"{', '.join(ADD_PKG_ARGUMENTS)}")
     if others.get("activate_all_components_on_start", True) is not True:
         raise ConfigError("add_pkg(activate_all_components_on_start=False) is not supported: every component is "
                           "activated at start; deactivate one afterwards with component.deactivate() or agentsctl "
