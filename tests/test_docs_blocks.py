@@ -107,7 +107,8 @@ def test_the_docs_have_blocks_of_both_kinds() -> None:
 
 def _tutorial_file(page: Path, info: str) -> bool:
     """A tutorial page's file (```python title="name.py"): tests/newcomer writes and runs it, with its commands."""
-    return page.is_relative_to(REPO / "docs" / "tutorial") and re.fullmatch(r'python title="[\w.-]+\.py"', info) is not None
+    in_tutorial = page.is_relative_to(REPO / "docs" / "tutorial")
+    return in_tutorial and re.fullmatch(r'python title="[\w.-]+\.py"', info) is not None
 
 
 def test_no_python_block_escapes_the_check() -> None:

@@ -41,6 +41,7 @@ from collections.abc import Callable
 from typing import IO, TYPE_CHECKING, Any, NoReturn
 
 from ..errors import AgentsError
+from .child_health import start_health_reports
 from .short_errors import debug_requested
 
 if TYPE_CHECKING:
@@ -301,6 +302,7 @@ def run(spec_line: bytes, reporter: _Reporter, stdin: _PipeLines, parent_pid: in
         raise RuntimeError("the component's startup reported success without a component")
     try:
         reporter.send(state=component.lifecycle_state.value)
+        start_health_reports(component, reporter.send)  # the launcher's rows show it (child_health)
         while True:
             command = deferred.pop(0) if deferred else _next_command(commands)
             if command == "fire-trigger":  # the launcher saw the trigger event fire (spec.LauncherEvent)

@@ -133,6 +133,8 @@ class ChildProcess:
         self.error: str | None = None
         #: Whether a process of this component ever became active (else a give-up is a failed start).
         self.was_active = False
+        #: The health its process last reported ("-" before any report).
+        self.health = "-"
         self.restarts = 0
         self.crashes = 0
         self.gave_up = False
@@ -167,7 +169,7 @@ class ChildProcess:
         finally:
             os.close(write_fd)
         with self.state_changed:
-            self.state, self.error = "starting", None
+            self.state, self.error, self.health = "starting", None, "-"
         self._reader = threading.Thread(target=self._read_reports, args=(os.fdopen(read_fd, "r"),),
                                         name=f"reports:{self.name}", daemon=True)
         self._reader.start()
@@ -219,6 +221,8 @@ class ChildProcess:
                     if "state" in report:
                         self.state = str(report["state"])
                         self.was_active = self.was_active or self.state == "active"
+                    if "health" in report:
+                        self.health = str(report["health"])[:40]
                     if "error" in report:
                         self.error = str(report["error"])[:2000]
                     self.state_changed.notify_all()
@@ -463,4 +467,4 @@ class Supervisor:
     def describe(self) -> list[dict[str, Any]]:
         """Name, pid, state, restarts of each child (for logs and tools)."""
         return [{"name": c.name, "pid": c.pid, "state": c.state, "restarts": c.restarts, "crashes": c.crashes,
-                 "gave_up": c.gave_up} for c in self.children]
+                 "gave_up": c.gave_up, "health": c.health} for c in self.children]

@@ -33,7 +33,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from ..concurrency import CloseOnce
-from ..errors import TransportClosedError, WiringError
+from ..errors import TransportClosedError, TypeValidationError, WiringError
 from ..messages import ComponentStatusMsg
 from ..status import HealthStatus, LifecycleState
 from ..supported_types import ComponentStatus
@@ -103,7 +103,10 @@ class CorePublisher:
         """Validate ``value`` and send it; TypeValidationError / TransportClosedError as the contract says."""
         if self._close_once.closed or self._transport._closed:
             raise TransportClosedError(f"publisher on {self.topic.name!r} is closed")
-        value = self._validate(value)
+        try:
+            value = self._validate(value)
+        except TypeValidationError as exc:  # which topic refused it: the type's own message does not say
+            raise TypeValidationError(f"topic {self.topic.name!r} ({self.topic.type_name}): {exc}") from exc
         # Counted before sending, for the same reason as InlineDelivery.offer; undone on failure.
         with self._count_lock:
             self._totals.published += 1
