@@ -182,9 +182,10 @@ def parameters_text(description: Any) -> str:
     inner = description.get("function", description) if isinstance(description, Mapping) else None
     schema = inner.get("parameters") if isinstance(inner, Mapping) else None
     properties = schema.get("properties") if isinstance(schema, Mapping) else None
-    if not isinstance(properties, Mapping):
+    if not isinstance(schema, Mapping) or not isinstance(properties, Mapping):
         return ""
-    required = schema.get("required") if isinstance(schema.get("required"), list) else []
+    listed = schema.get("required")
+    required: list[Any] = listed if isinstance(listed, list) else []
     parts = []
     for name, raw in properties.items():
         spec = raw if isinstance(raw, Mapping) else {}

@@ -27,7 +27,7 @@ import tempfile
 import time
 import urllib.error
 import urllib.request
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 
 from .errors import ConfigError
@@ -100,8 +100,9 @@ def example_servers(chroma_port: int = 8000, embeddings_port: int = 8080, *, db_
     Yields the names of the servers it started (``[]`` when both were already up). A server that
     does not answer within :data:`STARTUP_TIMEOUT_S` is a ConfigError with the end of its log.
     """
-    wanted = [("chroma", chroma_port, lambda: chroma_server_command(chroma_port, db_path)),
-              ("embeddings", embeddings_port, lambda: embedding_server_command(embeddings_port, alias=alias))]
+    wanted: list[tuple[str, int, Callable[[], list[str]]]] = [
+        ("chroma", chroma_port, lambda: chroma_server_command(chroma_port, db_path)),
+        ("embeddings", embeddings_port, lambda: embedding_server_command(embeddings_port, alias=alias))]
     logs = Path(log_dir) if log_dir is not None else Path(tempfile.gettempdir()) / f"agents-servers-{os.getpid()}"
     started: list[tuple[str, subprocess.Popen[bytes], Path]] = []
     try:

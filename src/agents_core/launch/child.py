@@ -197,7 +197,7 @@ class _Startup:
             component.activate()
         except BaseException as exc:  # carried to the main thread, which raises it (SystemExit included)
             with contextlib.suppress(AttributeError, TypeError):
-                exc._agents_stage = stage  # type: ignore[union-attr]
+                exc._agents_stage = stage  # type: ignore[attr-defined]
             self.error = exc
             self._commands.put("failed")
             return
