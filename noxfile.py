@@ -127,6 +127,8 @@ def docs(session: nox.Session) -> None:
     """
     session.install(*_requirements_of("docs"))
     session.run("mkdocs", "build", "--strict", "--site-dir", "site", env={"NO_MKDOCS_2_WARNING": "1"})
+    # Offline: no page may load a font, script or style from another machine (tests/newcomer/site_requests.py).
+    session.run("python", "tests/newcomer/site_requests.py", "site")
 
 
 @nox.session

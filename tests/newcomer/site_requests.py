@@ -65,3 +65,12 @@ def external_requests(site: Path) -> dict[str, list[str]]:
         if bad:
             out[str(path.relative_to(site))] = bad
     return out
+
+
+if __name__ == "__main__":  # python tests/newcomer/site_requests.py site  (nox -s docs runs it after the build)
+    import sys
+
+    found = external_requests(Path(sys.argv[1] if len(sys.argv) > 1 else "site"))
+    for page, urls in found.items():
+        print(f"{page}: loads {', '.join(urls)}", file=sys.stderr)
+    sys.exit(1 if found else 0)
