@@ -11,7 +11,6 @@ import pytest
 
 from agents_core import Launcher
 from agents_core.components import Component
-from agents_core.runtime import repeated_failures
 from agents_core.testing.helpers import wait_for
 
 
@@ -52,6 +51,8 @@ def test_a_failing_step_is_said_once_then_counted(caplog: pytest.LogCaptureFixtu
 
 def test_a_failure_that_goes_on_is_summarised_periodically(caplog: pytest.LogCaptureFixture,
                                                            monkeypatch: pytest.MonkeyPatch) -> None:
+    from agents_core.runtime import repeated_failures  # noqa: PLC0415
+
     monkeypatch.setattr(repeated_failures, "SUMMARY_EVERY_S", 0.5)
     flaky = Flaky(inputs=[], outputs=[], trigger=50.0, component_name="flaky2")
     launcher = Launcher("memory")
