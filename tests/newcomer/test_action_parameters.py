@@ -183,3 +183,25 @@ def test_the_ui_button_asks_for_each_parameter_and_runs_the_action() -> None:
     assert toast.endswith('"elbow 0.25 2 abs None None"'), toast
     assert asked[0] == "move: joint (string) — the joint's name"
     assert asked[2] == "move: speed (integer) (optional) — how fast (1-5)"
+
+
+def _beep() -> None:
+    """Beep once."""
+
+
+def test_the_cortex_is_offered_the_actions_parameters() -> None:
+    from agents_core.actions import Action  # noqa: PLC0415
+    from agents_core.clients import GenericHTTPClient  # noqa: PLC0415
+    from agents_core.components import Cortex  # noqa: PLC0415
+    from agents_core.models import GenericLLM  # noqa: PLC0415
+    from agents_core.testing.helpers import free_tcp_port  # noqa: PLC0415
+
+    cortex = Cortex(actions=[Action(_beep)], component_name="cortex",
+                    model_client=GenericHTTPClient(GenericLLM(name="planner", checkpoint="planner"),
+                                                   port=free_tcp_port()))
+    arm = _arm()
+    cortex._offer("arm", arm.component_description())  # what the Cortex does with each describe reply
+    tool = cortex._tools.get("arm.move")
+    assert tool is not None
+    assert tool.parameters["required"] == ["joint", "angle"]
+    assert tool.parameters["properties"]["angle"] == {"type": "number", "description": "where to, in radians"}
