@@ -31,8 +31,10 @@ def test_one_line_and_no_such_file(tmp_path: Path) -> None:
     assert "Traceback" not in done.stderr, done.stderr
     assert f"no such file 'models/x.gguf' (relative to the current directory {tmp_path})" in done.stderr
     assert "hub" not in done.stderr.lower(), done.stderr
-    errors = [line for line in done.stderr.splitlines() if line.startswith("agents: error: ")]
-    assert len(errors) == 1 and "AGENTS_DEBUG=1" in errors[0]
+    said = [line for line in done.stderr.splitlines() if "no such file" in line]
+    assert len(said) == 1, done.stderr  # the status line says it, the exit line does not repeat it
+    assert done.stderr.rstrip().splitlines()[-1].startswith("agents: could not start (the reason is above; "
+                                                           "AGENTS_DEBUG=1"), done.stderr
 
 
 def test_the_traceback_when_asked_for(tmp_path: Path) -> None:

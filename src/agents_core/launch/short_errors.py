@@ -3,7 +3,8 @@
 When :meth:`Launcher.bringup` fails with one of the framework's errors (a config, a wiring, a component
 that failed to configure), the status lines have already said which component and why; Python's
 traceback after them (25 to 112 lines through the launcher and the lifecycle) adds nothing for the
-person running the recipe. :func:`short_errors` prints ``agents: error: <message>`` on stderr and
+person running the recipe. :func:`short_errors` prints ``agents: error: <message>`` on stderr (or, when
+the status lines already showed that reason, ``agents: could not start (the reason is above; ...)``) and
 exits with status 1 instead. The traceback is shown, as before, when it is asked for:
 ``AGENTS_DEBUG=1`` (what ``agentsctl run --debug`` sets), or the ``agents_core`` logger (or the root
 logger) at DEBUG level. Errors that are not the framework's (a bug) always keep their traceback.
@@ -18,6 +19,7 @@ import sys
 from collections.abc import Iterator
 
 from ..errors import AgentsError
+from .report import already_reported
 
 __all__ = ["DEBUG_ENV_VAR", "debug_requested", "short_errors"]
 
@@ -41,6 +43,9 @@ def short_errors() -> Iterator[None]:
         if debug_requested():
             raise
         text = " ".join(str(exc).split()) or type(exc).__name__
-        print(f"agents: error: {text} (AGENTS_DEBUG=1 or agentsctl run --debug shows the traceback)",
-              file=sys.stderr, flush=True)
+        hint = "AGENTS_DEBUG=1 or agentsctl run --debug shows the traceback"
+        if already_reported(text):  # the status line above said it: not twice
+            print(f"agents: could not start (the reason is above; {hint})", file=sys.stderr, flush=True)
+        else:
+            print(f"agents: error: {text} ({hint})", file=sys.stderr, flush=True)
         raise SystemExit(1) from None
