@@ -9,6 +9,7 @@ the recipe, not at launch on one middleware only.
 from __future__ import annotations
 
 import re
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Any, Literal
 
 from attrs import define, field
@@ -117,6 +118,20 @@ class Topic:
         from .conditions import FieldRef  # noqa: PLC0415  # conditions imports topics: break the cycle
 
         return FieldRef(self, ())
+
+    def validator(self) -> Callable[[Any], Any]:
+        """``msg_type.validate`` whose TypeValidationError names this topic (what publishers run on each value):
+        ``topic 'count' (Int32): Int32 expects int, got str``."""
+        validate = self.msg_type.validate
+        where = f"topic {self.name!r} ({self.type_name})"
+
+        def checked(value: Any) -> Any:
+            try:
+                return validate(value)
+            except TypeValidationError as exc:
+                raise TypeValidationError(f"{where}: {exc}") from exc
+
+        return checked
 
     def __repr__(self) -> str:
         return f"Topic(name={self.name!r}, msg_type={self.type_name})"

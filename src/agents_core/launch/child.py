@@ -197,7 +197,7 @@ class _Startup:
             component.activate()
         except BaseException as exc:  # carried to the main thread, which raises it (SystemExit included)
             with contextlib.suppress(AttributeError, TypeError):
-                exc._agents_stage = stage  # type: ignore[attr-defined]
+                setattr(exc, "agents_stage", stage)  # noqa: B010  # read by _serve's one error line
             self.error = exc
             self._commands.put("failed")
             return
@@ -336,7 +336,7 @@ def _serve(reporter: _Reporter, stdin: _PipeLines, parent_pid: int = 0) -> int:
     try:
         return run(spec_line, reporter, stdin, parent_pid)
     except Exception as exc:
-        stage = getattr(exc, "_agents_stage", None)
+        stage = getattr(exc, "agents_stage", None)
         failed = f"failed to {stage}: " if stage else ""
         if isinstance(exc, AgentsError) and not debug_requested():  # the one line (AGENTS_DEBUG=1: the traceback)
             logger.error("component process %s%s: %s", failed, type(exc).__name__, exc)

@@ -33,7 +33,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from ..concurrency import CloseOnce
-from ..errors import TransportClosedError, TypeValidationError, WiringError
+from ..errors import TransportClosedError, WiringError
 from ..messages import ComponentStatusMsg
 from ..status import HealthStatus, LifecycleState
 from ..supported_types import ComponentStatus
@@ -90,7 +90,7 @@ class CorePublisher:
         self._transport = transport
         self._sender = sender
         self._close_once = CloseOnce()
-        self._validate = topic.msg_type.validate
+        self._validate = topic.validator()  # its TypeValidationError names the topic
         self._count_lock = transport._counters.lock
         self._totals = transport._counters.live(topic.name)
 
@@ -103,10 +103,7 @@ class CorePublisher:
         """Validate ``value`` and send it; TypeValidationError / TransportClosedError as the contract says."""
         if self._close_once.closed or self._transport._closed:
             raise TransportClosedError(f"publisher on {self.topic.name!r} is closed")
-        try:
-            value = self._validate(value)
-        except TypeValidationError as exc:  # which topic refused it: the type's own message does not say
-            raise TypeValidationError(f"topic {self.topic.name!r} ({self.topic.type_name}): {exc}") from exc
+        value = self._validate(value)
         # Counted before sending, for the same reason as InlineDelivery.offer; undone on failure.
         with self._count_lock:
             self._totals.published += 1
