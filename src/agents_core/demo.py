@@ -9,7 +9,7 @@ the ``answer`` stream chunk by chunk as the model writes it.
 ``--serve`` keeps the agent running so another process can ask::
 
     python -m agents_core.demo --serve                      # prints its endpoint
-    python -m agents_core.demo --ask "What is a robot?" --connect tcp/127.0.0.1:PORT
+    python -m agents_core.demo --ask "What is a robot?" --connect tcp/127.0.0.1:PORT   # the line it prints
 
 ``vision`` runs the Vision component's local detector over a folder of images instead, prints a
 table of what it found and writes each image annotated with its boxes::
@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import argparse
 import logging
+import shlex
 import signal
 import socket
 import sys
@@ -43,7 +44,7 @@ from .topics import Topic
 from .transport.contract import Transport
 from .transport.registry import DEFAULT_CROSS_PROCESS, describe_transport_kind
 
-__all__ = ["DEFAULT_QUESTIONS", "build_agent", "main"]
+__all__ = ["DEFAULT_QUESTIONS", "ask_command", "build_agent", "main"]
 
 #: What the demo asks when given no question.
 DEFAULT_QUESTIONS = ("What is the capital of France?", "Give me one tip for a robot that keeps bumping into walls.")
@@ -130,6 +131,12 @@ def ask(transport: Transport, question: Topic, answer: Topic, text: str, timeout
         publisher.close()
 
 
+def ask_command(endpoint: str) -> str:
+    """The command that asks this demo from another terminal: this very interpreter, so that it works in a shell
+    whose ``python`` is another one (``nox -s demo`` runs in a venv of its own, not on the user's PATH)."""
+    return f"{shlex.quote(sys.executable)} -m agents_core.demo --ask \"Hello?\" --connect {endpoint}"
+
+
 def _run_agent(args: argparse.Namespace) -> int:
     endpoint = f"tcp/127.0.0.1:{args.port or _free_port()}"
     name, options = _transport_choice(args.transport, endpoint)
@@ -142,8 +149,7 @@ def _run_agent(args: argparse.Namespace) -> int:
         model_file = getattr(llm.local_model, "model_path", "?")
         print(f"Agent 'assistant' is {llm.lifecycle_state.value} over {name}{where}; model file: {model_file}")
         if args.serve:
-            print(f"Serving. Ask from another terminal:\n  python -m agents_core.demo --ask \"Hello?\" "
-                  f"--connect {endpoint}\nPress Ctrl+C to stop.", flush=True)
+            print(f"Serving. Ask from another terminal:\n  {ask_command(endpoint)}\nPress Ctrl+C to stop.", flush=True)
             stop = threading.Event()
             for sig in (signal.SIGINT, signal.SIGTERM):
                 signal.signal(sig, lambda *_: stop.set())

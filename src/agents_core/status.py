@@ -37,6 +37,15 @@ class HealthStatus(enum.IntEnum):
     COMPONENT_FAILURE = 2
     SYSTEM_FAILURE = 3
 
+    def __str__(self) -> str:
+        """The name (``print(component.health_status)`` says ``COMPONENT_FAILURE``, not ``2``)."""
+        return self.name
+
+    def __format__(self, spec: str) -> str:
+        """The name in ``f"{status}"`` (``f"{status:>20}"`` too); a numeric type (``f"{status:d}"``): the number."""
+        numeric = spec[-1:] in tuple("bcdeEfFgGnoxX%")
+        return format(int(self), spec) if numeric else format(self.name, spec)
+
 
 #: transition name -> (states it may start from, state it ends in)
 TRANSITIONS: dict[str, tuple[frozenset[LifecycleState], LifecycleState]] = {

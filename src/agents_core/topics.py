@@ -9,6 +9,7 @@ the recipe, not at launch on one middleware only.
 from __future__ import annotations
 
 import re
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Any, Literal
 
 from attrs import define, field
@@ -39,9 +40,20 @@ def validate_topic_name(name: Any, what: str = "topic") -> str:
     if not _NAME_RE.match(name):
         raise TopicNameError(
             f"invalid {what} name {name!r}: use letters, digits and '_' in '/'-separated tokens that do "
-            "not start with a digit (no spaces, '-', '.', wildcards, or empty/trailing '/')"
+            "not start with a digit (no spaces, '-', '.', wildcards, or empty/trailing '/')" + _name_fix(name)
         )
     return name
+
+
+def _name_fix(name: str) -> str:
+    """Why, and the name to use instead, when one is near (``my-talker`` -> ``my_talker``)."""
+    fixed = re.sub(r"[^A-Za-z0-9_/]", "_", name.strip()).strip("/")
+    fixed = re.sub(r"/+", "/", fixed)
+    fixed = "/".join(f"_{part}" if part[:1].isdigit() else part for part in fixed.split("/"))
+    why = (": ROS 2 names (nodes, topics, services) allow no '-' or '.', and every transport must carry the "
+           "same name" if any(c in name for c in "-.") else "")
+    return f"{why}; use {fixed!r}" if fixed and _NAME_RE.match(fixed) else why
+
 
 
 @define(kw_only=True, frozen=True)
@@ -106,6 +118,20 @@ class Topic:
         from .conditions import FieldRef  # noqa: PLC0415  # conditions imports topics: break the cycle
 
         return FieldRef(self, ())
+
+    def validator(self) -> Callable[[Any], Any]:
+        """``msg_type.validate`` whose TypeValidationError names this topic (what publishers run on each value):
+        ``topic 'count' (Int32): Int32 expects int, got str``."""
+        validate = self.msg_type.validate
+        where = f"topic {self.name!r} ({self.type_name})"
+
+        def checked(value: Any) -> Any:
+            try:
+                return validate(value)
+            except TypeValidationError as exc:
+                raise TypeValidationError(f"{where}: {exc}") from exc
+
+        return checked
 
     def __repr__(self) -> str:
         return f"Topic(name={self.name!r}, msg_type={self.type_name})"

@@ -54,6 +54,9 @@ def describe(transport: Any) -> str:
     namespace = getattr(config, "namespace", "")
     if namespace:
         parts.append(f"namespace {namespace}")
+    if getattr(transport.driver, "joined_rendezvous", False):
+        parts.append("joined the peers already there: another recipe on this host shares its topics (give each "
+                     "recipe its own AGENTS_ZENOH_PORT to keep them apart)")
     return "; ".join(parts)
 
 

@@ -62,6 +62,19 @@ def zenoh_config(config: ZenohConfig, *, listen: list[str] | None = None,
     return cfg
 
 
+#: ids of the configs whose session joined a rendezvous someone else held (see :func:`joined_rendezvous`).
+_JOINED: set[int] = set()
+
+
+def joined_rendezvous(config: ZenohConfig) -> bool:
+    """Whether the session just opened with ``config`` found the loopback rendezvous taken and joined its peers
+    (asked once, right after :func:`open_session`: the answer is forgotten as it is given)."""
+    if id(config) in _JOINED:
+        _JOINED.discard(id(config))
+        return True
+    return False
+
+
 def open_session(config: ZenohConfig) -> zenoh.Session:
     """Open the Zenoh session described by ``config``."""
     if config.multicast_scouting:
@@ -76,9 +89,12 @@ def open_session(config: ZenohConfig) -> zenoh.Session:
             try:
                 session = zenoh.open(zenoh_config(config, listen=[rendezvous], connect=[]))
             except zenoh.ZError:
-                # Someone (another recipe, a router) already holds the rendezvous port: join it.
-                logger.debug("%s is taken: listening on an OS-chosen loopback port and connecting to it",
-                             rendezvous)
+                # Someone (another recipe, a router) already holds the rendezvous port: join it, and say so
+                # (two unrelated recipes on one host would otherwise see each other's topics silently).
+                logger.debug("Zenoh: %s is taken, joining the Zenoh peers there (another recipe or agentsctl on "
+                            "this host: they share topics with this one; to keep recipes apart give each its own "
+                            "AGENTS_ZENOH_PORT or AGENTS_ZENOH_NAMESPACE)", rendezvous)
+                _JOINED.add(id(config))
                 listen, connect = ["tcp/127.0.0.1:0"], [rendezvous]
             else:
                 logger.info("Zenoh peer listening on %s (loopback rendezvous)", rendezvous)

@@ -71,7 +71,7 @@ from .graph import discover_graph
 from .keys import state_key, transition_key
 from .pubsub import ZenohPublisher, ZenohSubscription
 from .queryables import ZenohPresence, ZenohService, read_reply
-from .session import open_session
+from .session import joined_rendezvous, open_session
 
 __all__ = ["ZenohDriver", "ZenohTransport", "options_from_environment"]
 
@@ -94,6 +94,9 @@ class ZenohDriver(DriverBase):
     def __init__(self, config: ZenohConfig) -> None:
         self.config = config
         self._session = open_session(config)
+        #: Whether the loopback rendezvous was taken and this session joined the peers there (the
+        #: launcher's transport line says so: two recipes on one host then share their topics).
+        self.joined_rendezvous = joined_rendezvous(config)
         #: What the handles (publishers, services, goals, ...) get instead of this driver.
         self.context = ZenohContext(self._session, config)
 
@@ -229,6 +232,8 @@ MODE_ENV_VAR = "AGENTS_ZENOH_MODE"
 CONNECT_ENV_VAR = "AGENTS_ZENOH_CONNECT"
 LISTEN_ENV_VAR = "AGENTS_ZENOH_LISTEN"
 NAMESPACE_ENV_VAR = "AGENTS_ZENOH_NAMESPACE"
+#: The loopback rendezvous port (ZenohConfig.port): recipes with different ones never join each other.
+PORT_ENV_VAR = "AGENTS_ZENOH_PORT"
 
 
 def options_from_environment() -> dict[str, Any]:
@@ -246,6 +251,11 @@ def options_from_environment() -> dict[str, Any]:
     namespace = os.environ.get(NAMESPACE_ENV_VAR, "").strip()
     if namespace:
         found["namespace"] = namespace
+    port = os.environ.get(PORT_ENV_VAR, "").strip()
+    if port:
+        if not port.isdigit():
+            raise ConfigError(f"{PORT_ENV_VAR}={port!r} is not a port number (1-65535)")
+        found["port"] = int(port)
     mode = os.environ.get(MODE_ENV_VAR, "").strip()
     if mode:
         found["mode"] = mode

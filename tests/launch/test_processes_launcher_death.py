@@ -126,6 +126,7 @@ class LoneChild:
                                      cwd=REPO)
         os.close(write_fd)
         self._reports = os.fdopen(read_fd)
+        self._read: list[dict[str, str]] = []
         assert self.proc.stdin is not None
         self.proc.stdin.write(json.dumps(spec.to_dict()).encode() + b"\n")
         self.proc.stdin.flush()
@@ -135,8 +136,16 @@ class LoneChild:
                  what="the child to enter its configure")
         assert self.proc.poll() is None, self.proc.returncode
 
+    def _all_reports(self) -> list[dict[str, str]]:
+        self._read.extend(json.loads(line) for line in self._reports)  # what came since the last call
+        return self._read
+
     def reports(self) -> list[dict[str, str]]:
-        return [json.loads(line) for line in self._reports]
+        """The state and error reports (the health reports, agents_core.launch.child_health, left out)."""
+        return [r for r in self._all_reports() if "health" not in r]
+
+    def health_reports(self) -> list[str]:
+        return [r["health"] for r in self._all_reports() if "health" in r]
 
     def close(self) -> None:
         if self.proc.poll() is None:
@@ -194,6 +203,7 @@ def test_a_quick_configure_still_activates_and_stops_cleanly(tmp_path: Path) -> 
         child.proc.stdin.flush()
         assert child.proc.wait(timeout=30.0) == 0
         assert child.reports() == [{"state": "active"}, {"state": "inactive"}, {"state": "finalized"}]
+        assert child.health_reports()[:1] == ["healthy"]
 
 
 def test_the_end_of_stdin_during_a_deactivate_that_never_returns_ends_the_child(tmp_path: Path) -> None:

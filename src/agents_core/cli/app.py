@@ -52,6 +52,8 @@ def run(ctx: typer.Context,
         mode: Annotated[str | None, typer.Option("--mode", help="Zenoh session mode: peer, client or router")] = None,
         quiet: Annotated[bool, typer.Option(
             "--quiet", "-q", help="no status lines on stderr (sets AGENTS_QUIET=1)")] = False,
+        debug: Annotated[bool, typer.Option(
+            "--debug", help="the full traceback when the recipe fails to start (sets AGENTS_DEBUG=1)")] = False,
         ) -> None:
     """Run a recipe file as __main__ (extra arguments go to the recipe's sys.argv).
 
@@ -71,6 +73,8 @@ def run(ctx: typer.Context,
         os.environ[ZENOH_MODE_ENV_VAR] = mode
     if quiet:
         os.environ[QUIET_ENV_VAR] = "1"
+    if debug:
+        os.environ["AGENTS_DEBUG"] = "1"  # agents_core.launch.short_errors
     path = str(recipe.resolve())
     sys.argv = [path, *ctx.args]
     # The recipe's own imports (a module beside it) work as with `python recipe.py`.

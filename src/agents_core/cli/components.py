@@ -7,6 +7,7 @@ from typing import Annotated, Any
 
 import typer
 
+from ..action_schema import parameters_text
 from ..errors import AgentsError, ConfigError, ServiceUnavailableError
 from ..topics import validate_topic_name
 from ..transport.graph import describe_component
@@ -77,8 +78,9 @@ def status(name: Annotated[str, typer.Argument(help="component name")], transpor
     print_table("inputs", ["topic", "type"], _topic_rows(described["inputs"]))
     print_table("outputs", ["topic", "type"], _topic_rows(described["outputs"]))
     actions = described["actions"] if isinstance(described["actions"], dict) else {}
-    print_table("actions", ["method", "description"],
-                [(m, _action_text(d)) for m, d in sorted(actions.items(), key=lambda item: str(item[0]))])
+    print_table("actions", ["method", "parameters", "description"],
+                [(m, parameters_text(d), _action_text(d))
+                 for m, d in sorted(actions.items(), key=lambda item: str(item[0]))])
 
 
 def _topic_rows(entries: Any) -> list[tuple[Any, Any]]:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import contextlib
 import math
 import queue
+import sys
 import threading
 import time
 from typing import Annotated, Any
@@ -117,7 +118,9 @@ def pub(name: Annotated[str, typer.Argument(help="topic name")],
     msg_type = get_type(type_name)
     message = parse_value(msg_type, value)
     with open_transport(transport, connect) as t:
-        _wait_for_subscriber(t, name, wait)
+        warning = _subscriber_warning(_wait_for_subscriber(t, name, wait), name, msg_type.type_name(), wait)
+        if warning:
+            print(f"warning: {warning}", file=sys.stderr, flush=True)
         publisher = t.create_publisher(Topic(name, msg_type))
         try:
             for i in range(count):
@@ -140,13 +143,27 @@ def _offer(received: queue.Queue[Any], value: Any) -> None:
         received.put_nowait(value)
 
 
-def _wait_for_subscriber(transport: DriverTransport, name: str, wait: float) -> None:
+def _wait_for_subscriber(transport: DriverTransport, name: str, wait: float) -> Any:
+    """The topic's graph entry once it has a subscriber (or the last one seen, None if none, after ``wait`` s)."""
     deadline = time.monotonic() + wait
+    info = None
     while time.monotonic() < deadline:
-        info = transport.discover(timeout=min(0.5, max(0.01, deadline - time.monotonic()))).topic(name)
+        info = transport.discover(timeout=min(0.5, max(0.01, deadline - time.monotonic()))).topic(name) or info
         if info is not None and info.subscribers > 0:
-            return
+            return info
         time.sleep(0.05)
+    return info
+
+
+def _subscriber_warning(info: Any, name: str, type_name: str, wait: float) -> str:
+    """What to warn about before publishing: no subscriber (nothing will hear it), or another type on the topic."""
+    if info is None or info.subscribers == 0:
+        return (f"no subscriber of {name!r} appeared within {wait:g} s: publishing anyway, but nothing may hear it "
+                "(a typo in the name? --wait N waits longer)")
+    if info.msg_type and info.msg_type != type_name:
+        return (f"{name!r} carries {info.msg_type} (its subscribers expect it), not {type_name}: they may drop "
+                "or reject this value")
+    return ""
 
 
 class _RateMeter:

@@ -251,7 +251,9 @@ class GenericHTTPClient(HTTPClientBase, ModelClient):
             if isinstance(vector, list) and vector and isinstance(vector[0], list):
                 # llama.cpp does this for models without pooling: one vector per token.
                 raise ProtocolError(f"{context}: the server sent one vector per token, not one per text; "
-                                    f"start it with a pooling type (mean, cls, last)")
+                                    "start it with a pooling type: llama_cpp.server --kv_overrides "
+                                    "llama.pooling_type=int:1 (mean), llama.cpp's llama-server --pooling mean; "
+                                    "`python -m agents_core.example_servers --print` shows the whole command")
             if not isinstance(vector, list) or not all(isinstance(x, int | float) for x in vector):
                 raise ProtocolError(f"{context}: an embedding must be a list of numbers, got {str(vector)[:200]}")
             vectors.append([float(x) for x in vector])

@@ -20,7 +20,8 @@ from typing import Any
 import jinja2
 
 from .._component_configs import LLMConfig
-from ..actions import component_action
+from ..action_schema import describe_action
+from ..actions import ACTION_MARK, component_action
 from ..callbacks import DetectionsCallback
 from ..clients.db_base import DBClient
 from ..clients.model_base import ModelClient
@@ -226,18 +227,27 @@ class LLM(ModelComponent):
     # -- tools ----------------------------------------------------------------------------------
 
     @setup_method
-    def register_tool(self, tool: Callable[..., Any], tool_description: Mapping[str, Any],
+    def register_tool(self, tool: Callable[..., Any], tool_description: Mapping[str, Any] | None = None,
                       send_tool_response_to_model: bool = False) -> None:
         """Let the model call ``tool``.
 
         :param tool_description: an OpenAI-style description, ``{"type": "function", "function":
             {"name", "description", "parameters"}}`` (or just the inner ``function`` dict); the
-            name must be the function's name.
+            name must be the function's name. None: the one a ``@component_action`` carries, else one
+            built from the function's signature and docstring (:func:`agents_core.action_schema.action_schema`).
         :param send_tool_response_to_model: give the tool's result back to the model so it can
             answer with it; otherwise the result itself is published on the outputs.
         """
         if not callable(tool):
             raise ConfigError(f"component {self.component_name!r}: tool must be callable, got {tool!r}")
+        if tool_description is None:
+            tool_description = getattr(tool, ACTION_MARK, None)
+        if tool_description is None:
+            try:
+                tool_description = describe_action(tool)
+            except (TypeError, ValueError, AttributeError):
+                raise ConfigError(f"component {self.component_name!r}: {tool!r} has no signature to describe; "
+                                  "pass a tool_description") from None
         function = dict(tool_description.get("function", tool_description))
         name = function.get("name")
         if name != getattr(tool, "__name__", name):

@@ -4,15 +4,13 @@ It is an :class:`~agents_core.components.llm.LLM` that also reads Image inputs a
 latest frame of each with the question. With ``config.task`` set to a structured task the model
 is asked for coordinates as JSON, and the answer is parsed into a typed output:
 
-=============  ===========================================  ==================
-task           the model is asked for                       published as
-=============  ===========================================  ==================
-general        a text answer                                String / StreamingString
-grounding      boxes of the objects named in the question   Detections
-affordance     boxes of where to act on the named object    Detections
-pointing       points on the named objects                  PointsOfInterest
-trajectory     an ordered path of points                    PointsOfInterest
-=============  ===========================================  ==================
+| task | the model is asked for | published as |
+|---|---|---|
+| general | a text answer | String / StreamingString |
+| grounding | boxes of the objects named in the question | Detections |
+| affordance | boxes of where to act on the named object | Detections |
+| pointing | points on the named objects | PointsOfInterest |
+| trajectory | an ordered path of points | PointsOfInterest |
 
 Images are never kept in the chat history.
 """

@@ -24,7 +24,8 @@ from .._component_configs import SemanticRouterConfig
 from ..clients.db_base import DBClient
 from ..clients.model_base import ModelClient
 from ..config import BaseAttrs
-from ..errors import ConfigError, ProtocolError, WiringError
+from ..errors import ConfigError, ModelClientError, ProtocolError, WiringError
+from ..status import HealthStatus
 from ..supported_types import String
 from ..topics import Topic
 from .component_base import TriggerType
@@ -141,9 +142,25 @@ class SemanticRouter(ModelComponent):
     # -- lifecycle ------------------------------------------------------------------------------
 
     def custom_on_configure(self) -> None:
-        super().custom_on_configure()
         if self.db_client is None:
+            super().custom_on_configure()
             return
+        # As an LLM whose server is down: a database that cannot be reached at configure leaves the router up
+        # and unhealthy (COMPONENT_FAILURE, the fallbacks run), and each step tries to store the samples again.
+        self._check_outputs_converted()
+        self._set_up_model()
+        self._samples_stored = False
+        try:
+            self._store_samples()
+        except ModelClientError as exc:
+            self.runtime.health.failed(HealthStatus.COMPONENT_FAILURE, exc, "storing the route samples at configure")
+            self._logger.warning("component %r comes up unhealthy: its database is not reachable (%s); each step "
+                                 "tries again", self.component_name, exc)
+
+    def _store_samples(self) -> None:
+        """Connect the database and (re)build the route collection from the routes' samples."""
+        assert self.db_client is not None
+        self._start_client(self.db_client)
         ids, documents, metadatas = [], [], []
         for route in self.routes:
             for i, sample in enumerate(route.samples):
@@ -154,6 +171,7 @@ class SemanticRouter(ModelComponent):
         # same router_name) would otherwise still match, and route to a topic this router does not have.
         self.db_client.add({"collection_name": self.config.router_name, "distance_func": self.config.distance_func,
                             "ids": ids, "documents": documents, "metadatas": metadatas, "reset_collection": True})
+        self._samples_stored = True
         self._logger.info("stored %d samples of %d routes in %r", len(ids), len(self.routes), self.config.router_name)
 
     # -- routing --------------------------------------------------------------------------------
@@ -178,6 +196,8 @@ class SemanticRouter(ModelComponent):
 
     def _route_by_vector(self, text: str) -> Route:
         assert self.db_client is not None
+        if not getattr(self, "_samples_stored", True):
+            self._store_samples()  # the database was down at configure (a ModelClientError fails the step)
         result = self.db_client.query({"collection_name": self.config.router_name, "query": text, "n_results": 1})
         metadata, distance = _nearest(result)
         if metadata is None:

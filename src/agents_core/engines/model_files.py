@@ -131,11 +131,21 @@ def import_hub(what: str, hub_id: str, instead: str) -> tuple[ModuleType, str | 
     return huggingface_hub, hub_offline_reason()
 
 
+#: File name endings of model files: ``models/x.gguf`` is a relative path, not a hub repository ``models/x.gguf``.
+_MODEL_FILE_ENDINGS = (".gguf", ".onnx", ".bin", ".safetensors", ".pt", ".pth", ".tflite", ".ort", ".json", ".txt")
+
+
 def looks_like_hub_id(text: str) -> bool:
-    """True for ``owner/repo`` or ``owner/repo/file``: not absolute, not relative-dotted, no backslash."""
+    """True for ``owner/repo`` or ``owner/repo/file``: not absolute, not relative-dotted, no backslash.
+
+    Two parts whose last one names a model file (``models/x.gguf``), or whose first one is a
+    directory here, are a relative path (a hub repository id names a repository, not a file).
+    """
     if text.startswith(("/", ".", "~")) or "\\" in text:
         return False
     parts = text.split("/")
+    if len(parts) == 2 and (parts[1].lower().endswith(_MODEL_FILE_ENDINGS) or Path(parts[0]).is_dir()):
+        return False
     return 2 <= len(parts) <= 3 and all(parts)
 
 
@@ -155,7 +165,8 @@ def resolve_model_file(path_or_id: str, pattern: str, what: str) -> Path:
                               f"found {[p.name for p in matches]}")
         return matches[0]
     if not looks_like_hub_id(path_or_id):
-        raise ConfigError(f"{what}: no such file {str(local)!r}")
+        where = "" if local.is_absolute() else f" (relative to the current directory {Path.cwd()})"
+        raise ConfigError(f"{what}: no such file {str(local)!r}{where}")
     return _download(path_or_id, pattern, what)
 
 

@@ -44,6 +44,9 @@ from collections.abc import Callable
 from typing import IO, TYPE_CHECKING, Any, NoReturn
 
 from .descendants import end_descendants, guard_process
+from ..errors import AgentsError
+from .child_health import start_health_reports
+from .short_errors import debug_requested
 
 if TYPE_CHECKING:
     from ..components.component_base import Component
@@ -185,6 +188,7 @@ class _Startup:
         from .spec import RECIPE_MODULE, decode_value  # noqa: PLC0415
 
         spec = self.spec
+        stage = "build"  # what failed, in the error the launcher shows ("failed to configure: ...")
         try:
             spec.extend_import_path()  # the recipe's sibling modules, wherever it was started from
             if spec.recipe_path is not None:
@@ -194,13 +198,17 @@ class _Startup:
             with self._lock:
                 self.component, self.transport = component, transport
             component.runtime.bind(transport)
+            stage = "configure"
             component.configure()
             with self._lock:
                 if self._abandoned:
                     return
                 self._activating = True
+            stage = "activate"
             component.activate()
         except BaseException as exc:  # carried to the main thread, which raises it (SystemExit included)
+            with contextlib.suppress(AttributeError, TypeError):
+                setattr(exc, "agents_stage", stage)  # noqa: B010  # read by _serve's one error line
             self.error = exc
             self._commands.put("failed")
             return
@@ -305,6 +313,7 @@ def run(spec_line: bytes, reporter: _Reporter, stdin: _PipeLines, parent_pid: in
         raise RuntimeError("the component's startup reported success without a component")
     try:
         reporter.send(state=component.lifecycle_state.value)
+        start_health_reports(component, reporter.send)  # the launcher's rows show it (child_health)
         while True:
             command = deferred.pop(0) if deferred else _next_command(commands)
             if command == "fire-trigger":  # the launcher saw the trigger event fire (spec.LauncherEvent)
@@ -352,8 +361,13 @@ def _serve(reporter: _Reporter, stdin: _PipeLines, parent_pid: int = 0) -> int:
     try:
         return run(spec_line, reporter, stdin, parent_pid)
     except Exception as exc:
-        logger.exception("component process failed")
-        reporter.send(error=f"{type(exc).__name__}: {exc}")
+        stage = getattr(exc, "agents_stage", None)
+        failed = f"failed to {stage}: " if stage else ""
+        if isinstance(exc, AgentsError) and not debug_requested():  # the one line (AGENTS_DEBUG=1: the traceback)
+            logger.error("component process %s%s: %s", failed, type(exc).__name__, exc)
+        else:
+            logger.exception("component process %sfailed", failed)
+        reporter.send(error=f"{failed}{type(exc).__name__}: {exc}")
         return 1
     finally:
         with contextlib.suppress(Exception):

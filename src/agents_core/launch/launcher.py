@@ -47,7 +47,9 @@ from .preflight import (
 from .recipe import Recipe, stop_if_capturing
 from .report import LaunchReport
 from .runs import ProcessRun, Run, ThreadRun, prepare_fork_server
+from .short_errors import short_errors
 from .stop_signals import stop_signals
+from .upstream_args import apply_add_pkg_extras
 
 if TYPE_CHECKING:
     from .fork_server import ForkServer
@@ -112,16 +114,17 @@ class Launcher:
 
     def add_pkg(self, components: Sequence[Component],
                 events_actions: Mapping[Event, Action | Sequence[Action]] | None = None,
-                multiprocessing: bool = False, package_name: str | None = None) -> None:
+                multiprocessing: bool = False, package_name: str | None = None, **upstream: Any) -> None:
         """Add components (and event -> action wiring) to launch.
 
         ``multiprocessing=True`` (one process per component) needs a transport whose capabilities
         say ``cross_process``; the memory transport, which lives in one process, is refused at start.
-        ``package_name`` is accepted for upstream recipes (ROS packages) and not needed here. Any
-        other argument is refused, as components refuse theirs.
+        ``package_name`` is accepted for upstream recipes (ROS packages) and not needed here; so is
+        ``ros_log_level`` (:mod:`.upstream_args`); any other argument is a ConfigError naming it.
         """
         self._refuse_started("add_pkg()")
         self.recipe.add(components, events_actions, multiprocessing)
+        apply_add_pkg_extras(components, upstream)  # upstream's ros_log_level, ... (upstream_args)
         for c in self.components:  # a Cortex offers the actions of its own recipe's components by default
             getattr(c, "set_recipe_components", lambda _names: None)([c.component_name for c in self.components])
         if self.recipe.settings.multiprocessing:
@@ -327,7 +330,7 @@ class Launcher:
         closed); a third exits the process at once with status 128 + the signal number.
         """
         stop_if_capturing(self.recipe)  # `agentsctl recipe show`: the recipe is complete here
-        with stop_signals(self._stop_requested.set, self.hurry, quiet=self._quiet):
+        with short_errors(), stop_signals(self._stop_requested.set, self.hurry, quiet=self._quiet):
             try:
                 self.start()
                 while not self._stop_requested.wait(0.5):

@@ -38,7 +38,7 @@ def child_rows(describe: Callable[[], list[dict[str, Any]]], max_retries: int) -
             note = f"own process, pid {child.get('pid')}, restart {child['restarts']}/{max_retries}"
         else:
             note = f"own process, pid {child.get('pid')}"
-        rows.append((str(child["name"]), str(child["state"]), "-", note))
+        rows.append((str(child["name"]), str(child["state"]), str(child.get("health") or "-"), note))
     return rows
 
 

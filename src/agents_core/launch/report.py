@@ -24,7 +24,15 @@ from typing import Any, TextIO
 
 from ..console import quiet_requested
 
-__all__ = ["LaunchReport", "component_row", "describe_transport"]
+__all__ = ["LaunchReport", "already_reported", "component_row", "describe_transport"]
+
+#: The last start failure a report printed (so the one error line at exit need not repeat it).
+_last_failure: list[str] = []
+
+
+def already_reported(text: str) -> bool:
+    """Whether a report printed a start failure whose reason is ``text`` (or contains it)."""
+    return bool(_last_failure) and bool(text) and text in _last_failure[-1]
 
 _WIDTH = 12  # the component-name column; longer names simply push the row
 
@@ -106,6 +114,8 @@ class LaunchReport:
             why = why or type(reason).__name__
         who = f"{name:<{_WIDTH}} " if name else ""
         plain = f"  ✗ {who}failed to {stage}: {why}"
+        if not self.quiet:
+            _last_failure[:] = [" ".join(plain.split())]
         self._line(plain, f"  [red]✗[/] {_escape(who)}failed to {stage}: [red]{_escape(why)}[/]")
 
 

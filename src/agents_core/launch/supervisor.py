@@ -131,6 +131,10 @@ class ChildProcess:
         self.proc: subprocess.Popen[bytes] | ForkedProcess | None = None
         self.state = "unconfigured"
         self.error: str | None = None
+        #: Whether a process of this component ever became active (else a give-up is a failed start).
+        self.was_active = False
+        #: The health its process last reported ("-" before any report).
+        self.health = "-"
         self.restarts = 0
         self.crashes = 0
         self.gave_up = False
@@ -165,7 +169,7 @@ class ChildProcess:
         finally:
             os.close(write_fd)
         with self.state_changed:
-            self.state, self.error = "starting", None
+            self.state, self.error, self.health = "starting", None, "-"
         self._reader = threading.Thread(target=self._read_reports, args=(os.fdopen(read_fd, "r"),),
                                         name=f"reports:{self.name}", daemon=True)
         self._reader.start()
@@ -216,6 +220,9 @@ class ChildProcess:
                 with self.state_changed:
                     if "state" in report:
                         self.state = str(report["state"])
+                        self.was_active = self.was_active or self.state == "active"
+                    if "health" in report:
+                        self.health = str(report["health"])[:40]
                     if "error" in report:
                         self.error = str(report["error"])[:2000]
                     self.state_changed.notify_all()
@@ -376,6 +383,13 @@ class Supervisor:
         with child.state_changed:
             child.state = "crashed"
             child.state_changed.notify_all()
+        if child.restarts >= self.max_retries and not child.was_active and child.error:
+            # It never started (a missing model file, a bad config): not a crash, and a respawn would fail alike;
+            # start() raises with the child's error, which names what failed ("failed to configure: ...").
+            child.gave_up = True
+            logger.debug("component %r did not start in its process (pid %d): %s", child.name, proc.pid, child.error)
+            self.remove_orphan_shm()
+            return
         if child.restarts >= self.max_retries:
             child.gave_up = True
             logger.error("giving up on component %r after %d restart(s) (%d/%d): its process (pid %d) exited with "
@@ -453,4 +467,4 @@ class Supervisor:
     def describe(self) -> list[dict[str, Any]]:
         """Name, pid, state, restarts of each child (for logs and tools)."""
         return [{"name": c.name, "pid": c.pid, "state": c.state, "restarts": c.restarts, "crashes": c.crashes,
-                 "gave_up": c.gave_up} for c in self.children]
+                 "gave_up": c.gave_up, "health": c.health} for c in self.children]

@@ -16,6 +16,7 @@ from typing import Any
 from ..actions import Action, Fallback
 from ..errors import ConfigError
 from ..status import HealthStatus
+from .repeated_failures import RepeatedFailures
 
 __all__ = ["ANY_FAILURE", "Health"]
 
@@ -43,6 +44,7 @@ class Health:
         # Set by a failure (or a change away from HEALTHY), cleared by the next good step: the
         # common path of a step checks one flag.
         self._recovering = False
+        self._repeats = RepeatedFailures(logger)
 
     # -- what it is now -----------------------------------------------------------------------
 
@@ -119,8 +121,9 @@ class Health:
         ``on_giveup`` actions ran instead).
         """
         self._recovering = True
-        self._logger.error("%s failed (%s): %s: %s", during, status.name, type(exc).__name__, exc,
-                           exc_info=self._logger.isEnabledFor(logging.DEBUG))
+        line = f"{during} failed ({status.name}): {type(exc).__name__}: {exc}"
+        if self._repeats.should_log((during, status.name, type(exc).__name__, str(exc)), line):  # once, then counted
+            self._logger.error("%s", line, exc_info=self._logger.isEnabledFor(logging.DEBUG))
         self.set(status, f"{type(exc).__name__}: {exc}")
         fallback = self._fallbacks.get(status.name) or self._fallbacks.get(ANY_FAILURE)
         if fallback is None:
@@ -152,6 +155,7 @@ class Health:
         if not self._recovering:
             return
         self._recovering = False
+        self._repeats.recovered()
         if self._status != HealthStatus.HEALTHY:
             self.set(HealthStatus.HEALTHY, "")
         for fallback in self._fallbacks.values():

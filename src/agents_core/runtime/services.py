@@ -12,6 +12,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
+from ..action_schema import bind_call
 from ..errors import ComponentError, ConfigError
 from ..transport.requests import check_timeout
 
@@ -82,6 +83,9 @@ class ComponentServices:
         method = getattr(component, str(method_name))
         timeout = check_timeout(request.get("timeout", 30.0),
                                 f"component {component.component_name!r}: execute_method")
+        # One JSON object of parameter names is the arguments by name (agentsctl call talker set_word '{"word": ..}').
+        args, kwargs = bind_call(method, args, kwargs, f"component {component.component_name!r}: action "
+                                                       f"{method_name!r}")
         result = self._run_on_worker(lambda: method(*args, **kwargs), timeout)
         return {"result": result if isinstance(result, _PLAIN_RESULT) else repr(result)}
 

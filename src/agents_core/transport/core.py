@@ -83,7 +83,7 @@ class CorePublisher:
         self._transport = transport
         self._sender = sender
         self._close_once = CloseOnce()
-        self._validate = topic.msg_type.validate
+        self._validate = topic.validator()  # its TypeValidationError names the topic
         self._count_lock = transport._counters.lock
         self._totals = transport._counters.live(topic.name)
 

@@ -29,6 +29,7 @@ from ..actions import ACTION_MARK
 from ..component_method import ComponentMethod
 from ..config import BaseAttrs
 from ..errors import ConfigError
+from ..event_transfer import decode_event, encode_event
 from ..events import Event
 from ..registry import Registry
 from ..topics import FixedInput, QoSConfig, Topic
@@ -243,6 +244,8 @@ def _register_builtin_codecs() -> None:
     _codecs.register("component method", ValueCodec("component method", object, list,
                                                     lambda d: ComponentMethod(str(d[0]), str(d[1]))))
     register_value_codec(ValueCodec("launcher event", LauncherEvent, lambda e: e.name, LauncherEvent))
+    # Any other event crosses as its topic condition (the VLA's termination event); see event_transfer.
+    register_value_codec(ValueCodec("event", Event, encode_event, decode_event))
 
 
 _register_builtin_codecs()

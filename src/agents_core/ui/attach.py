@@ -12,6 +12,7 @@ outputs and actions, and serves the UI until Ctrl+C. Any transport whose descrip
 from __future__ import annotations
 
 import argparse
+import os
 import signal
 import sys
 import threading
@@ -66,9 +67,14 @@ def _parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the attached UI until SIGINT / SIGTERM (or ``--seconds``)."""
     args = _parser().parse_args(argv)
-    from ..transport.registry import DEFAULT_CROSS_PROCESS, describe_transport_kind, resolve_transport  # noqa: PLC0415
+    from ..transport.registry import (  # noqa: PLC0415
+        DEFAULT_CROSS_PROCESS,
+        TRANSPORT_ENV_VAR,
+        describe_transport_kind,
+        resolve_transport,
+    )
 
-    name = args.transport or DEFAULT_CROSS_PROCESS
+    name = args.transport or os.environ.get(TRANSPORT_ENV_VAR, "").strip() or DEFAULT_CROSS_PROCESS
     descriptor = describe_transport_kind(name)
     if not descriptor.attachable:
         raise ConfigError(f"the UI cannot attach over the {descriptor.name} transport: it lives inside one "

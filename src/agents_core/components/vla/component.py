@@ -183,14 +183,16 @@ class VLA(ModelComponent):
             self._stop_event.remove_listener(self._on_stop_event)
         self._close_event_subscriptions()
         self._stop_event = stop_event if mode == "event" else None
-        self._watch_stop_event()
+        self._watch_stop_event(subscribe=self.lifecycle_state == LifecycleState.ACTIVE)
 
-    def _watch_stop_event(self) -> None:
+    def _watch_stop_event(self, subscribe: bool) -> None:
+        """Listen to the termination event; ``subscribe``: feed it from its topics now (the component is, or is
+        becoming, active; set before the launch, the event is subscribed to when the component activates)."""
         event = self._stop_event
         if event is None:
             return
         event.add_listener(self._on_stop_event)
-        if self.lifecycle_state == LifecycleState.ACTIVE:
+        if subscribe:
             for topic in event.topics.values():
                 self._event_subscriptions.append(self.transport.create_subscription(
                     topic, _EventFeed(event, topic.name), owner=self.component_name))
@@ -228,7 +230,7 @@ class VLA(ModelComponent):
     def custom_on_activate(self) -> None:
         super().custom_on_activate()
         self._close_event_subscriptions()
-        self._watch_stop_event()
+        self._watch_stop_event(subscribe=True)  # the state says "inactive" until this hook returns
 
     def custom_on_deactivate(self) -> None:
         with self._goal_lock:

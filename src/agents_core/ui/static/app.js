@@ -209,13 +209,45 @@ async function transition(name, which) {
   catch (e) { toast(e.message); }
 }
 
+// The action's parameters come from its JSON Schema (agents_core.action_schema): one question per
+// parameter, its type, description and default shown; the answers are sent by name.
+function parseParameter(text, schema) {
+  const kinds = [].concat(schema.type || []);
+  if (text === "" && "default" in schema) return { value: schema.default };
+  if (kinds.includes("integer") || kinds.includes("number")) {
+    const n = Number(text);
+    if (text.trim() === "" || Number.isNaN(n)) return { error: "a number" };
+    if (kinds.includes("integer") && !kinds.includes("number") && !Number.isInteger(n)) return { error: "an integer" };
+    return { value: n };
+  }
+  if (kinds.includes("boolean")) {
+    if (["true", "yes", "1"].includes(text.trim().toLowerCase())) return { value: true };
+    if (["false", "no", "0"].includes(text.trim().toLowerCase())) return { value: false };
+    return { error: "true or false" };
+  }
+  if (kinds.includes("array") || kinds.includes("object")) {
+    try { return { value: JSON.parse(text) }; } catch (e) { return { error: "JSON" }; }
+  }
+  if (kinds.length === 0) { try { return { value: JSON.parse(text) }; } catch (e) { return { value: text }; } }
+  return { value: text };
+}
+
 async function runAction(name, action, description) {
-  const params = (description.parameters || description.function?.parameters || {}).properties || {};
-  let kwargs = {};
-  if (Object.keys(params).length) {
-    const answer = prompt(`${action}: arguments as JSON (${Object.keys(params).join(", ")})`, "{}");
+  const schema = description.parameters || description.function?.parameters || {};
+  const params = schema.properties || {};
+  const required = schema.required || [];
+  const kwargs = {};
+  for (const [param, spec] of Object.entries(params)) {
+    const kind = [].concat(spec.type || "any").join(" | ");
+    const about = spec.description ? ` — ${spec.description}` : "";
+    const optional = required.includes(param) ? "" : " (optional)";
+    const shown = "default" in spec ? JSON.stringify(spec.default) : "";
+    const answer = prompt(`${action}: ${param} (${kind})${optional}${about}`, shown === '""' ? "" : shown);
     if (answer === null) return;
-    try { kwargs = JSON.parse(answer); } catch (e) { toast("not JSON"); return; }
+    if (answer === "" && !required.includes(param)) continue;
+    const parsed = parseParameter(answer, spec);
+    if ("error" in parsed) { toast(`${action}: ${param} must be ${parsed.error}`); return; }
+    kwargs[param] = parsed.value;
   }
   try { const r = await postJSON(`/api/components/${name}/actions/${action}`, { kwargs });
         toast(`${name}.${action} → ${JSON.stringify(r.result)}`); }

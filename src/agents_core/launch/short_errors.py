@@ -1,0 +1,51 @@
+"""One line for a recipe that cannot start, and the traceback only when asked for.
+
+When :meth:`Launcher.bringup` fails with one of the framework's errors (a config, a wiring, a component
+that failed to configure), the status lines have already said which component and why; Python's
+traceback after them (25 to 112 lines through the launcher and the lifecycle) adds nothing for the
+person running the recipe. :func:`short_errors` prints ``agents: error: <message>`` on stderr (or, when
+the status lines already showed that reason, ``agents: could not start (the reason is above; ...)``) and
+exits with status 1 instead. The traceback is shown, as before, when it is asked for:
+``AGENTS_DEBUG=1`` (what ``agentsctl run --debug`` sets), or the ``agents_core`` logger (or the root
+logger) at DEBUG level. Errors that are not the framework's (a bug) always keep their traceback.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import os
+import sys
+from collections.abc import Iterator
+
+from ..errors import AgentsError
+from .report import already_reported
+
+__all__ = ["DEBUG_ENV_VAR", "debug_requested", "short_errors"]
+
+#: Set to 1 / true / yes for the full traceback of a recipe that fails to start.
+DEBUG_ENV_VAR = "AGENTS_DEBUG"
+
+
+def debug_requested() -> bool:
+    """Whether ``AGENTS_DEBUG`` is set, or the ``agents_core`` (or root) logger is at DEBUG level."""
+    if os.environ.get(DEBUG_ENV_VAR, "").strip().lower() in ("1", "true", "yes", "on"):
+        return True
+    return logging.getLogger("agents_core").getEffectiveLevel() <= logging.DEBUG
+
+
+@contextlib.contextmanager
+def short_errors() -> Iterator[None]:
+    """Turn an :class:`~agents_core.errors.AgentsError` escaping the block into one line and exit status 1."""
+    try:
+        yield
+    except AgentsError as exc:
+        if debug_requested():
+            raise
+        text = " ".join(str(exc).split()) or type(exc).__name__
+        hint = "AGENTS_DEBUG=1 or agentsctl run --debug shows the traceback"
+        if already_reported(text):  # the status line above said it: not twice
+            print(f"agents: could not start (the reason is above; {hint})", file=sys.stderr, flush=True)
+        else:
+            print(f"agents: error: {text} ({hint})", file=sys.stderr, flush=True)
+        raise SystemExit(1) from None

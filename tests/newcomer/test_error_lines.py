@@ -1,0 +1,66 @@
+"""Items 7 and 8 of issue 38: a recipe that cannot start says so in one line, with the traceback only when asked
+for (``AGENTS_DEBUG=1``, ``agentsctl run --debug``); a missing relative model path is "no such file", not a hub
+id; with a process per component, a missing model file "failed to configure" (not "its process crashed ...
+on_process_fail respawns crashed components")."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from agents_core.testing.helpers import free_tcp_port
+
+RECIPE = Path(__file__).with_name("bad_model_recipe.py")
+REPO = Path(__file__).resolve().parents[2]
+
+
+def _run(tmp_path: Path, *args: str, **env: str) -> subprocess.CompletedProcess[str]:
+    clean = {k: v for k, v in os.environ.items() if not k.startswith(("AGENTS_", "HF_"))}
+    clean["PYTHONPATH"] = os.pathsep.join([str(REPO / "src"), os.environ.get("PYTHONPATH", "")])
+    return subprocess.run([sys.executable, str(RECIPE), *args], cwd=tmp_path, capture_output=True, text=True,
+                          timeout=120, check=False, env={**clean, "HF_HUB_OFFLINE": "1", **env})
+
+
+def test_one_line_and_no_such_file(tmp_path: Path) -> None:
+    done = _run(tmp_path, "memory")
+    assert done.returncode == 1, done.stderr
+    assert "Traceback" not in done.stderr, done.stderr
+    assert f"no such file 'models/x.gguf' (relative to the current directory {tmp_path})" in done.stderr
+    assert "hub" not in done.stderr.lower(), done.stderr
+    said = [line for line in done.stderr.splitlines() if "no such file" in line]
+    assert len(said) == 1, done.stderr  # the status line says it, the exit line does not repeat it
+    assert done.stderr.rstrip().splitlines()[-1].startswith("agents: could not start (the reason is above; "
+                                                           "AGENTS_DEBUG=1"), done.stderr
+
+
+def test_the_traceback_when_asked_for(tmp_path: Path) -> None:
+    done = _run(tmp_path, "memory", AGENTS_DEBUG="1")
+    assert done.returncode != 0
+    assert "Traceback (most recent call last)" in done.stderr
+    assert "ConfigError: LocalLLM model: no such file" in done.stderr
+
+
+def test_agentsctl_run_debug_shows_the_traceback(tmp_path: Path) -> None:
+    pytest.importorskip("typer")
+    clean = {k: v for k, v in os.environ.items() if not k.startswith(("AGENTS_", "HF_"))}
+    clean["PYTHONPATH"] = os.pathsep.join([str(REPO / "src"), os.environ.get("PYTHONPATH", "")])
+    quiet = subprocess.run([sys.executable, "-m", "agents_core.cli", "run", str(RECIPE), "memory"], cwd=tmp_path,
+                           capture_output=True, text=True, timeout=120, check=False, env=clean)
+    loud = subprocess.run([sys.executable, "-m", "agents_core.cli", "run", "--debug", str(RECIPE), "memory"],
+                          cwd=tmp_path, capture_output=True, text=True, timeout=120, check=False, env=clean)
+    assert quiet.returncode == 1 and "Traceback" not in quiet.stderr, quiet.stderr
+    assert loud.returncode != 0 and "Traceback" in loud.stderr, loud.stderr
+
+
+@pytest.mark.zenoh
+def test_a_component_process_that_cannot_load_its_model_failed_to_configure(tmp_path: Path) -> None:
+    pytest.importorskip("zenoh")
+    done = _run(tmp_path, "zenoh", "--processes", AGENTS_ZENOH_PORT=str(free_tcp_port()))
+    assert done.returncode == 1, done.stderr
+    assert "failed to configure: ConfigError: LocalLLM model: no such file 'models/x.gguf'" in done.stderr
+    assert "crashed" not in done.stderr and "on_process_fail" not in done.stderr, done.stderr
+    assert "Traceback" not in done.stderr, done.stderr

