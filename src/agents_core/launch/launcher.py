@@ -125,8 +125,6 @@ class Launcher:
         self._refuse_started("add_pkg()")
         self.recipe.add(components, events_actions, multiprocessing)
         apply_add_pkg_extras(components, upstream)  # upstream's ros_log_level, ... (upstream_args)
-        for c in self.components:  # a Cortex offers the actions of its own recipe's components by default
-            getattr(c, "set_recipe_components", lambda _names: None)([c.component_name for c in self.components])
         if self.recipe.settings.multiprocessing:
             check_transferable(self.components)
             self._fork_server = prepare_fork_server(self.recipe) or self._fork_server

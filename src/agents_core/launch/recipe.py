@@ -243,6 +243,9 @@ class Recipe:
             if any(c.component_name == other.component_name for other in self.components):
                 raise WiringError(f"two components are named {c.component_name!r}; names must be unique")
             self.components.append(c)
+        names = [c.component_name for c in self.components]
+        for c in self.components:  # a Cortex offers the actions of its own recipe's components by default
+            getattr(c, "set_recipe_components", lambda _names: None)(names)
         for event, actions in (events_actions or {}).items():
             if not isinstance(event, Event):
                 raise WiringError(f"events_actions keys must be Event objects, got {type(event).__name__}")
