@@ -16,6 +16,7 @@ from ..errors import AgentsError, ConfigError
 from ..install_hint import install_hint
 from ..transport.registry import TRANSPORT_ENV_VAR
 from . import components, recording, topics
+from . import mcp as mcp_cli
 from .connection import fail, one_line_errors
 from .foxglove import foxglove
 from .output import print_json, say
@@ -34,6 +35,9 @@ app.command("call")(components.call)
 app.command("record")(recording.record)
 app.command("play")(recording.play)
 app.command("foxglove")(foxglove)
+app.command("mcp")(mcp_cli.mcp)
+app.command("approve")(mcp_cli.approve)
+app.command("deny")(mcp_cli.deny)
 
 
 @app.command("run", context_settings={"allow_extra_args": True, "ignore_unknown_options": True})
