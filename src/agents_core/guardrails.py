@@ -357,6 +357,9 @@ def _bound_arguments(func: Callable[..., Any], args: tuple[Any, ...], kwargs: di
         return dict(kwargs)  # the call itself will raise the TypeError that says what is wrong
     named = dict(bound.arguments)
     named.pop("self", None)
+    for param in bound.signature.parameters.values():
+        if param.kind is param.VAR_KEYWORD and isinstance(named.get(param.name), dict):
+            named.update(named.pop(param.name))  # **kwargs are arguments by name, each checked
     return named
 
 

@@ -1,8 +1,7 @@
 """Interop: the MCP Inspector's CLI (npm ``@modelcontextprotocol/inspector``, written by the protocol's
 maintainers) lists and calls the tools of a running recipe over Streamable HTTP.
 
-The package is installed once into a cache folder (``AGENTS_TEST_NPM_CACHE``, default
-``~/.cache/agents-core-tests/npm``); the test skips, saying why, where npm or the registry is missing.
+The package is installed once into a cache folder (:mod:`tests.mcp.npm_tools`).
 """
 
 from __future__ import annotations
@@ -10,7 +9,6 @@ from __future__ import annotations
 import contextlib
 import json
 import os
-import shutil
 import signal
 import subprocess
 import sys
@@ -23,24 +21,14 @@ pytest.importorskip("mcp", reason="the mcp extra is not installed")
 
 from agents_core.testing.helpers import free_tcp_port  # noqa: E402
 
+from .npm_tools import INSPECTOR, npm_binary  # noqa: E402
+
 ROOT = Path(__file__).resolve().parents[2]
-INSPECTOR = "@modelcontextprotocol/inspector@2"
 
 
 @pytest.fixture(scope="module")
 def inspector() -> Path:
-    npm = shutil.which("npm")
-    if npm is None:
-        pytest.skip("npm is not installed: the MCP Inspector interop test needs it")
-    cache = Path(os.environ.get("AGENTS_TEST_NPM_CACHE", Path.home() / ".cache" / "agents-core-tests" / "npm"))
-    binary = cache / "node_modules" / ".bin" / "mcp-inspector"
-    if not binary.exists():
-        cache.mkdir(parents=True, exist_ok=True)
-        done = subprocess.run([npm, "install", "--silent", "--prefix", str(cache), INSPECTOR], capture_output=True,
-                              text=True, timeout=600)
-        if done.returncode != 0 or not binary.exists():
-            pytest.skip(f"npm could not install {INSPECTOR}: {done.stderr.strip()[-300:]}")
-    return binary
+    return npm_binary(INSPECTOR)
 
 
 @pytest.fixture
