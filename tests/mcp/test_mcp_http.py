@@ -173,3 +173,23 @@ def test_off_loopback_needs_a_token():
         McpHttpServer(_NoBridge(), "0.0.0.0", 0, None)  # type: ignore[arg-type]
     assert "token=set" in repr(McpHttpServer(_NoBridge(), "0.0.0.0", 0, "x" * 32))  # type: ignore[arg-type]
     assert "x" * 32 not in repr(McpHttpServer(_NoBridge(), "0.0.0.0", 0, "x" * 32))  # type: ignore[arg-type]
+
+
+def test_a_topic_resource_subscription_sees_updates(served):
+    component, server, _ = served
+    events: list[str] = []
+
+    async def go():
+        async with Client(server.url) as client:
+            async with client.listen(resource_subscriptions=["agents://topic/motion"]) as subscription:
+                await client.call_tool("arm__move", {"speed": 0.3})
+                with anyio.move_on_after(10):
+                    async for event in subscription:
+                        events.append(str(event.uri))
+                        break
+            latest = await client.read_resource("agents://topic/motion")
+            return json.loads(latest.contents[0].text)
+
+    latest = _run(go)
+    assert events == ["agents://topic/motion"]
+    assert latest["value"] == "moved 1.0 m at 0.3 m/s"

@@ -42,7 +42,7 @@ def tool_name(component: str, action: str) -> str:
 
 @define(frozen=True)
 class McpTool:
-    """One action offered as an MCP tool."""
+    """One action (or, with ``goal_type``, an action server's goal) offered as an MCP tool."""
 
     name: str
     component: str
@@ -50,6 +50,36 @@ class McpTool:
     description: str
     input_schema: dict[str, Any]
     guardrails: dict[str, Any]
+    goal_type: str | None = None
+
+
+#: The tool name's action part for an action server's goals (``vla__goal``).
+GOAL_ACTION = "goal"
+_KIND_SCHEMA: dict[str, dict[str, Any]] = {
+    "str": {"type": "string"}, "bool": {"type": "boolean"}, "int": {"type": "integer"},
+    "float": {"type": "number"}, "list[float]": {"type": "array", "items": {"type": "number"}},
+    "list[int]": {"type": "array", "items": {"type": "integer"}},
+    "list[str]": {"type": "array", "items": {"type": "string"}}}
+
+
+def goal_schema(type_name: str) -> dict[str, Any] | None:
+    """The JSON Schema of a registered action type's goal (None: no such type here)."""
+    from ..transport.goals import action_type  # noqa: PLC0415
+
+    try:
+        definition = action_type(type_name)
+    except (AgentsError, KeyError):
+        return None
+    properties: dict[str, Any] = {}
+    for name, spec in definition.goal.items():
+        entry = dict(_KIND_SCHEMA.get(spec.kind, {}))
+        entry["default"] = spec.default_value()
+        if spec.minimum is not None:
+            entry["minimum"] = spec.minimum
+        if spec.maximum is not None:
+            entry["maximum"] = spec.maximum
+        properties[name] = entry
+    return {"type": "object", "properties": properties, "required": [], "additionalProperties": False}
 
 
 def _schema_of(description: Any) -> dict[str, Any]:
@@ -116,6 +146,14 @@ class RecipeCatalog:
                 guard = guardrails.get(action) if isinstance(guardrails.get(action), dict) else {}
                 tools.append(McpTool(name, component, str(action), _summary_of(description),
                                      _schema_of(description), dict(guard)))
+            kind = reply.get("action_type")
+            name = tool_name(component, GOAL_ACTION)
+            if isinstance(kind, str) and GOAL_ACTION not in actions and self.allowed(name) and _TOOL_NAME.match(name):
+                schema = goal_schema(kind)
+                if schema is not None:
+                    tools.append(McpTool(name, component, GOAL_ACTION,
+                                         f"Send {component} a {kind} goal; reports its feedback as progress and "
+                                         "stops it when the call is cancelled.", schema, {}, goal_type=kind))
         return sorted(tools, key=lambda t: t.name)
 
     def find(self, name: str) -> McpTool:

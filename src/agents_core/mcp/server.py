@@ -44,6 +44,8 @@ MAX_BODY_BYTES = 1 << 20
 #: At most this many MCP sessions at once; idle ones end after SESSION_IDLE_S.
 MAX_SESSIONS = 64
 SESSION_IDLE_S = 300.0
+#: Resource-updated events a topic may cause per second (a 30 Hz camera must not flood clients).
+EVENTS_PER_S = 10.0
 #: A tool result longer than this (characters) is cut, saying so.
 MAX_RESULT_CHARS = 200_000
 
@@ -79,11 +81,12 @@ def _text(value: Any) -> str:
 class _LatestValues:
     """The newest value of each output topic, subscribed on first read (bounded: one value a topic)."""
 
-    def __init__(self, transport: Transport) -> None:
+    def __init__(self, transport: Transport, on_change: Any = None) -> None:
         self._transport = transport
         self._lock = threading.Lock()
         self._values: dict[str, tuple[str, Any, float]] = {}
         self._subscriptions: dict[str, Any] = {}
+        self._on_change = on_change  # called with the topic's name (from the transport's thread)
 
     def ensure(self, name: str, type_name: str) -> None:
         from ..topics import Topic  # noqa: PLC0415
@@ -96,6 +99,8 @@ class _LatestValues:
         def keep(value: Any) -> None:
             with self._lock:
                 self._values[name] = (type_name, value, time.time())
+            if self._on_change is not None:
+                self._on_change(name)
 
         try:
             subscription = self._transport.create_subscription(Topic(name, type_name), keep)
@@ -140,7 +145,10 @@ class McpBridge:
         self.catalog: RecipeCatalog = RecipeCatalog(transport, components=components, allow=allow)
         self.tool_timeout = float(tool_timeout)
         self.approval_timeout = float(approval_timeout)
-        self._latest = _LatestValues(transport)
+        self._latest = _LatestValues(transport, self._topic_changed)
+        self._loop_token: Any = None  # the serving event loop's, for events sent from transport threads
+        self._bus: Any = None
+        self._last_event: dict[str, float] = {}
         self._audit = process_audit_log()
         self._audit_before = self._audit.path  # restored at close: the bridge borrows the process's log
         if audit_log is not None or self._audit.path is None:
@@ -167,6 +175,9 @@ class McpBridge:
 
         async def call_tool(ctx: Any, params: Any) -> Any:
             try:
+                tool = await anyio.to_thread.run_sync(self.catalog.find, params.name)
+                if tool.goal_type is not None:
+                    return await self._run_goal(ctx, tool, params.arguments)
                 result = await anyio.to_thread.run_sync(self.call, params.name, params.arguments)
             except AgentsError as exc:
                 return types.CallToolResult(content=[types.TextContent(type="text", text=_text(str(exc)))],
@@ -193,8 +204,81 @@ class McpBridge:
             return types.ReadResourceResult(contents=[types.TextResourceContents(uri=uri, mime_type=mime,
                                                                                  text=payload)])
 
+        from mcp.server.subscriptions import InMemorySubscriptionBus, ListenHandler  # noqa: PLC0415
+
+        self._bus = InMemorySubscriptionBus()
+        listen = ListenHandler(self._bus, max_subscriptions=MAX_SESSIONS * 4, max_buffered_events=256)
+
+        async def subscriptions_listen(ctx: Any, params: Any) -> Any:
+            self._loop_token = anyio.lowlevel.current_token()
+            wanted = list(getattr(params.notifications, "resource_subscriptions", None) or [])
+            topics = await anyio.to_thread.run_sync(self.catalog.output_topics)
+            for uri in wanted[:64]:
+                topic = str(uri)[len(TOPIC_URI):] if str(uri).startswith(TOPIC_URI) else None
+                if topic in topics:
+                    await anyio.to_thread.run_sync(self._latest.ensure, topic, topics[topic])
+            return await listen(ctx, params)
+
         return Server(name, version=__version__, on_list_tools=list_tools, on_call_tool=call_tool,
-                      on_list_resources=list_resources, on_read_resource=read_resource)
+                      on_list_resources=list_resources, on_read_resource=read_resource,
+                      on_subscriptions_listen=subscriptions_listen)
+
+    def _topic_changed(self, topic: str) -> None:
+        """A new value on ``topic``: tell listening clients (at most EVENTS_PER_S a topic; newest wins)."""
+        token, bus = self._loop_token, self._bus
+        now = time.monotonic()
+        if token is None or bus is None or now - self._last_event.get(topic, 0.0) < 1.0 / EVENTS_PER_S:
+            return
+        self._last_event[topic] = now
+        import anyio.from_thread  # noqa: PLC0415
+        from mcp.shared.subscriptions import ResourceUpdated  # noqa: PLC0415
+
+        try:
+            anyio.from_thread.run(bus.publish, ResourceUpdated(uri=TOPIC_URI + topic), token=token)
+        except Exception:  # the loop stopped (the server is closing): nobody listens any more
+            self._loop_token = None
+
+    async def _run_goal(self, ctx: Any, tool: McpTool, arguments: dict[str, Any] | None) -> Any:
+        """Send the goal; its feedback as progress notifications; cancel it when the MCP call is cancelled."""
+        import queue  # noqa: PLC0415
+
+        import anyio  # noqa: PLC0415
+        import mcp_types as types  # noqa: PLC0415
+
+        from .catalog import check_arguments  # noqa: PLC0415
+
+        goal = dict(arguments or {})
+        check_arguments(tool, goal)
+        feedback: queue.Queue[dict[str, Any]] = queue.Queue(maxsize=256)
+
+        def on_feedback(value: dict[str, Any]) -> None:
+            try:
+                feedback.put_nowait(value)
+            except queue.Full:  # a client slower than the feedback: the newest is what matters
+                pass
+
+        transport = self.catalog.transport
+        client = await anyio.to_thread.run_sync(
+            lambda: transport.send_goal(tool.component, str(tool.goal_type), goal, feedback=on_feedback,
+                                        timeout=self.tool_timeout))
+        self._write_audit({"caller": "mcp", "tool": tool.name, "arguments": _text(goal)[:2000],
+                           "decision": "allowed", "outcome": f"goal {client.status.name.lower()}"})
+        sent = 0
+        try:
+            while not client.done:
+                await anyio.sleep(0.05)
+                while not feedback.empty():
+                    sent += 1
+                    await ctx.session.report_progress(float(sent), None, _text(feedback.get_nowait())[:2000])
+            status, result = await anyio.to_thread.run_sync(client.result, self.tool_timeout)
+        except BaseException:
+            # The MCP call was cancelled (or the client went away): the robot stops too.
+            with anyio.CancelScope(shield=True):
+                await anyio.to_thread.run_sync(client.cancel)
+            raise
+        text = _text({"status": status.name.lower(), "result": result})
+        return types.CallToolResult(content=[types.TextContent(type="text", text=text)],
+                                    is_error=status.name != "SUCCEEDED")
 
     @staticmethod
     def _tool(tool: McpTool) -> Any:
