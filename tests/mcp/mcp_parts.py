@@ -1,7 +1,7 @@
 """A small real recipe for the MCP tests: an Arm whose ``move`` is bounded, one that needs approval, a counter.
 
-``python -m tests.mcp.mcp_parts --listen tcp/127.0.0.1:PORT`` runs it on Zenoh in its own process (the
-stdio test's "recipe running elsewhere"); it prints READY once active and stops on SIGTERM.
+``python -m tests.mcp.mcp_parts --listen tcp/127.0.0.1:PORT`` runs it on Zenoh (``--transport ros2``: on ROS 2) in its own
+process (the stdio test's "recipe running elsewhere"); it prints READY once active and stops on SIGTERM.
 """
 
 from __future__ import annotations
@@ -66,10 +66,12 @@ def arm(name: str = "arm") -> Arm:
 
 def main() -> int:
     parser = argparse.ArgumentParser()
-    parser.add_argument("--listen", required=True, help="the Zenoh endpoint (tcp/127.0.0.1:PORT)")
+    parser.add_argument("--transport", default="zenoh", choices=["zenoh", "ros2"])
+    parser.add_argument("--listen", help="the Zenoh endpoint (tcp/127.0.0.1:PORT)")
     args = parser.parse_args()
-    options = {"mode": "peer", "listen": [args.listen], "connect": [], "multicast_scouting": False}
-    launcher = Launcher("zenoh", transport_options=options)
+    options = ({"mode": "peer", "listen": [args.listen], "connect": [], "multicast_scouting": False}
+               if args.transport == "zenoh" else {})
+    launcher = Launcher(args.transport, transport_options=options)
     launcher.add_pkg(components=[arm()])
     stop = threading.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
