@@ -178,6 +178,14 @@ class RecipeCatalog:
         reply = self.transport.request(f"{tool.component}/execute_method", payload, timeout=timeout + 1.0)
         return reply.get("result") if isinstance(reply, dict) else reply
 
+    def state(self, component: str) -> str:
+        """``component``'s lifecycle state now ("unreachable" when it does not answer)."""
+        try:
+            reply = self._view.describe(component)
+        except (AgentsError, KeyError):
+            return "unreachable"
+        return str(reply.get("state"))
+
     def health(self) -> dict[str, dict[str, Any]]:
         """``{component: {"state", "health"}}`` of each reachable component."""
         return {name: {"state": reply.get("state"), "health": reply.get("health")}

@@ -319,6 +319,10 @@ class McpBridge:
 
     def _call(self, name: str, arguments: dict[str, Any] | None) -> Any:
         tool = self.catalog.find(name)
+        state = self.catalog.state(tool.component)
+        if state != "active":
+            # A robot's action must not run half-way in a component that is stopping or stopped.
+            raise ConfigError(f"tool {name!r}: component {tool.component!r} is {state}, not active; not run")
         if arguments is not None and not isinstance(arguments, dict):
             raise ConfigError(f"tool {name!r}: arguments must be an object")
         needs_approval = bool(tool.guardrails.get("approval"))
