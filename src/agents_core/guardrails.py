@@ -26,6 +26,7 @@ Who is calling is the :data:`current_caller` context value (``"python"`` unless 
 
 from __future__ import annotations
 
+import contextlib
 import contextvars
 import inspect
 import json
@@ -44,13 +45,15 @@ from attrs import define, field
 
 from .errors import ComponentError, ConfigError
 
-__all__ = ["DEFAULT_APPROVAL_TIMEOUT", "ActionGuard", "ApprovalBroker", "AuditLog", "GuardrailRefused", "PendingCall", "admit_call", "approvals",
+__all__ = ["DEFAULT_APPROVAL_TIMEOUT", "ActionGuard", "ApprovalBroker", "AuditLog", "GuardrailRefused", "PendingCall",
+           "Admission", "admit_call", "approvals",
            "audit_log", "configure_audit_log", "current_caller", "run_guarded", "with_caller"]
 
 #: Who is calling the action now (set by services for the call they run).
 current_caller: contextvars.ContextVar[str] = contextvars.ContextVar("agents_core_caller", default="python")
 #: An approval id chosen by the caller (so that an MCP server can decide the pending call it started).
-_call_id: contextvars.ContextVar[str | None] = contextvars.ContextVar("agents_core_call_id", default=None)
+_call_id: contextvars.ContextVar[str | None] = contextvars.ContextVar("agents_core_call_id",
+                                                                       default=None)
 
 #: The longest an approval may wait unless an action says otherwise (seconds).
 DEFAULT_APPROVAL_TIMEOUT = 60.0
@@ -243,10 +246,8 @@ class ApprovalBroker:
             self._pending[call_id] = pending
             listeners = list(self._listeners)
         for listener in listeners:
-            try:
+            with contextlib.suppress(Exception):  # a listener (an MCP session gone away) must not decide it
                 listener(pending)
-            except Exception:  # a listener (an MCP session gone away) must not decide the call
-                pass
         pending.decided.wait(timeout)
         with self._lock:
             self._pending.pop(call_id, None)
@@ -319,10 +320,8 @@ class AuditLog:
 
                     logging.getLogger(__name__).warning("audit log %s not written: %s", path, exc)
         for listener in listeners:
-            try:
+            with contextlib.suppress(Exception):  # a listener must not change the call's outcome
                 listener(record)
-            except Exception:  # a listener must not change the call's outcome
-                pass
 
 
 _AUDIT = AuditLog(os.environ.get("AGENTS_AUDIT_LOG") or None)
@@ -399,14 +398,34 @@ def _record(component: str, action: str, arguments: dict[str, Any]) -> dict[str,
             "arguments": {k: _short(v) for k, v in arguments.items()}}
 
 
+@define(frozen=True)
+class Admission:
+    """A call settled by :func:`admit_call`: :meth:`run` runs it on another thread as its caller, admitted."""
+
+    caller: str
+    call_id: str | None
+    admitted: tuple[int, str] | None
+
+    def run(self, func: Callable[..., Any], *args: Any, **kwargs: Any) -> Any:
+        """``func(*args, **kwargs)`` with this admission's caller (and admission) set for the call only."""
+        tokens = (current_caller.set(self.caller), _call_id.set(self.call_id), _admitted.set(self.admitted))
+        try:
+            return func(*args, **kwargs)
+        finally:
+            _admitted.reset(tokens[2])
+            _call_id.reset(tokens[1])
+            current_caller.reset(tokens[0])
+
+
 def admit_call(func: Callable[..., Any], owner: Any, args: Sequence[Any], kwargs: Mapping[str, Any],
-               timeout: float) -> contextvars.Context:
+               timeout: float) -> Admission:
     """Settle a call's guardrails before it is dispatched to its component's worker (a service's request).
 
-    An approval waits here, on the request's thread and within the request's ``timeout``, so that
-    the worker is never held and a call whose caller gave up never runs. Returns the context to run
-    the call in (it carries the caller and the admission). Raises :class:`GuardrailRefused`.
+    An approval waits here, on the request's thread and at most ``timeout`` seconds, so that the
+    worker is never held and a call whose caller gave up never runs. Returns what runs the call
+    on the worker (with the caller and the admission). Raises :class:`GuardrailRefused`.
     """
+    admitted: tuple[int, str] | None = None
     guard = getattr(func, "_agents_action_guard", None)
     if isinstance(guard, ActionGuard) and guard.active:
         target = getattr(func, "__wrapped__", func)
@@ -418,12 +437,8 @@ def admit_call(func: Callable[..., Any], owner: Any, args: Sequence[Any], kwargs
         except GuardrailRefused as exc:
             _AUDIT.write({**record, "decision": "refused", "outcome": str(exc)})
             raise
-        token = _admitted.set((id(owner), action))
-        try:
-            return contextvars.copy_context()
-        finally:
-            _admitted.reset(token)  # only the dispatched call is admitted, not this thread's later ones
-    return contextvars.copy_context()
+        admitted = (id(owner), action)
+    return Admission(current_caller.get(), _call_id.get(), admitted)
 
 
 def run_guarded(func: Callable[..., Any], guard: ActionGuard | None, args: tuple[Any, ...],

@@ -1,7 +1,8 @@
-"""A small real recipe for the MCP tests: an Arm whose ``move`` is bounded, one that needs approval, a counter.
+"""A small real recipe for the MCP tests: an Arm whose ``move`` is bounded and ``launch`` needs a yes.
 
-``python -m tests.mcp.mcp_parts --listen tcp/127.0.0.1:PORT`` runs it on Zenoh (``--transport ros2``: on ROS 2) in its own
-process (the stdio test's "recipe running elsewhere"); it prints READY once active and stops on SIGTERM.
+``python -m tests.mcp.mcp_parts --listen tcp/127.0.0.1:PORT`` runs it on Zenoh (``--transport ros2``: on
+ROS 2) in its own process (the stdio test's "recipe running elsewhere"); it prints READY once active and
+stops on SIGTERM.
 """
 
 from __future__ import annotations

@@ -28,7 +28,7 @@ def npm_binary(package: tuple[str, str]) -> Path:
     if not binary.exists():
         cache.mkdir(parents=True, exist_ok=True)
         done = subprocess.run([npm, "install", "--silent", "--prefix", str(cache), spec], capture_output=True,
-                              text=True, timeout=600)
+                              text=True, timeout=600, check=False)
         if done.returncode != 0 or not binary.exists():
             pytest.skip(f"npm could not install {spec}: {done.stderr.strip()[-300:]}")
     return binary

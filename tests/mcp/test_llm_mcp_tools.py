@@ -13,16 +13,16 @@ import pytest
 
 pytest.importorskip("mcp", reason="the mcp extra is not installed")
 
-from agents_core import Launcher, Topic  # noqa: E402
-from agents_core.clients import OllamaClient  # noqa: E402
-from agents_core.components import LLM  # noqa: E402
-from agents_core.config import LLMConfig  # noqa: E402
-from agents_core.errors import ConfigError  # noqa: E402
-from agents_core.models import OllamaModel  # noqa: E402
-from agents_core.testing.helpers import wait_for  # noqa: E402
+from agents_core import Launcher, Topic
+from agents_core.clients import OllamaClient
+from agents_core.components import LLM
+from agents_core.config import LLMConfig
+from agents_core.errors import ConfigError
+from agents_core.models import OllamaModel
+from agents_core.testing.helpers import wait_for
 
-from ..servers.scripted_ollama_server import ScriptedOllamaServer, calls, text  # noqa: E402
-from .npm_tools import EVERYTHING, npm_binary  # noqa: E402
+from ..servers.scripted_ollama_server import ScriptedOllamaServer, calls, text
+from .npm_tools import EVERYTHING, npm_binary
 
 
 def _tool_messages(body):

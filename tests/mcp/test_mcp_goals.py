@@ -1,4 +1,4 @@
-"""An action server's goals as an MCP tool: feedback arrives as progress notifications, a cancelled call stops the goal."""
+"""An action server's goals as an MCP tool: feedback arrives as progress, a cancelled call stops the goal."""
 
 from __future__ import annotations
 
@@ -10,12 +10,12 @@ import pytest
 
 pytest.importorskip("mcp", reason="the mcp extra is not installed")
 
-from mcp import Client  # noqa: E402
+from mcp import Client
 
-from agents_core import Launcher  # noqa: E402
-from agents_core.components import Component  # noqa: E402
-from agents_core.mcp import McpBridge  # noqa: E402
-from agents_core.transport.goals import GoalHandle  # noqa: E402
+from agents_core import Launcher
+from agents_core.components import Component
+from agents_core.mcp import McpBridge
+from agents_core.transport.goals import GoalHandle
 
 
 class Mover(Component):
@@ -45,7 +45,8 @@ def served(tmp_path):
     launcher = Launcher("memory")
     launcher.add_pkg(components=[mover])
     with launcher:
-        server = McpBridge(launcher.transport, components=["mover"], audit_log=tmp_path / "audit.jsonl").serve_http(port=0)
+        bridge = McpBridge(launcher.transport, components=["mover"], audit_log=tmp_path / "audit.jsonl")
+        server = bridge.serve_http(port=0)
         try:
             yield mover, server
         finally:

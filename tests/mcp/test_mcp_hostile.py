@@ -11,12 +11,12 @@ import pytest
 
 pytest.importorskip("mcp", reason="the mcp extra is not installed")
 
-from mcp import Client  # noqa: E402
+from mcp import Client
 
-from agents_core import Launcher  # noqa: E402
-from agents_core.mcp import McpBridge  # noqa: E402
+from agents_core import Launcher
+from agents_core.mcp import McpBridge
 
-from .mcp_parts import arm  # noqa: E402
+from .mcp_parts import arm
 
 HEADERS = {"content-type": "application/json", "accept": "application/json, text/event-stream"}
 INIT = {"jsonrpc": "2.0", "id": 1, "method": "initialize",

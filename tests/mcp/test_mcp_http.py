@@ -12,14 +12,16 @@ import pytest
 
 pytest.importorskip("mcp", reason="the mcp extra is not installed")
 
-from mcp import Client  # noqa: E402
+from mcp import Client
 
-from agents_core import Launcher  # noqa: E402
-from agents_core.guardrails import approvals  # noqa: E402
-from agents_core.mcp import McpBridge  # noqa: E402
-from agents_core.testing.helpers import wait_for  # noqa: E402
+from agents_core import Launcher
+from agents_core.errors import AgentsError, ConfigError
+from agents_core.guardrails import approvals
+from agents_core.mcp import McpBridge
+from agents_core.mcp.server import McpHttpServer
+from agents_core.testing.helpers import wait_for
 
-from .mcp_parts import MOTION, arm  # noqa: E402
+from .mcp_parts import MOTION, arm
 
 
 @pytest.fixture
@@ -81,8 +83,6 @@ def test_out_of_range_or_bad_arguments_are_refused_and_never_run(served, argumen
 def test_the_core_refuses_out_of_range_whoever_calls(served):
     """The same limit through execute_method (what the CLI, the UI and other components use)."""
     component, server, _ = served
-    from agents_core.errors import AgentsError
-
     with pytest.raises(AgentsError, match=r"'speed' = 0.7 is outside \[0, 0.5\]"):
         server.bridge.catalog.transport.request("arm/execute_method",
                                                 {"method": "move", "kwargs": {"speed": 0.7}}, timeout=5.0)
@@ -122,7 +122,7 @@ def test_an_approval_granted_runs_once_and_one_timed_out_never_runs(served):
 
 
 def test_resources_health_recipe_and_topic(served):
-    component, server, _ = served
+    _, server, _ = served
 
     async def go():
         async with Client(server.url) as client:
@@ -163,9 +163,6 @@ def test_hostile_http_requests_are_bounded(served):
 
 
 def test_off_loopback_needs_a_token():
-    from agents_core.errors import ConfigError
-    from agents_core.mcp.server import McpHttpServer
-
     class _NoBridge:
         pass
 
@@ -176,7 +173,7 @@ def test_off_loopback_needs_a_token():
 
 
 def test_a_topic_resource_subscription_sees_updates(served):
-    component, server, _ = served
+    _, server, _ = served
     events: list[str] = []
 
     async def go():

@@ -19,9 +19,9 @@ import pytest
 
 pytest.importorskip("mcp", reason="the mcp extra is not installed")
 
-from agents_core.testing.helpers import free_tcp_port  # noqa: E402
+from agents_core.testing.helpers import free_tcp_port
 
-from .npm_tools import INSPECTOR, npm_binary  # noqa: E402
+from .npm_tools import INSPECTOR, npm_binary
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -55,7 +55,8 @@ def mcp_url(tmp_path):
 
 
 def _inspect(binary: Path, url: str, *args: str) -> dict:
-    done = subprocess.run([str(binary), "--cli", url, *args], capture_output=True, text=True, timeout=120)
+    done = subprocess.run([str(binary), "--cli", url, *args], capture_output=True, text=True, timeout=120,
+                          check=False)
     out = done.stdout[done.stdout.index("{"):] if "{" in done.stdout else done.stdout
     decoder = json.JSONDecoder()
     return decoder.raw_decode(out)[0]

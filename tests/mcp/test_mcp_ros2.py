@@ -14,15 +14,15 @@ import pytest
 
 pytest.importorskip("mcp", reason="the mcp extra is not installed")
 
-from mcp import Client, StdioServerParameters  # noqa: E402
+from mcp import Client, StdioServerParameters
+
+from agents_core.testing.pairs import private_ros_environment, skip_unless_installed
 
 pytestmark = pytest.mark.ros2
 ROOT = Path(__file__).resolve().parents[2]
 
 
 def test_stdio_over_ros2_lists_calls_and_refuses():
-    from agents_core.testing.pairs import private_ros_environment, skip_unless_installed
-
     skip_unless_installed("ros2", "agents_interfaces")
     private_ros_environment()
     recipe = subprocess.Popen([sys.executable, "-m", "tests.mcp.mcp_parts", "--transport", "ros2"], cwd=ROOT,

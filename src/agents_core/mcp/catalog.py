@@ -136,14 +136,16 @@ class RecipeCatalog:
         tools: list[McpTool] = []
         for component, reply in self.descriptions().items():
             actions = reply.get("actions")
-            guardrails = reply.get("guardrails") if isinstance(reply.get("guardrails"), dict) else {}
+            given = reply.get("guardrails")
+            guardrails: dict[str, Any] = given if isinstance(given, dict) else {}
             if not isinstance(actions, Mapping):
                 continue
             for action, description in actions.items():
                 name = tool_name(component, str(action))
                 if not _TOOL_NAME.match(name) or not self.allowed(name):
                     continue
-                guard = guardrails.get(action) if isinstance(guardrails.get(action), dict) else {}
+                found = guardrails.get(action)
+                guard: dict[str, Any] = found if isinstance(found, dict) else {}
                 tools.append(McpTool(name, component, str(action), _summary_of(description),
                                      _schema_of(description), dict(guard)))
             kind = reply.get("action_type")
@@ -215,11 +217,13 @@ def check_arguments(tool: McpTool, arguments: Mapping[str, Any]) -> None:
     """Refuse arguments the tool's schema does not take: unknown names, missing ones, wrong JSON types,
     numbers outside ``minimum`` / ``maximum`` (NaN included). The component checks again (its guardrails)."""
     schema = tool.input_schema
-    properties = schema.get("properties") if isinstance(schema.get("properties"), Mapping) else {}
+    given = schema.get("properties")
+    properties: Mapping[str, Any] = given if isinstance(given, Mapping) else {}
     unknown = sorted(k for k in arguments if k not in properties)
     if unknown and schema.get("additionalProperties") is not True:
         raise ConfigError(f"tool {tool.name!r}: unknown argument(s) {unknown[:20]}; it takes {sorted(properties)}")
-    required = schema.get("required") if isinstance(schema.get("required"), list) else []
+    listed = schema.get("required")
+    required: list[Any] = listed if isinstance(listed, list) else []
     missing = [k for k in required if k not in arguments]
     if missing:
         raise ConfigError(f"tool {tool.name!r}: missing argument(s) {missing}")
@@ -234,7 +238,8 @@ def check_arguments(tool: McpTool, arguments: Mapping[str, Any]) -> None:
                               f"got {type(value).__name__}")
         if "enum" in spec and isinstance(spec["enum"], list) and value not in spec["enum"]:
             raise ConfigError(f"tool {tool.name!r}: argument {key!r} must be one of {spec['enum'][:20]}")
-        bounds = spec.get("items") if isinstance(value, list) and isinstance(spec.get("items"), Mapping) else spec
+        items = spec.get("items")
+        bounds: Mapping[str, Any] = items if isinstance(value, list) and isinstance(items, Mapping) else spec
         for item in value if isinstance(value, list) else [value]:
             if isinstance(item, bool) or not isinstance(item, int | float):
                 continue

@@ -15,6 +15,7 @@ with a message the model sees, nothing more.
 
 from __future__ import annotations
 
+import contextlib
 import fnmatch
 import json
 import re
@@ -53,6 +54,10 @@ def _limits(value: Any) -> dict[str, dict[str, tuple[float, float]]]:
     return {str(tool): ActionGuard(limits=bounds).limits for tool, bounds in value.items()}
 
 
+def _allow(value: Any) -> tuple[str, ...] | None:
+    return None if value is None else tuple(str(v) for v in value)
+
+
 def _positive(instance: Any, attribute: Any, value: Any) -> None:
     if isinstance(value, bool) or not isinstance(value, int | float) or not 0 < value <= 3600:
         raise ConfigError(f"McpServerSpec.{attribute.name}: expected seconds in (0, 3600], got {value!r}")
@@ -76,7 +81,7 @@ class McpServerSpec:
 
     target: str | tuple[str, ...] = field(converter=_target)
     name: str = "mcp"
-    allow: tuple[str, ...] | None = field(default=None, converter=lambda v: None if v is None else tuple(v))
+    allow: tuple[str, ...] | None = field(default=None, converter=_allow)
     limits: dict[str, dict[str, tuple[float, float]]] = field(factory=dict, converter=_limits)
     approval: tuple[str, ...] = field(default=(), converter=tuple)
     approval_timeout: float = field(default=60.0, validator=_positive)
@@ -118,8 +123,9 @@ class McpRemoteTool:
         self.guard = spec.guard(remote_name)
         parameters = schema if isinstance(schema, dict) and schema.get("type") == "object" else {
             "type": "object", "properties": {}}
+        properties = parameters.get("properties")
         for argument, (low, high) in self.guard.limits.items():
-            entry = parameters.get("properties", {}).get(argument)
+            entry = properties.get(argument) if isinstance(properties, dict) else None
             if isinstance(entry, dict):
                 entry["minimum"], entry["maximum"] = low, high
         self.description = {"type": "function", "function": {
@@ -192,10 +198,8 @@ class McpToolbox:
     def _abandon(self) -> None:
         """Stop the portal, cancelling what still runs there (a connection that never answered)."""
         if self._portal_cm is not None:
-            try:
+            with contextlib.suppress(BaseException):
                 self._portal_cm.__exit__(TimeoutError, TimeoutError(), None)
-            except BaseException:
-                pass
         self._portal = self._portal_cm = None
 
     async def _with_timeout(self, func: Any, *args: Any) -> Any:
@@ -247,16 +251,12 @@ class McpToolbox:
     def close(self) -> None:
         """Disconnect (a stdio server's process ends); idempotent."""
         if self._client_cm is not None and self._portal is not None:
-            try:
+            with contextlib.suppress(BaseException):  # a server already gone: nothing more to close
                 self._client_cm.__exit__(None, None, None)
-            except BaseException:  # a server already gone: nothing more to close
-                pass
         self._client = self._client_cm = None
         if self._portal_cm is not None:
-            try:
+            with contextlib.suppress(BaseException):
                 self._portal_cm.__exit__(None, None, None)
-            except BaseException:
-                pass
         self._portal = self._portal_cm = None
 
 

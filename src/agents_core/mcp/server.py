@@ -15,6 +15,7 @@ Every call reaches the action through its component's ``execute_method`` with th
 from __future__ import annotations
 
 import base64
+import contextlib
 import hmac
 import ipaddress
 import json
@@ -252,10 +253,8 @@ class McpBridge:
         feedback: queue.Queue[dict[str, Any]] = queue.Queue(maxsize=256)
 
         def on_feedback(value: dict[str, Any]) -> None:
-            try:
+            with contextlib.suppress(queue.Full):  # a client slower than the feedback: later ones come
                 feedback.put_nowait(value)
-            except queue.Full:  # a client slower than the feedback: the newest is what matters
-                pass
 
         transport = self.catalog.transport
         client = await anyio.to_thread.run_sync(
@@ -286,7 +285,7 @@ class McpBridge:
 
         description = tool.description or f"{tool.action} of {tool.component}"
         return types.Tool(name=tool.name, description=description, input_schema=tool.input_schema,
-                          meta={"agents-core/guardrails": tool.guardrails} if tool.guardrails else None)
+                          _meta={"agents-core/guardrails": tool.guardrails} if tool.guardrails else None)
 
     # -- what the handlers do (blocking: they run on worker threads) --------------------------
 

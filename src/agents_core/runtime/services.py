@@ -108,13 +108,13 @@ class ComponentServices:
         if not isinstance(caller, str) or (call_id is not None and not isinstance(call_id, str)):
             raise ConfigError("execute_method: 'caller' and 'call_id' must be strings")
         # Guardrails that wait (approval) or count (rate) are settled here, on the request's thread,
-        # within its deadline; the context carries the caller and the admission to the worker.
+        # within its deadline; the admission carries the caller (and that) to the call on the worker.
         wait = request.get("approval_timeout", timeout)
         if isinstance(wait, bool) or not isinstance(wait, int | float) or not 0 <= wait <= timeout:
             raise ConfigError(f"execute_method: 'approval_timeout' must be seconds within the timeout ({timeout:g})")
         with with_caller(caller[:100], call_id[:64] if call_id else None):
-            context = admit_call(method, component, args, kwargs, float(wait))
-        result = self._run_on_worker(lambda: context.run(method, *args, **kwargs), timeout)
+            admission = admit_call(method, component, args, kwargs, float(wait))
+        result = self._run_on_worker(lambda: admission.run(method, *args, **kwargs), timeout)
         return {"result": result if isinstance(result, _PLAIN_RESULT) else repr(result)}
 
     def set_param(self, request: dict[str, Any]) -> dict[str, Any]:
