@@ -77,7 +77,7 @@ def tests(session: nox.Session) -> None:
     """
     # voice-gpl (espeak-ng, GPL-3.0) only in this test environment, never in the core install.
     _install_with_local_models(session, "dev,zenoh,ros2,local,voice,voice-gpl,roboml,vla,servers,cli,ui,memory,"
-                                        "record,foxglove,dataset")
+                                        "record,foxglove,dataset,mcp")
     _install_ros2_interfaces(session)
     _install_browser(session)
     _private_ros_discovery(session)
@@ -141,7 +141,7 @@ def lint(session: nox.Session) -> None:
 @nox.session
 def types(session: nox.Session) -> None:
     """mypy --strict on src/ (with the web UI's Starlette and uvicorn, whose types it checks against)."""
-    session.install("-e", ".[dev,zenoh,cli,ui]")
+    session.install("-e", ".[dev,zenoh,cli,ui,mcp]")
     session.run("mypy", "src")
     session.run("mypy", "--strict", "--explicit-package-bases", "examples", env={"MYPYPATH": "examples"})
 
@@ -274,7 +274,7 @@ def bench(session: nox.Session) -> None:
     """Benchmarks: the framework against the raw middleware in one run (``-- --quick`` for CI; benchmarks/README.md)."""
     # servers: the map suite writes into a local Chroma server; ui: the UI suite measures what a user of the
     # ui extra gets (simplejpeg's JPEG path, not only Pillow's).
-    _install_with_local_models(session, "zenoh,ros2,local,voice,voice-gpl,vla,servers,memory,record,ui")
+    _install_with_local_models(session, "zenoh,ros2,local,voice,voice-gpl,vla,servers,memory,record,ui,mcp")
     session.install("matplotlib")
     _install_ros2_interfaces(session)
     session.run("python", "-m", "benchmarks.run", *session.posargs)

@@ -35,6 +35,7 @@ METRICS: dict[str, list[tuple[str, str, str, str]]] = {
                ("semantic_search", "us", "lower", "search_median_us")],
     # Cortex's own cost per step: the plan -> the first dispatched action, model time excluded (no raw side).
     "cortex": [("overhead_p50", "ms", "lower", "latency_ms.p50"), ("overhead_p99", "ms", "lower", "latency_ms.p99")],
+    "mcp": [("call_p50", "ms", "lower", "latency_ms.p50"), ("call_p99", "ms", "lower", "latency_ms.p99")],
     # framework: the five-stage recipe with multiprocessing=True; raw: the same recipe in one process.
     # respawn: SIGKILL of a component process -> its new process active (multiprocessing only).
     # uss_per_process: memory only one component process holds (multiprocessing only; target <= 40 MB).

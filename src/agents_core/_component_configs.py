@@ -41,6 +41,16 @@ def _non_empty(instance: Any, attribute: attrs.Attribute[Any], value: Any) -> No
         raise ConfigError(f"{type(instance).__name__}.{attribute.name} must be a non-empty str, got {value!r}")
 
 
+def _mcp_servers(instance: Any, attribute: Any, value: Any) -> None:
+    if not isinstance(value, list):
+        raise ConfigError(f"{type(instance).__name__}.mcp_servers: expected a list of MCP servers, got {value!r}")
+    if value:
+        from .mcp.client import server_spec  # noqa: PLC0415  (checked where given: a bad entry fails early)
+
+        for entry in value:
+            server_spec(entry)
+
+
 @define(kw_only=True)
 class LLMConfig(ModelComponentConfig):
     """Settings of the :class:`~agents_core.components.llm.LLM` component.
@@ -64,6 +74,9 @@ class LLMConfig(ModelComponentConfig):
         ``add_documents`` creates it (an existing collection keeps its own).
     :param n_results: how many documents RAG adds.
     :param add_metadata: also give the model the documents' metadata.
+    :param mcp_servers: MCP servers whose tools the model may call (the ``mcp`` extra): each a URL
+        (Streamable HTTP), a command line as a list (stdio) or a mapping of
+        :class:`agents_core.mcp.client.McpServerSpec` fields (``allow``, ``limits``, ``approval``, ...).
     """
 
     system_prompt: str | None = field(default=None, validator=_optional_str)
@@ -72,6 +85,7 @@ class LLMConfig(ModelComponentConfig):
     history_reset_phrase: str = field(default="chat reset", validator=_non_empty)
     temperature: float = field(default=0.8, validator=base_validators.in_range(0.0, 2.0))
     max_new_tokens: int = field(default=500, validator=base_validators.in_range(1, 1_000_000))
+    mcp_servers: list[Any] = field(factory=list, validator=_mcp_servers)
     stream: bool = field(default=False)
     break_character: str = field(default=".", validator=_non_empty)
     strip_think_tokens: bool = field(default=True)

@@ -21,6 +21,7 @@ from typing import Any, TypeVar, overload
 from .action_schema import describe_action
 from .conditions import FieldRef
 from .errors import ConfigError
+from .guardrails import DEFAULT_APPROVAL_TIMEOUT, ActionGuard, run_guarded
 
 __all__ = ["Action", "Fallback", "component_action", "component_fallback"]
 
@@ -28,6 +29,8 @@ F = TypeVar("F", bound=Callable[..., Any])
 
 ACTION_MARK = "_agents_component_action"
 FALLBACK_MARK = "_agents_component_fallback"
+#: The attribute holding an action's :class:`~agents_core.guardrails.ActionGuard`.
+GUARD_MARK = "_agents_action_guard"
 
 
 class Action:
@@ -127,26 +130,65 @@ def _description_for(func: Callable[..., Any], description: Mapping[str, Any] | 
     return describe_action(func, description)
 
 
+def _with_guardrails(described: dict[str, Any], guard: ActionGuard) -> dict[str, Any]:
+    """The description a model reads, saying the guardrails: limits as JSON Schema bounds, the rest in words."""
+    if not guard.active:
+        return described
+    function = dict(described.get("function", {}))
+    schema = function.get("parameters")
+    if isinstance(schema, dict) and isinstance(schema.get("properties"), dict):
+        properties = {k: dict(v) if isinstance(v, dict) else v for k, v in schema["properties"].items()}
+        for name, (low, high) in guard.limits.items():
+            entry = properties.get(name)
+            if isinstance(entry, dict):
+                target = entry.setdefault("items", {}) if entry.get("type") == "array" else entry
+                target["minimum"], target["maximum"] = low, high
+        function["parameters"] = {**schema, "properties": properties}
+    notes = []
+    if guard.approval:
+        notes.append("Each call waits for a person's approval.")
+    if guard.rate_limit is not None:
+        notes.append(f"At most {guard.rate_limit[0]} calls in {guard.rate_limit[1]:g} s.")
+    if notes:
+        function["description"] = " ".join([str(function.get("description", "")).strip(), *notes]).strip()
+    return {**described, "function": function}
+
+
 @overload
 def component_action(func: F, /) -> F: ...
 @overload
-def component_action(*, description: Mapping[str, Any] | None = None) -> Callable[[F], F]: ...
+def component_action(*, description: Mapping[str, Any] | None = None,
+                     limits: Mapping[str, tuple[float, float]] | None = None, approval: bool = False,
+                     approval_timeout: float = DEFAULT_APPROVAL_TIMEOUT,
+                     rate_limit: tuple[int, float] | None = None) -> Callable[[F], F]: ...
 
 
-def component_action(func: Any = None, /, *, description: Mapping[str, Any] | None = None) -> Any:
+def component_action(func: Any = None, /, *, description: Mapping[str, Any] | None = None,
+                     limits: Mapping[str, tuple[float, float]] | None = None, approval: bool = False,
+                     approval_timeout: float = DEFAULT_APPROVAL_TIMEOUT,
+                     rate_limit: tuple[int, float] | None = None) -> Any:
     """Mark a component method as callable by actions and the ``execute_method`` service.
 
     ``description`` is an OpenAI-style tool description (``{"description": ..., "parameters":
     {...}}``, or the full ``{"type": "function", "function": {...}}``); by default it is built
-    from the method's name and the first paragraph of its docstring.
+    from the method's name, signature and docstring.
+
+    Guardrails (:mod:`agents_core.guardrails`), checked for every caller before the method runs:
+    ``limits={"speed": (0.0, 0.5)}`` bounds numeric arguments, ``approval=True`` holds each call
+    until a person approves it (refused after ``approval_timeout`` seconds), ``rate_limit=(calls,
+    seconds)`` bounds how often it runs.
     """
+    guard = ActionGuard(limits=limits, approval=approval, approval_timeout=approval_timeout,
+                        rate_limit=rate_limit)
 
     def mark(f: F) -> F:
         @functools.wraps(f)
         def wrapper(*args: Any, **kwargs: Any) -> Any:
-            return f(*args, **kwargs)
+            return run_guarded(f, guard, args, kwargs)
 
-        setattr(wrapper, ACTION_MARK, _description_for(f, description))
+        described = _with_guardrails(_description_for(f, description), guard)
+        setattr(wrapper, ACTION_MARK, described)
+        setattr(wrapper, GUARD_MARK, guard)
         return wrapper  # type: ignore[return-value]
 
     return mark(func) if func is not None else mark

@@ -38,7 +38,7 @@ def test_the_documented_payload_runs(greeter_transport: Any) -> None:
     reply = greeter_transport.request("greeter/execute_method",
                                       {"method": "greet", "args": ["ada"], "kwargs": {}, "timeout": 5.0})
     assert reply == {"result": "hello ada"}
-    assert EXECUTE_METHOD_KEYS == ("method", "args", "kwargs", "timeout")
+    assert EXECUTE_METHOD_KEYS == ("method", "args", "kwargs", "timeout", "caller", "call_id", "approval_timeout")
 
 
 @pytest.mark.parametrize("request_doc, what", [

@@ -16,6 +16,7 @@ from ..errors import AgentsError, ConfigError
 from ..install_hint import install_hint
 from ..transport.registry import TRANSPORT_ENV_VAR, available_transports
 from . import components, episodes, recipe, recording, topics
+from . import mcp as mcp_cli
 from .connection import attachable_transports, fail, one_line_errors
 from .evals import eval_app
 from .foxglove import foxglove
@@ -38,6 +39,9 @@ app.command("call")(components.call)
 app.command("record")(recording.record)
 app.command("play")(recording.play)
 app.command("foxglove")(foxglove)
+app.command("mcp")(mcp_cli.mcp)
+app.command("approve")(mcp_cli.approve)
+app.command("deny")(mcp_cli.deny)
 
 
 @app.command("run", context_settings={"allow_extra_args": True, "ignore_unknown_options": True})

@@ -25,7 +25,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from ..actions import ACTION_MARK, Action
+from ..actions import ACTION_MARK, GUARD_MARK, Action
 from ..callbacks import GenericCallback, callback_for
 from ..config import BaseComponentConfig
 from ..errors import ConfigError, WiringError
@@ -246,6 +246,15 @@ class Component:
                 found[name] = description
         return found
 
+    def action_guardrails(self) -> dict[str, dict[str, Any]]:
+        """The guardrails of each guarded action (:mod:`agents_core.guardrails`), as JSON."""
+        found: dict[str, dict[str, Any]] = {}
+        for name in self.available_actions():
+            guard = getattr(getattr(type(self), name, None), GUARD_MARK, None)
+            if guard is not None and guard.active:
+                found[name] = guard.describe()
+        return found
+
     def component_description(self) -> dict[str, Any]:
         """What ``<name>/describe`` answers: name, type, run type, state, health, inputs, outputs, actions
         (and ``action_type`` for an action server)."""
@@ -259,6 +268,9 @@ class Component:
             "outputs": [{"name": t.name, "msg_type": t.type_name} for t in self.outputs],
             "actions": self.available_actions(),
         }
+        guarded = self.action_guardrails()
+        if guarded:
+            description["guardrails"] = guarded
         if self.run_type == ComponentRunType.ACTION_SERVER and self._action_type is not None:
             description["action_type"] = self._action_type
         return description

@@ -143,6 +143,7 @@ class LLM(ModelComponent):
         self._topic_templates: dict[str, jinja2.Template] = {}
         self._component_template: jinja2.Template | None = None
         self._tools: dict[str, _Tool] = {}
+        self._mcp_toolboxes: list[Any] = []  # connections to config.mcp_servers, open while configured
         self._rag_where: dict[str, Any] | None = None  # a metadata filter for RAG (set_rag_filter)
 
     # -- prompts ------------------------------------------------------------------------------
@@ -259,6 +260,35 @@ class LLM(ModelComponent):
             raise ConfigError(f"component {self.component_name!r}: tool {name!r}: 'parameters' must be a "
                               "JSON schema dict")
         self._tools[name] = _Tool(tool, {"type": "function", "function": function}, send_tool_response_to_model)
+
+    def custom_on_configure(self) -> None:
+        super().custom_on_configure()
+        self._connect_mcp_servers()
+
+    def custom_on_shutdown(self) -> None:
+        self._disconnect_mcp_servers()
+        super().custom_on_shutdown()
+
+    def _connect_mcp_servers(self) -> None:
+        """Offer the tools of ``config.mcp_servers`` to the model (replacing those of an earlier configure)."""
+        self._disconnect_mcp_servers()
+        if not self.config.mcp_servers:
+            return
+        from ..mcp.client import open_toolboxes  # noqa: PLC0415  (the mcp extra, only when servers are given)
+
+        self._mcp_toolboxes = open_toolboxes(self.config.mcp_servers)
+        for box in self._mcp_toolboxes:
+            for tool in box.tools():
+                # The server's answer goes back to the model, which answers with it (as a tool should).
+                self._tools[tool.__name__] = _Tool(tool, tool.description, True)
+            self._logger.info("MCP server %r: %d tool(s) offered to the model", box.spec.name,
+                              sum(1 for t in self._tools.values() if getattr(t.func, "_box", None) is box))
+
+    def _disconnect_mcp_servers(self) -> None:
+        boxes, self._mcp_toolboxes = self._mcp_toolboxes, []
+        for box in boxes:
+            self._tools = {k: t for k, t in self._tools.items() if getattr(t.func, "_box", None) is not box}
+            box.close()
 
     def _tool_descriptions(self) -> list[dict[str, Any]]:
         if not self._tools:

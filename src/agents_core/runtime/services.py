@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING, Any
 
 from ..action_schema import bind_call
 from ..errors import ComponentError, ConfigError
+from ..guardrails import admit_call, with_caller
 from ..transport.requests import check_timeout
 
 if TYPE_CHECKING:
@@ -22,11 +23,13 @@ if TYPE_CHECKING:
 __all__ = ["EXECUTE_METHOD_KEYS", "SERVICE_NAMES", "ComponentServices"]
 
 #: The services of every component, each served on ``<component name>/<service>``.
-SERVICE_NAMES = ("execute_method", "set_param", "describe")
+SERVICE_NAMES = ("execute_method", "set_param", "describe", "approvals")
 
-#: The keys of an ``execute_method`` request: ``{"method": name, "args": [...], "kwargs": {...}, "timeout": s}``
+#: The keys of an ``execute_method`` request: ``{"method": name, "args": [...], "kwargs": {...}, "timeout": s,
+#: "caller": who (for the audit log: "cli", "ui", "mcp"...), "call_id": an approval id of the caller's,
+#: "approval_timeout": the longest the caller lets an approval wait (within ``timeout``)}``
 #: (only ``method`` is required; ``timeout`` defaults to 30 s).
-EXECUTE_METHOD_KEYS = ("method", "args", "kwargs", "timeout")
+EXECUTE_METHOD_KEYS = ("method", "args", "kwargs", "timeout", "caller", "call_id", "approval_timeout")
 
 #: Results sent back as they are; anything else is sent as its repr.
 _PLAIN_RESULT = (str, int, float, bool, type(None), list, dict)
@@ -44,7 +47,21 @@ class ComponentServices:
     def handler(self, service: str) -> Any:
         """The handler of ``service`` (one of :data:`SERVICE_NAMES`)."""
         return {"execute_method": self.execute_method, "set_param": self.set_param,
-                "describe": self.describe}[service]
+                "describe": self.describe, "approvals": self.approvals}[service]
+
+    def approvals(self, request: dict[str, Any]) -> dict[str, Any]:
+        """The calls of this component's process waiting for a person: ``{"op": "list"}``, or
+        ``{"op": "decide", "id": ..., "approve": bool, "by": who}``."""
+        from ..guardrails import approvals  # noqa: PLC0415
+
+        broker = approvals()
+        op = request.get("op", "list") if isinstance(request, dict) else None
+        if op == "list":
+            return {"pending": broker.pending()}
+        if op == "decide" and isinstance(request.get("id"), str) and isinstance(request.get("approve"), bool):
+            by = request.get("by", "")
+            return {"decided": broker.decide(request["id"], request["approve"], str(by)[:200])}
+        raise ConfigError("approvals needs {'op': 'list'} or {'op': 'decide', 'id': str, 'approve': bool, 'by': str}")
 
     def describe(self, request: dict[str, Any]) -> dict[str, Any]:
         """What the component is (see :meth:`Component.component_description`)."""
@@ -86,7 +103,18 @@ class ComponentServices:
         # One JSON object of parameter names is the arguments by name (agentsctl call talker set_word '{"word": ..}').
         args, kwargs = bind_call(method, args, kwargs, f"component {component.component_name!r}: action "
                                                        f"{method_name!r}")
-        result = self._run_on_worker(lambda: method(*args, **kwargs), timeout)
+        caller = request.get("caller", "remote")
+        call_id = request.get("call_id")
+        if not isinstance(caller, str) or (call_id is not None and not isinstance(call_id, str)):
+            raise ConfigError("execute_method: 'caller' and 'call_id' must be strings")
+        # Guardrails that wait (approval) or count (rate) are settled here, on the request's thread,
+        # within its deadline; the admission carries the caller (and that) to the call on the worker.
+        wait = request.get("approval_timeout", timeout)
+        if isinstance(wait, bool) or not isinstance(wait, int | float) or not 0 <= wait <= timeout:
+            raise ConfigError(f"execute_method: 'approval_timeout' must be seconds within the timeout ({timeout:g})")
+        with with_caller(caller[:100], call_id[:64] if call_id else None):
+            admission = admit_call(method, component, args, kwargs, float(wait))
+        result = self._run_on_worker(lambda: admission.run(method, *args, **kwargs), timeout)
         return {"result": result if isinstance(result, _PLAIN_RESULT) else repr(result)}
 
     def set_param(self, request: dict[str, Any]) -> dict[str, Any]:
