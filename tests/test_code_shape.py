@@ -37,13 +37,13 @@ LAYERS: tuple[tuple[str, frozenset[str]], ...] = (
                         "checked_attrs", "base_validators", "console", "utils", "concurrency", "status"})),
     ("vocabulary", frozenset({"types", "supported_types", "messages", "config", "_component_configs", "topics",
                               "conditions", "events", "actions", "callbacks", "component_method", "setup_calls",
-                              "models", "vectordbs"})),
+                              "models", "vectordbs", "action_schema", "guardrails", "event_transfer"})),
     ("transport", frozenset({"transport"})),
     ("runtime", frozenset({"runtime"})),
     ("clients", frozenset({"clients", "engines"})),
-    ("components", frozenset({"components"})),
-    ("wings", frozenset({"launch", "recording", "foxglove", "ui", "episodes", "evals"})),
-    ("entry points", frozenset({"cli", "testing", "demo", "ros"})),
+    ("components", frozenset({"components", "sim"})),
+    ("wings", frozenset({"launch", "recording", "foxglove", "ui", "episodes", "evals", "mcp"})),
+    ("entry points", frozenset({"cli", "testing", "demo", "ros", "example_servers"})),
 )
 ADAPTER_LAYER = "runtime"
 #: At most this many imports run back up the layers (each one listed in docs/architecture.md).
