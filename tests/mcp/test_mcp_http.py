@@ -190,3 +190,31 @@ def test_a_topic_resource_subscription_sees_updates(served):
     latest = _run(go)
     assert events == ["agents://topic/motion"]
     assert latest["value"] == "moved 1.0 m at 0.3 m/s"
+
+
+def test_launcher_enable_mcp_serves_the_recipe(tmp_path):
+    component = arm()
+    launcher = Launcher("memory")
+    launcher.add_pkg(components=[component])
+    launcher.enable_mcp(port=0, audit_log=tmp_path / "audit.jsonl", allow=["arm__move", "arm__count"])
+    with launcher:
+        url = launcher.mcp.url
+
+        async def go():
+            async with Client(url) as client:
+                names = [t.name for t in (await client.list_tools()).tools]
+                return names, await client.call_tool("arm__move", {"speed": 0.2})
+
+        names, moved = _run(go)
+    assert names == ["arm__count", "arm__move"]  # the allow-list: arm__launch is not offered
+    assert not moved.is_error and component.moves == [0.2]
+    assert launcher.mcp is None  # stopped with the recipe
+    records = [json.loads(line) for line in (tmp_path / "audit.jsonl").read_text().splitlines()]
+    assert any(r.get("tool") == "arm__move" and r["decision"] == "allowed" for r in records)
+
+
+def test_enable_mcp_off_loopback_without_a_token_is_refused(monkeypatch):
+    monkeypatch.delenv("AGENTS_MCP_TOKEN", raising=False)
+    launcher = Launcher("memory")
+    with pytest.raises(ConfigError, match="needs a token"):
+        launcher.enable_mcp(host="0.0.0.0")

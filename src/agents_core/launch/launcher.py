@@ -159,33 +159,35 @@ class Launcher:
         """The running :class:`agents_core.foxglove.FoxgloveBridge` (its ``url``, ``port``), or None."""
         return self._attached.get("foxglove")
 
+    def enable_mcp(self, host: str = "127.0.0.1", port: int = 5002, **options: Any) -> None:
+        """Serve the recipe over MCP at ``http://host:port/mcp`` (:func:`agents_core.mcp.attach.mcp_options`)."""
+        from ..mcp.attach import mcp_options  # noqa: PLC0415  (the mcp extra)
+        self._refuse_started("enable_mcp()")
+        self.recipe.attachments["mcp"] = mcp_options(host, port, **options)
+
+    @property
+    def mcp(self) -> Any:
+        """The running :class:`agents_core.mcp.McpHttpServer` (its ``url``), or None."""
+        return self._attached.get("mcp")
+
     def record(self, path: str | os.PathLike[str], **options: Any) -> Any:
         """Record the recipe's topics into MCAP while it runs: :class:`agents_core.recording.launch.RecipeRecording`."""
         self.recipe.attachments["record"] = record_options(path, **options)
         return self.recipe.attachments["record"]["recording"]
 
     def on_process_fail(self, max_retries: int = 3, on_giveup: Action | None = None) -> None:
-        """Respawn a crashed component process up to ``max_retries`` times (multiprocessing runs).
-
-        Respawns back off (none for the first, then 100 ms doubled per restart, at most 2 s).
-        After the last one the launcher logs the give-up and runs ``on_giveup`` (see :meth:`on_giveup`).
-        """
+        """Respawn a crashed component process up to ``max_retries`` times (multiprocessing runs), backing off
+        (none for the first, then 100 ms doubled, at most 2 s); then log the give-up and run ``on_giveup``."""
         self.recipe.settings.set_process_fail(max_retries, on_giveup)
 
     def on_fail(self, action_name: str, max_retries: int | None = None) -> None:
-        """Give every component the fallback ``component.<action_name>()`` for any failure (upstream's form).
-
-        ``launcher.on_fail(action_name="restart")`` is ``c.on_fail(Action(c.restart), max_retries)`` for each
-        component, applied at start (to the components added by then). A component without that
-        method is refused at start, naming it.
-        """
+        """Give every component the fallback ``component.<action_name>()`` for any failure (upstream's form):
+        ``c.on_fail(Action(c.restart), max_retries)`` for each component at start; one without it is refused."""
         self.recipe.settings.set_fail_action(action_name, max_retries)
 
     @property
     def fallback_rate(self) -> float | None:
-        """Upstream's polling rate of fallbacks (Hz). Here a fallback runs as soon as a failure is seen,
-        with no polling: the value is checked and kept, and the launcher says once at start that it
-        does not delay fallbacks."""
+        """Upstream's polling rate of fallbacks (Hz): checked and kept; a fallback here runs at once, unpolled."""
         return self.recipe.settings.fallback_rate
 
     @fallback_rate.setter

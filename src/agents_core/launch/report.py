@@ -102,6 +102,10 @@ class LaunchReport:
         """The Foxglove WebSocket server's address."""
         self._line(f"agents: Foxglove at {url}")
 
+    def line(self, text: str) -> None:
+        """One more line of the launch (an attachment's address, say)."""
+        self._line(text)
+
     def running(self, count: int) -> None:
         """Everything is up: how many components, and how to stop."""
         text = f"{count} component(s) running; press Ctrl-C to stop"
