@@ -145,6 +145,21 @@ class _Episodes:
         supervisor = self.launcher.supervisor
         return None if supervisor is None else supervisor.pids().get(self.name)
 
+    def _crashes(self) -> int:
+        supervisor = self.launcher.supervisor
+        return 0 if supervisor is None else supervisor.child(self.name).crashes
+
+    def _crashed_since(self, crashes: int, wait: float = 0.0) -> bool:
+        """Whether the world's process crashed since it had ``crashes`` (waiting up to ``wait`` s to be told)."""
+        if self.launcher.supervisor is None:
+            return False
+        deadline = time.monotonic() + wait
+        while self._crashes() == crashes:
+            if time.monotonic() >= deadline:
+                return False
+            time.sleep(0.05)
+        return True
+
     def _call(self, episode: int, seed: int) -> dict[str, Any]:
         kwargs = {"seed": seed, "max_steps": self.evaluation.max_steps, "max_wall_s": self.evaluation.max_wall_s,
                   "frames_dir": str(self.out_dir / "frames"), "frame_prefix": f"ep{episode:04d}"}
@@ -168,14 +183,14 @@ class _Episodes:
         start = time.monotonic()
         if self.gone:
             return _failed(episode, seed, "world_died", "the world process died and did not come back", 0.0)
-        pid = self._pid()
+        crashes = self._crashes()
         future = self.pool.submit(self._call, episode, seed)
         try:
             while True:
                 try:
                     return _line(episode, future.result(timeout=0.2))
                 except concurrent.futures.TimeoutError:
-                    if self.launcher.supervisor is not None and self._pid() != pid:
+                    if self._crashed_since(crashes):
                         return self._died(episode, seed, start, "the world process died during the episode")
         except KeyboardInterrupt:
             self.interrupt()
@@ -184,7 +199,7 @@ class _Episodes:
             except Exception:  # noqa: BLE001 - no answer after Ctrl-C: the episode is not counted
                 raise KeyboardInterrupt from None
         except Exception as exc:  # noqa: BLE001 - the call failed: a dead world, or an error, with why
-            if self.launcher.supervisor is not None and self._pid() != pid:
+            if self._crashed_since(crashes, wait=3.0):
                 return self._died(episode, seed, start, f"the world process died ({type(exc).__name__}: {exc})")
             return _failed(episode, seed, "error", f"run_episode failed: {type(exc).__name__}: {exc}",
                            time.monotonic() - start)
@@ -207,7 +222,7 @@ def run_evaluation(evaluation: Evaluation, out_dir: str | Path, *, transport: st
                    transport_options: Mapping[str, Any] | None = None, episodes: int | None = None,
                    seed: int | None = None, world_process: bool = False,
                    episode_hooks: Sequence[EpisodeHooks] = (), progress: bool = True,
-                   report: bool = True, start_timeout: float = 120.0) -> EvaluationRun:
+                   report: bool = True, start_timeout: float = 120.0, respawns: int = 3) -> EvaluationRun:
     """Run ``evaluation``'s episodes and write its results directory ``out_dir`` (see the module docs).
 
     :param transport: ``"memory"``, ``"zenoh"``, ``"ros2"`` (None: ``AGENTS_TRANSPORT``).
@@ -216,6 +231,7 @@ def run_evaluation(evaluation: Evaluation, out_dir: str | Path, *, transport: st
     :param episode_hooks: called around each episode (see :class:`EpisodeHooks`).
     :param progress: show episodes done, success so far and the time left on stderr.
     :param report: write ``report.html`` at the end.
+    :param respawns: with ``world_process``, how many times a crashed component process is started again.
     """
     seeds = evaluation.seed_list(episodes, seed)
     out = Path(out_dir)
@@ -233,6 +249,8 @@ def run_evaluation(evaluation: Evaluation, out_dir: str | Path, *, transport: st
     (out / "evaluation.json").write_text(json.dumps(meta, indent=2), encoding="utf-8")
     launcher = Launcher(transport=transport, transport_options=transport_options, quiet=True)
     launcher.add_pkg(components=[world, *agents], multiprocessing=world_process)
+    if world_process:
+        launcher.on_process_fail(max_retries=respawns)
     run = EvaluationRun(out_dir=out)
     bar = _progress(len(seeds), progress)
     episodes_runner: _Episodes | None = None
