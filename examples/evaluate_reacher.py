@@ -68,8 +68,8 @@ def reacher_world() -> GymWorld:
     return GymWorld("Reacher-v5", success=reacher_success(0.02))
 
 
-def evaluation(agent: str, episodes: int = 20, seed: int = 1000) -> Evaluation:
-    """The evaluation of ``agent`` ("expert" or "random")."""
+def evaluation(agent: str = "expert", episodes: int = 20, seed: int = 1000) -> Evaluation:
+    """The evaluation of ``agent`` ("expert" or "random"); ``agentsctl eval run examples/evaluate_reacher.py`` runs the expert's."""
     def recipe() -> list[Component]:
         if agent == "expert":
             return [ReacherExpert()]

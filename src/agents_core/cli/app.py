@@ -1,5 +1,5 @@
 """The ``agentsctl`` command tree: ``run``, ``topics``, ``components``, ``call``, ``ui``, ``router``, ``record``,
-``play``, ``foxglove``."""
+``play``, ``foxglove``, ``eval``."""
 
 from __future__ import annotations
 
@@ -15,8 +15,9 @@ from ..console import QUIET_ENV_VAR
 from ..errors import AgentsError, ConfigError
 from ..install_hint import install_hint
 from ..transport.registry import TRANSPORT_ENV_VAR
-from . import components, recording, topics
+from . import components, eval_run, recording, topics
 from .connection import fail, one_line_errors
+from .evals import eval_app
 from .foxglove import foxglove
 from .output import print_json, say
 
@@ -34,6 +35,8 @@ app.command("call")(components.call)
 app.command("record")(recording.record)
 app.command("play")(recording.play)
 app.command("foxglove")(foxglove)
+app.add_typer(eval_app, name="eval")
+assert eval_run.run  # registered on eval_app by importing it
 
 
 @app.command("run", context_settings={"allow_extra_args": True, "ignore_unknown_options": True})
