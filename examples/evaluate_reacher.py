@@ -69,7 +69,10 @@ def reacher_world() -> GymWorld:
 
 
 def evaluation(agent: str = "expert", episodes: int = 20, seed: int = 1000) -> Evaluation:
-    """The evaluation of ``agent`` ("expert" or "random"); ``agentsctl eval run examples/evaluate_reacher.py`` runs the expert's."""
+    """The evaluation of ``agent`` ("expert" or "random").
+
+    ``agentsctl eval run examples/evaluate_reacher.py`` runs the expert's.
+    """
     def recipe() -> list[Component]:
         if agent == "expert":
             return [ReacherExpert()]

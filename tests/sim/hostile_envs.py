@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import os
 import time
-from typing import Any
+from typing import Any, ClassVar
 
 import gymnasium
 import numpy as np
@@ -22,7 +22,7 @@ RAISES, HANGS, NAN, DIES = 1, 2, 3, 4
 
 
 class Hostile(gymnasium.Env[np.ndarray, np.ndarray]):
-    metadata = {"render_modes": ["rgb_array"], "render_fps": 10}
+    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 10}
 
     def __init__(self, render_mode: str | None = None, width: int = 16, height: int = 12) -> None:
         self.observation_space = spaces.Box(-10.0, 10.0, shape=(3,), dtype=np.float64)

@@ -18,7 +18,7 @@ from agents_core.sim.convert import action_vector
 from agents_core.testing.helpers import wait_for
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "examples"))
-from evaluate_reacher import ReacherExpert  # noqa: E402
+from evaluate_reacher import ReacherExpert
 
 
 def _episode(launcher: Launcher, **kwargs: Any) -> dict[str, Any]:

@@ -15,7 +15,7 @@ from agents_core.evals import run_evaluation
 from .transports import TRANSPORTS, transport_options
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "examples"))
-from evaluate_reacher import ReacherExpert, evaluation  # noqa: E402
+from evaluate_reacher import ReacherExpert, evaluation
 
 EPISODES = 20
 
@@ -32,8 +32,8 @@ def test_expert_beats_random_and_repeats(transport: str, tmp_path: Path) -> None
                             transport_options=transport_options(transport), progress=False)
     random = run_evaluation(evaluation("random", EPISODES, seed=1000), tmp_path / "random", transport=transport,
                             transport_options=transport_options(transport), progress=False)
-    again = run_evaluation(evaluation("random", EPISODES, seed=1000), tmp_path / "again", transport=transport,
-                           transport_options=transport_options(transport), progress=False)
+    run_evaluation(evaluation("random", EPISODES, seed=1000), tmp_path / "again", transport=transport,
+                   transport_options=transport_options(transport), progress=False)
     assert len(expert.results) == len(random.results) == EPISODES
     assert expert.success_rate >= 0.8, [(r["seed"], r["ended"], r["reason"]) for r in expert.results]
     assert random.success_rate <= 0.1

@@ -15,7 +15,7 @@ from ..console import QUIET_ENV_VAR
 from ..errors import AgentsError, ConfigError
 from ..install_hint import install_hint
 from ..transport.registry import TRANSPORT_ENV_VAR
-from . import components, eval_run, recording, topics
+from . import components, eval_run, recording, topics  # noqa: F401 - eval_run registers `eval run`
 from .connection import fail, one_line_errors
 from .evals import eval_app
 from .foxglove import foxglove
@@ -35,8 +35,7 @@ app.command("call")(components.call)
 app.command("record")(recording.record)
 app.command("play")(recording.play)
 app.command("foxglove")(foxglove)
-app.add_typer(eval_app, name="eval")
-assert eval_run.run  # registered on eval_app by importing it
+app.add_typer(eval_app, name="eval")  # its `run` command: registered by importing eval_run
 
 
 @app.command("run", context_settings={"allow_extra_args": True, "ignore_unknown_options": True})

@@ -196,9 +196,9 @@ class _Episodes:
             self.interrupt()
             try:
                 return _line(episode, future.result(timeout=10.0))
-            except Exception:  # noqa: BLE001 - no answer after Ctrl-C: the episode is not counted
+            except Exception:
                 raise KeyboardInterrupt from None
-        except Exception as exc:  # noqa: BLE001 - the call failed: a dead world, or an error, with why
+        except Exception as exc:
             if self._crashed_since(crashes, wait=3.0):
                 return self._died(episode, seed, start, f"the world process died ({type(exc).__name__}: {exc})")
             return _failed(episode, seed, "error", f"run_episode failed: {type(exc).__name__}: {exc}",
@@ -216,6 +216,43 @@ class _Episodes:
 
     def close(self) -> None:
         self.pool.shutdown(wait=False, cancel_futures=True)
+
+
+def _metadata(evaluation: Evaluation, world: Any, agents: Sequence[Any], transport: str | None,
+              seeds: list[int]) -> dict[str, Any]:
+    """evaluation.json, as written at the start (``finished`` still None)."""
+    return {
+        "name": evaluation.name, "world": world.env_id,
+        "recipe": evaluation.recipe_name or " + ".join(type(c).__name__ for c in agents),
+        "transport": transport or os.environ.get(TRANSPORT_ENV_VAR, "").strip() or "memory",
+        "clock": world.config.clock, "episodes": len(seeds), "seeds": seeds,
+        "success_rule": world.success_rule.describe(),
+        "limits": {"max_steps": evaluation.max_steps, "max_wall_s": evaluation.max_wall_s},
+        "started": _now(), "finished": None, "interrupted": False, "agents_core_version": package_version()}
+
+
+def _run_episodes(episodes: _Episodes, seeds: list[int], hooks: Sequence[EpisodeHooks], bar: Any,
+                  run: EvaluationRun) -> None:
+    """Each episode in turn, its line written and flushed as it ends; stops at Ctrl-C."""
+    with (run.out_dir / "results.jsonl").open("a", encoding="utf-8") as results:
+        for index, episode_seed in enumerate(seeds):
+            for hook in hooks:
+                hook.on_episode_start(index, episode_seed)
+            try:
+                line = episodes.run(index, episode_seed)
+            except KeyboardInterrupt:
+                run.interrupted = True
+                return
+            results.write(json.dumps(line) + "\n")
+            results.flush()
+            run.results.append(line)
+            for hook in hooks:
+                hook.on_episode_end(line)
+            if bar is not None:
+                bar.episode_done(bool(line["success"]), float(line["wall_s"]))
+            if line["ended"] == "interrupted":
+                run.interrupted = True
+                return
 
 
 def run_evaluation(evaluation: Evaluation, out_dir: str | Path, *, transport: str | None = "memory",
@@ -239,13 +276,7 @@ def run_evaluation(evaluation: Evaluation, out_dir: str | Path, *, transport: st
     (out / "results.jsonl").unlink(missing_ok=True)
     world = evaluation.world()
     agents = list(evaluation.recipe())
-    recipe_name = evaluation.recipe_name or " + ".join(type(c).__name__ for c in agents)
-    meta: dict[str, Any] = {
-        "name": evaluation.name, "world": world.env_id, "recipe": recipe_name,
-        "transport": transport or os.environ.get(TRANSPORT_ENV_VAR, "").strip() or "memory", "clock": world.config.clock, "episodes": len(seeds), "seeds": seeds,
-        "success_rule": world.success_rule.describe(),
-        "limits": {"max_steps": evaluation.max_steps, "max_wall_s": evaluation.max_wall_s},
-        "started": _now(), "finished": None, "interrupted": False, "agents_core_version": package_version()}
+    meta = _metadata(evaluation, world, agents, transport, seeds)
     (out / "evaluation.json").write_text(json.dumps(meta, indent=2), encoding="utf-8")
     launcher = Launcher(transport=transport, transport_options=transport_options, quiet=True)
     launcher.add_pkg(components=[world, *agents], multiprocessing=world_process)
@@ -263,25 +294,7 @@ def run_evaluation(evaluation: Evaluation, out_dir: str | Path, *, transport: st
                                   f"after {start_timeout:g} s")
             time.sleep(0.05)
         episodes_runner = _Episodes(launcher, world, evaluation, out)
-        with (out / "results.jsonl").open("a", encoding="utf-8") as results:
-            for index, episode_seed in enumerate(seeds):
-                for hook in episode_hooks:
-                    hook.on_episode_start(index, episode_seed)
-                try:
-                    line = episodes_runner.run(index, episode_seed)
-                except KeyboardInterrupt:
-                    run.interrupted = True
-                    break
-                results.write(json.dumps(line) + "\n")
-                results.flush()
-                run.results.append(line)
-                for hook in episode_hooks:
-                    hook.on_episode_end(line)
-                if bar is not None:
-                    bar.episode_done(bool(line["success"]), float(line["wall_s"]))
-                if line["ended"] == "interrupted":
-                    run.interrupted = True
-                    break
+        _run_episodes(episodes_runner, seeds, episode_hooks, bar, run)
     except KeyboardInterrupt:
         run.interrupted = True
     finally:

@@ -87,7 +87,10 @@ def mujoco_joints(env: Any) -> list[tuple[str, int, int]]:
 
 def action_vector(value: Any, shape: Sequence[int], *, topic: str, world: str,
                   joint_names: Sequence[str] | None = None) -> npt.NDArray[np.float64]:
-    """The env action from a message on ``topic``; :class:`AlgorithmFailure` naming world and topic when it does not fit."""
+    """The env action from a message on ``topic``.
+
+    :class:`AlgorithmFailure` (naming the world and the topic) when it does not fit the action's shape.
+    """
     size = int(np.prod(shape)) if len(shape) else 1
     if isinstance(value, JointStateMsg):
         if joint_names:

@@ -10,6 +10,7 @@ the caller unchanged, and the host stays usable.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import queue
 import threading
@@ -91,7 +92,7 @@ class EnvHost:
     def _serve(self, factory: Callable[[], Any]) -> None:
         try:
             self._env = factory()
-        except BaseException as exc:  # noqa: BLE001 - handed to the caller
+        except BaseException as exc:
             self._made.put((False, exc))
             return
         self._made.put((True, None))
@@ -102,7 +103,7 @@ class EnvHost:
             func, reply = job
             try:
                 reply.put((True, func(self._env)))
-            except BaseException as exc:  # noqa: BLE001 - handed to the caller
+            except BaseException as exc:
                 reply.put((False, exc))
 
     def _wait(self, reply: queue.SimpleQueue[tuple[bool, Any]], timeout: float, what: str) -> Any:
@@ -129,10 +130,8 @@ class EnvHost:
         if not self._thread.is_alive():
             return
         if not self.broken and self._env is not None:
-            try:
+            with contextlib.suppress(Exception):  # best effort: the environment may be the broken part
                 self.call(lambda env: env.close(), "closing", timeout)
-            except Exception:  # noqa: BLE001 - closing is best effort: the environment may be the broken part
-                pass
         self._jobs.put(None)
         if not self.broken:
             self._thread.join(timeout)

@@ -26,10 +26,15 @@ __all__ = ["DistanceBelow", "EnvSuccess", "Predicate", "SuccessRule", "reacher_s
 class SuccessRule(Protocol):
     """What a world asks after each step: is the task done in this state?"""
 
-    #: Judge the episode by its final state (True) or by the first state that succeeds (False).
-    at_end: bool
-    #: End the episode at the first success (ignored when ``at_end``).
-    stop_on_success: bool
+    @property
+    def at_end(self) -> bool:
+        """Judge the episode by its final state (True) or by the first state that succeeds (False)."""
+        ...
+
+    @property
+    def stop_on_success(self) -> bool:
+        """End the episode at the first success (ignored when ``at_end``)."""
+        ...
 
     def __call__(self, observation: Any, info: Mapping[str, Any]) -> bool: ...
 

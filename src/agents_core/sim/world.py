@@ -28,6 +28,7 @@ environment that raises, hangs past ``step_timeout`` or returns NaN ends the epi
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import queue
@@ -90,7 +91,7 @@ class GymWorldConfig(BaseComponentConfig):
     publish_final_observation: bool = field(default=False)
 
 
-class _EpisodeEnd(Exception):  # noqa: N818 - a control-flow signal, not an error
+class _EpisodeEnd(Exception):
     def __init__(self, ended: str, reason: str | None = None) -> None:
         super().__init__(ended)
         self.ended, self.reason = ended, reason
@@ -135,7 +136,7 @@ class GymWorld(Component):
                               f"got {action_type!r}")
         self.env_id = env_id
         self.env_kwargs = dict(env_kwargs or {})
-        self.success_rule: SuccessRule = success if success is not None else EnvSuccess()
+        self.success_rule: SuccessRule = EnvSuccess() if success is None else success
         self.cameras = dict({"camera": "render"} if cameras is None else cameras)
         self.joint_names = list(joint_names) if joint_names else None
         self._names = {"observation": observation_topic, "joint_states": joint_states_topic,
@@ -220,10 +221,8 @@ class GymWorld(Component):
         try:
             self._actions.put_nowait(value)
         except queue.Full:  # an agent far ahead of the world: the oldest action goes
-            try:
+            with contextlib.suppress(queue.Empty):
                 self._actions.get_nowait()
-            except queue.Empty:
-                pass
             self._actions.put_nowait(value)
 
     def _drain_actions(self) -> Any:
@@ -262,7 +261,8 @@ class GymWorld(Component):
                        terminated: bool = False, truncated: bool = False, info: Mapping[str, Any] | None = None,
                        observation_too: bool = True) -> None:
         for name, frame in extras["frames"].items():
-            self.publishers_dict[name].publish(ImageMsg(data=frame, encoding="rgb8" if frame.shape[2] == 3 else "mono8"))
+            encoding = "rgb8" if frame.shape[2] == 3 else "mono8"
+            self.publishers_dict[name].publish(ImageMsg(data=frame, encoding=encoding))
         if extras["joints"] is not None:
             names, position, velocity = extras["joints"]
             self._publish("joint_states", JointStateMsg(name=names, position=position, velocity=velocity))
@@ -334,17 +334,17 @@ class GymWorld(Component):
             return host.call(func, what)
         except EnvHung as exc:
             raise _EpisodeEnd("error", str(exc)) from None
-        except Exception as exc:  # noqa: BLE001 - whatever the environment raises ends the episode, with why
+        except Exception as exc:
             raise _EpisodeEnd("error", f"the environment raised in {what}: {type(exc).__name__}: {exc}") from None
 
     def _episode(self, seed: int, limit: int | None, max_wall_s: float | None, start: float,
                  rewards: list[float], thumbs: Thumbnails, state: dict[str, Any]) -> None:
         try:
             host = self._host_now()
-        except Exception as exc:  # noqa: BLE001 - a world that cannot make its env ends the episode, with why
+        except Exception as exc:
             raise _EpisodeEnd("error", f"making the environment failed: {type(exc).__name__}: {exc}") from None
 
-        def do_reset(env: Any) -> tuple[Any, Any]:
+        def do_reset(env: Any) -> tuple[Any, Any, dict[str, Any]]:
             observation, info = env.reset(seed=int(seed))
             return observation, info, self._capture(env, observation)
 
@@ -357,7 +357,6 @@ class GymWorld(Component):
         rate = self.config.control_rate or (1.0 / self._step_dt if self._step_dt else 10.0)
         held: Any = np.zeros(self._action_shape)
         next_tick = time.monotonic()
-        rule = self.success_rule
         while True:
             if self._stop.is_set():
                 raise _EpisodeEnd("interrupted", "the evaluation was stopped")
@@ -379,36 +378,45 @@ class GymWorld(Component):
             self._check(observation, reward)
             rewards.append(float(reward))
             thumbs.add(extras["frames"])
-            try:
-                met = rule(observation, info)
-            except Exception as exc:  # noqa: BLE001 - a rule that fails on this state ends the episode, with why
-                raise _EpisodeEnd("error", f"the success rule raised: {type(exc).__name__}: {exc}") from None
-            if met:
-                if state["first"] is None:
-                    state["first"] = len(rewards)
-                if not rule.at_end:
-                    state["success"] = True
-            elif rule.at_end:
-                state["first"] = None  # at_end: the first step of the final run of successes
-            ended = None
-            if not rule.at_end and state["success"] and rule.stop_on_success:
-                ended = "success"
-            elif terminated:
-                ended = "terminated"
-            elif truncated:
-                ended = "truncated"
-            elif limit is not None and len(rewards) >= limit:
-                ended = "step_limit"
-            elif max_wall_s is not None and time.monotonic() - start >= max_wall_s:
-                ended = "time_limit"
+            self._judge(observation, info, len(rewards), state)
+            ended = self._ended(state, terminated, truncated, len(rewards), limit, max_wall_s, start)
             final = ended is not None
             self._publish_state(observation, extras, reward=float(reward), terminated=bool(terminated),
                                 truncated=bool(truncated), info=info,
                                 observation_too=not final or self.config.publish_final_observation)
             if final:
-                if rule.at_end:
+                if self.success_rule.at_end:
                     state["success"] = state["first"] is not None
                 raise _EpisodeEnd(str(ended))
+
+    def _judge(self, observation: Any, info: Mapping[str, Any], steps: int, state: dict[str, Any]) -> None:
+        rule = self.success_rule
+        try:
+            met = rule(observation, info)
+        except Exception as exc:  # a rule that fails on this state ends the episode, with why
+            raise _EpisodeEnd("error", f"the success rule raised: {type(exc).__name__}: {exc}") from None
+        if met:
+            if state["first"] is None:
+                state["first"] = steps
+            if not rule.at_end:
+                state["success"] = True
+        elif rule.at_end:
+            state["first"] = None  # at_end: the first step of the final run of successes
+
+    def _ended(self, state: dict[str, Any], terminated: Any, truncated: Any, steps: int, limit: int | None,
+               max_wall_s: float | None, start: float) -> str | None:
+        rule = self.success_rule
+        if not rule.at_end and state["success"] and rule.stop_on_success:
+            return "success"
+        if terminated:
+            return "terminated"
+        if truncated:
+            return "truncated"
+        if limit is not None and steps >= limit:
+            return "step_limit"
+        if max_wall_s is not None and time.monotonic() - start >= max_wall_s:
+            return "time_limit"
+        return None
 
     def _check(self, observation: Any, reward: Any) -> None:
         bad = find_nonfinite(observation)
