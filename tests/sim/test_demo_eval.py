@@ -1,4 +1,4 @@
-"""``nox -s demo -- eval`` runs ``python -m agents_core.demo eval``: the Reacher expert scored against a random agent."""
+"""``nox -s demo -- eval`` (``python -m agents_core.demo eval``): the Reacher expert scored against a random agent."""
 
 from __future__ import annotations
 
