@@ -34,7 +34,7 @@ import math
 import queue
 import threading
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any, Literal
 
@@ -107,6 +107,8 @@ class GymWorld(Component):
     :param joint_names: names for the joints of an ``agent_pos`` observation entry, and the order
         a JointState action's positions are taken in.
     :param action_type: ``"Float64MultiArray"``, ``"Float32MultiArray"``, ``"JointState"`` or ``"Twist"``.
+    :param privileged_state: a module-level function ``(env) -> array`` whose numbers are appended to each
+        observation vector (what a scripted expert may know and a policy may not: an object's pose).
     """
 
     config_class = GymWorldConfig
@@ -127,6 +129,7 @@ class GymWorld(Component):
         terminated_topic: str | None = "terminated",
         truncated_topic: str | None = "truncated",
         info_topic: str | None = None,
+        privileged_state: Callable[[Any], Any] | None = None,
         config: GymWorldConfig | None = None,
         component_name: str = "world",
         **kwargs: Any,
@@ -139,6 +142,7 @@ class GymWorld(Component):
         self.success_rule: SuccessRule = EnvSuccess() if success is None else success
         self.cameras = dict({"camera": "render"} if cameras is None else cameras)
         self.joint_names = list(joint_names) if joint_names else None
+        self.privileged_state = privileged_state
         self._names = {"observation": observation_topic, "joint_states": joint_states_topic,
                        "reward": reward_topic, "terminated": terminated_topic, "truncated": truncated_topic,
                        "info": info_topic}
@@ -250,7 +254,10 @@ class GymWorld(Component):
             names = self.joint_names or [f"joint{i}" for i in range(position.size)]
             if len(names) == position.size:
                 joints = (list(names), position.tolist(), [])
-        return {"frames": frames, "joints": joints}
+        privileged = None
+        if self.privileged_state is not None:
+            privileged = np.asarray(self.privileged_state(env), dtype=np.float64).reshape(-1)
+        return {"frames": frames, "joints": joints, "privileged": privileged}
 
     def _publish(self, key: str, value: Any) -> None:
         name = self._names.get(key)
@@ -275,7 +282,10 @@ class GymWorld(Component):
                      if isinstance(v, bool | int | float | str | np.generic)}
             self._publish("info", json.dumps(plain, default=str))
         if observation_too:
-            self._publish("observation", observation_vector(observation))
+            vector = observation_vector(observation)
+            if extras["privileged"] is not None:
+                vector = np.concatenate([vector, extras["privileged"]])
+            self._publish("observation", vector)
 
     # -- episodes ---------------------------------------------------------------------------
 
