@@ -17,6 +17,7 @@ Needs the ``sim`` and ``aloha`` extras (``nox -s sim_aloha`` installs them and r
 
 from __future__ import annotations
 
+import itertools
 from pathlib import Path
 from typing import Any
 
@@ -70,27 +71,27 @@ def script(cube: np.ndarray[Any, Any], start: tuple[Pose, Pose]) -> dict[str, li
     pick = _qmul(level, _axis_angle((0.0, 1.0, 0.0), -60.0))
     hold = _axis_angle((1.0, 0.0, 0.0), 90.0)
     left = [(0, *start[0], 0.0),
-            (100, MEET + [-0.1, 0, -0.02], hold, 1.0),   # towards the meeting point
-            (260, MEET + [0.02, 0, -0.02], hold, 1.0),   # around the cube
-            (310, MEET + [0.02, 0, -0.02], hold, 0.0),   # close
-            (360, MEET + [-0.1, 0, -0.02], level, 0.0),  # away, holding it
-            (400, MEET + [-0.1, 0, -0.02], level, 0.0)]
+            (100, MEET + np.array([-0.1, 0, -0.02]), hold, 1.0),   # towards the meeting point
+            (260, MEET + np.array([0.02, 0, -0.02]), hold, 1.0),   # around the cube
+            (310, MEET + np.array([0.02, 0, -0.02]), hold, 0.0),   # close
+            (360, MEET + np.array([-0.1, 0, -0.02]), level, 0.0),  # away, holding it
+            (400, MEET + np.array([-0.1, 0, -0.02]), level, 0.0)]
     right = [(0, *start[1], 0.0),
-             (90, cube + [0, 0, 0.08], pick, 1.0),     # above the cube, open
-             (130, cube + [0, 0, -0.015], pick, 1.0),  # down
-             (170, cube + [0, 0, -0.015], pick, 0.0),  # close
-             (200, MEET + [0.05, 0, 0], pick, 0.0),    # up, towards the meeting point
+             (90, cube + np.array([0, 0, 0.08]), pick, 1.0),     # above the cube, open
+             (130, cube + np.array([0, 0, -0.015]), pick, 1.0),  # down
+             (170, cube + np.array([0, 0, -0.015]), pick, 0.0),  # close
+             (200, MEET + np.array([0.05, 0, 0]), pick, 0.0),    # up, towards the meeting point
              (220, MEET, pick, 0.0),
              (310, MEET, pick, 1.0),                   # let go
-             (360, MEET + [0.1, 0, 0], pick, 1.0),     # away
-             (400, MEET + [0.1, 0, 0], pick, 1.0)]
+             (360, MEET + np.array([0.1, 0, 0]), pick, 1.0),     # away
+             (400, MEET + np.array([0.1, 0, 0]), pick, 1.0)]
     return {"left": [(t * TIME_SCALE, np.asarray(p, float), q, g) for t, p, q, g in left],
             "right": [(t * TIME_SCALE, np.asarray(p, float), q, g) for t, p, q, g in right]}
 
 
 def _at(waypoints: list[tuple[float, Any, Any, float]], t: float) -> tuple[Any, Any, float]:
     """The pose and gripper ``t`` steps in: linear between waypoints (the quaternion normalised)."""
-    for (t0, p0, q0, g0), (t1, p1, q1, g1) in zip(waypoints, waypoints[1:], strict=False):
+    for (t0, p0, q0, g0), (t1, p1, q1, g1) in itertools.pairwise(waypoints):
         if t <= t1:
             f = 0.0 if t1 == t0 else min(max((t - t0) / (t1 - t0), 0.0), 1.0)
             q = (1 - f) * q0 + f * (q1 if np.dot(q0, q1) >= 0 else -q1)
@@ -187,7 +188,8 @@ class AlohaExpert(Component):
         t = round(now / DT)
         if t == 0 or self._plan is None:  # a new episode: plan around where the cube is now
             self._solution = [joints[0:6].copy(), joints[7:13].copy()]
-            start = (self._kinematics.mocap_pose(0, self._solution[0]), self._kinematics.mocap_pose(1, self._solution[1]))
+            kinematics = self._kinematics
+            start = (kinematics.mocap_pose(0, self._solution[0]), kinematics.mocap_pose(1, self._solution[1]))
             self._plan = script(np.asarray(cube, dtype=np.float64), start)
         action = np.zeros(14)
         for arm, (side, first) in enumerate((("left", 0), ("right", 7))):
