@@ -24,11 +24,13 @@ class Thumbnails:
         self._frames: list[Any] = []
         self._stride = 1
         self._seen = 0
+        self._last: Any = None
 
     def add(self, frames: Mapping[str, Any]) -> None:
         """Offer this step's camera frames (the first camera's is kept when its turn comes)."""
         if self.count == 0 or not frames:
             return
+        self._last = next(iter(frames.values()))
         if self._seen % self._stride == 0:
             self._frames.append(next(iter(frames.values())))
             if len(self._frames) >= 4 * self.count:
@@ -37,11 +39,14 @@ class Thumbnails:
         self._seen += 1
 
     def chosen(self) -> list[Any]:
-        """Up to ``count`` frames, evenly spaced, first and last included."""
-        if len(self._frames) <= self.count:
-            return list(self._frames)
-        picks = np.linspace(0, len(self._frames) - 1, self.count).round().astype(int)
-        return [self._frames[i] for i in picks]
+        """Up to ``count`` frames, evenly spaced, the episode's first and last included."""
+        frames = list(self._frames)
+        if self._last is not None and (not frames or frames[-1] is not self._last):
+            frames.append(self._last)
+        if len(frames) <= self.count:
+            return frames
+        picks = np.linspace(0, len(frames) - 1, self.count).round().astype(int)
+        return [frames[i] for i in picks]
 
     def write(self, directory: Path, prefix: str) -> list[str]:
         """Write the chosen frames as ``<directory>/<prefix>_NN.jpg``; their paths relative to ``directory.parent``."""
