@@ -1,4 +1,4 @@
-"""``examples/evaluate_reacher.py`` runs as a user runs it, on each transport: the expert scored, the random agent too."""
+"""``examples/evaluate_reacher.py`` runs as a user runs it, on each transport: the expert and the random agent."""
 
 from __future__ import annotations
 

@@ -69,6 +69,19 @@ def make_env(env_id: str, kwargs: dict[str, Any], render_size: tuple[int, int] |
         return gymnasium.make(env_id, **options)
 
 
+def _close_env(env: Any) -> None:
+    """``env.close()``, then free a dm_control physics' rendering contexts here, on the thread that made them.
+
+    (gym-aloha's ``close`` does nothing: its EGL context would otherwise be freed at interpreter exit, from
+    another thread, with a traceback.)
+    """
+    env.close()
+    inner = getattr(env.unwrapped, "_env", None)
+    physics = getattr(inner, "physics", None) or getattr(env.unwrapped, "physics", None)
+    if physics is not None and callable(getattr(physics, "free", None)):
+        physics.free()
+
+
 class EnvHost:
     """Owns one environment on one daemon thread; :meth:`call` runs a function of it, bounded.
 
@@ -131,7 +144,7 @@ class EnvHost:
             return
         if not self.broken and self._env is not None:
             with contextlib.suppress(Exception):  # best effort: the environment may be the broken part
-                self.call(lambda env: env.close(), "closing", timeout)
+                self.call(_close_env, "closing", timeout)
         self._jobs.put(None)
         if not self.broken:
             self._thread.join(timeout)
