@@ -10,6 +10,7 @@ from typing import Any
 
 import pytest
 
+from agents_core.errors import ConfigError
 from agents_core.evals import run_evaluation
 
 from .transports import TRANSPORTS, transport_options
@@ -68,3 +69,14 @@ def _direct_rewards(seeds: range) -> list[list[float]]:
         return episodes
     finally:
         env.close()
+
+
+def test_parallel_worlds_give_the_same_episodes(tmp_path: Path) -> None:
+    one = run_evaluation(evaluation("random", 6, seed=50), tmp_path / "one", progress=False)
+    two = run_evaluation(evaluation("random", 6, seed=50), tmp_path / "two", progress=False, workers=2)
+    strip = [{k: v for k, v in r.items() if k not in ("wall_s", "frames")} for r in one.results]
+    assert [{k: v for k, v in r.items() if k not in ("wall_s", "frames")} for r in two.results] == strip
+    assert sorted(_comparable(tmp_path / "two" / "results.jsonl"), key=lambda r: r["episode"]) == \
+        _comparable(tmp_path / "one" / "results.jsonl")
+    with pytest.raises(ConfigError, match="only the memory transport keeps apart"):
+        run_evaluation(evaluation("random", 2), tmp_path / "z", transport="zenoh", workers=2)

@@ -71,6 +71,8 @@ def run(evaluation: Annotated[str, typer.Argument(help="file.py, file.py:NAME or
         world_process: Annotated[bool, typer.Option(
             "--world-process", help="run the world and the agent in processes of their own")] = False,
         connect: Annotated[list[str] | None, typer.Option("--connect", help="Zenoh endpoint(s) to connect to")] = None,
+        workers: Annotated[int, typer.Option("--workers", "-w", min=1,
+                                             help="episodes at once, each in a world of its own (memory)")] = 1,
         ) -> None:
     """Run an evaluation's episodes; write results.jsonl, evaluation.json, frames/ and report.html."""
     if transport not in ("memory", "zenoh", "ros2"):
@@ -81,7 +83,7 @@ def run(evaluation: Annotated[str, typer.Argument(help="file.py, file.py:NAME or
     directory = out if out is not None else Path(f"eval-{chosen.name}")
     options = {"connect": list(connect)} if connect and transport == "zenoh" else None
     result = run_evaluation(chosen, directory, transport=transport, transport_options=options, episodes=episodes,
-                            seed=seed, world_process=world_process)
+                            seed=seed, world_process=world_process, workers=workers)
     print(f"{chosen.name}: {result.successes}/{len(result.results)} episodes succeeded "
           f"({100 * result.success_rate:.0f} %)", flush=True)
     print(f"results: {result.out_dir / 'results.jsonl'}", flush=True)

@@ -15,6 +15,8 @@ raised, hung or returned NaN as ``ended="error"`` with a reason; a world process
 (its pid gone or changed under a running episode) is ``ended="world_died"``, and the next episode
 waits (bounded) for the launcher to respawn it. Ctrl-C stops the running episode
 (``ended="interrupted"``), writes the report of what finished and returns.
+
+``workers=N`` (memory transport) runs N worlds side by side, each with its own recipe and launcher.
 """
 
 from __future__ import annotations
@@ -23,7 +25,9 @@ import concurrent.futures
 import datetime as dt
 import json
 import os
+import queue
 import sys
+import threading
 import time
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -255,11 +259,86 @@ def _run_episodes(episodes: _Episodes, seeds: list[int], hooks: Sequence[Episode
                 return
 
 
+def _run_parallel(runners: Sequence[_Episodes], seeds: list[int], hooks: Sequence[EpisodeHooks], bar: Any,
+                  run: EvaluationRun) -> None:
+    """The episodes spread over several worlds, each on a thread of its own; lines written as episodes end."""
+    jobs: queue.SimpleQueue[tuple[int, int]] = queue.SimpleQueue()
+    for job in enumerate(seeds):
+        jobs.put(job)
+    done: queue.SimpleQueue[dict[str, Any]] = queue.SimpleQueue()
+    stop, hook_lock = threading.Event(), threading.Lock()
+
+    def work(runner: _Episodes) -> None:
+        while not stop.is_set():
+            try:
+                index, episode_seed = jobs.get_nowait()
+            except queue.Empty:
+                return
+            with hook_lock:
+                for hook in hooks:
+                    hook.on_episode_start(index, episode_seed)
+            done.put(runner.run(index, episode_seed))
+
+    threads = [threading.Thread(target=work, args=(r,), name=f"eval-worker-{i}", daemon=True)
+               for i, r in enumerate(runners)]
+    for thread in threads:
+        thread.start()
+
+    def record(line: dict[str, Any], results: IO[str]) -> None:
+        results.write(json.dumps(line) + "\n")
+        results.flush()
+        run.results.append(line)
+        with hook_lock:
+            for hook in hooks:
+                hook.on_episode_end(line)
+        if bar is not None:
+            bar.episode_done(bool(line["success"]), float(line["wall_s"]))
+        if line["ended"] == "interrupted":
+            run.interrupted = True
+
+    with (run.out_dir / "results.jsonl").open("a", encoding="utf-8") as results:
+        try:
+            while len(run.results) < len(seeds) and (any(t.is_alive() for t in threads) or not done.empty()):
+                try:
+                    record(done.get(timeout=0.2), results)
+                except queue.Empty:
+                    continue
+        except KeyboardInterrupt:
+            run.interrupted = True
+            stop.set()
+            for runner in runners:
+                runner.interrupt()
+            for thread in threads:
+                thread.join(timeout=15.0)
+            while not done.empty():
+                record(done.get_nowait(), results)
+    run.results.sort(key=lambda line: int(line["episode"]))
+
+
+def _launcher(components: Sequence[Any], transport: str | None, options: Mapping[str, Any] | None,
+              world_process: bool, respawns: int) -> Launcher:
+    launcher = Launcher(transport=transport, transport_options=options, quiet=True)
+    launcher.add_pkg(components=list(components), multiprocessing=world_process)
+    if world_process:
+        launcher.on_process_fail(max_retries=respawns)
+    return launcher
+
+
+def _start(launcher: Launcher, name: str, timeout: float) -> None:
+    launcher.start()
+    deadline = time.monotonic() + timeout
+    while not launcher.all_active():
+        if time.monotonic() > deadline:
+            raise ConfigError(f"evaluation {name!r}: the components were not all active after {timeout:g} s")
+        time.sleep(0.05)
+
+
 def run_evaluation(evaluation: Evaluation, out_dir: str | Path, *, transport: str | None = "memory",
                    transport_options: Mapping[str, Any] | None = None, episodes: int | None = None,
                    seed: int | None = None, world_process: bool = False,
                    episode_hooks: Sequence[EpisodeHooks] = (), progress: bool = True,
-                   report: bool = True, start_timeout: float = 120.0, respawns: int = 3) -> EvaluationRun:
+                   report: bool = True, start_timeout: float = 120.0, respawns: int = 3,
+                   workers: int = 1) -> EvaluationRun:
     """Run ``evaluation``'s episodes and write its results directory ``out_dir`` (see the module docs).
 
     :param transport: ``"memory"``, ``"zenoh"``, ``"ros2"`` (None: ``AGENTS_TRANSPORT``).
@@ -269,7 +348,15 @@ def run_evaluation(evaluation: Evaluation, out_dir: str | Path, *, transport: st
     :param progress: show episodes done, success so far and the time left on stderr.
     :param report: write ``report.html`` at the end.
     :param respawns: with ``world_process``, how many times a crashed component process is started again.
+    :param workers: episodes run at once, each set in a world (and recipe) of its own: memory transport only
+        (each launcher has its own). Results are the same as with one worker (lock-step: each episode depends
+        only on its seed); lines are written in the order episodes end. Episode hooks may then overlap.
     """
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise ConfigError(f"run_evaluation: workers must be an int >= 1, got {workers!r}")
+    if workers > 1 and (transport or os.environ.get(TRANSPORT_ENV_VAR, "").strip() or "memory") != "memory":
+        raise ConfigError(f"run_evaluation: workers={workers} runs several worlds side by side, which only the "
+                          f"memory transport keeps apart; use workers=1 on {transport!r}")
     seeds = evaluation.seed_list(episodes, seed)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -278,31 +365,28 @@ def run_evaluation(evaluation: Evaluation, out_dir: str | Path, *, transport: st
     agents = list(evaluation.recipe())
     meta = _metadata(evaluation, world, agents, transport, seeds)
     (out / "evaluation.json").write_text(json.dumps(meta, indent=2), encoding="utf-8")
-    launcher = Launcher(transport=transport, transport_options=transport_options, quiet=True)
-    launcher.add_pkg(components=[world, *agents], multiprocessing=world_process)
-    if world_process:
-        launcher.on_process_fail(max_retries=respawns)
+    sets = [(world, agents)] + [(evaluation.world(), list(evaluation.recipe())) for _ in range(1, workers)]
+    launchers = [_launcher([w, *a], transport, transport_options, world_process, respawns) for w, a in sets]
     run = EvaluationRun(out_dir=out)
     bar = _progress(len(seeds), progress)
-    episodes_runner: _Episodes | None = None
+    runners: list[_Episodes] = []
     try:
-        launcher.start()
-        deadline = time.monotonic() + start_timeout
-        while not launcher.all_active():
-            if time.monotonic() > deadline:
-                raise ConfigError(f"evaluation {evaluation.name!r}: the components were not all active "
-                                  f"after {start_timeout:g} s")
-            time.sleep(0.05)
-        episodes_runner = _Episodes(launcher, world, evaluation, out)
-        _run_episodes(episodes_runner, seeds, episode_hooks, bar, run)
+        for launcher, (set_world, _agents) in zip(launchers, sets, strict=True):
+            _start(launcher, evaluation.name, start_timeout)
+            runners.append(_Episodes(launcher, set_world, evaluation, out))
+        if workers == 1:
+            _run_episodes(runners[0], seeds, episode_hooks, bar, run)
+        else:
+            _run_parallel(runners, seeds, episode_hooks, bar, run)
     except KeyboardInterrupt:
         run.interrupted = True
     finally:
-        if episodes_runner is not None:
-            episodes_runner.close()
+        for runner in runners:
+            runner.close()
         if bar is not None:
             bar.close()
-        launcher.stop()
+        for launcher in launchers:
+            launcher.stop()
         meta.update(finished=_now(), interrupted=run.interrupted)
         (out / "evaluation.json").write_text(json.dumps(meta, indent=2), encoding="utf-8")
     if report:
