@@ -3,7 +3,6 @@ a world process that dies is counted as ``world_died`` and the next episode runs
 
 from __future__ import annotations
 
-import importlib.util
 import json
 from pathlib import Path
 
@@ -13,7 +12,7 @@ from agents_core.evals import Evaluation, run_evaluation
 from agents_core.sim import GymWorld, GymWorldConfig, RandomAgent
 
 from .hostile_envs import DIES, ENV_ID, HANGS, NAN, RAISES
-from .transports import transport_options
+from .transports import TRANSPORTS, transport_options
 
 
 def _world() -> GymWorld:
@@ -49,11 +48,12 @@ def test_an_agent_that_never_answers_ends_the_episode_in_lockstep(tmp_path: Path
     assert "no action on 'action' within 0.3 s" in run.results[0]["reason"]
 
 
-@pytest.mark.zenoh
-@pytest.mark.skipif(importlib.util.find_spec("zenoh") is None, reason="zenoh not installed")
-def test_a_world_process_that_dies_is_counted_not_waited_for(tmp_path: Path) -> None:
-    run = run_evaluation(_evaluation([0, DIES, 0]), tmp_path, transport="zenoh",
-                         transport_options=transport_options("zenoh"), world_process=True, progress=False)
+# Zenoh only: on ROS 2 the death is counted too, but the next episode's request can go to the dead server,
+# which still looks ready to this process's client, and then waits out its timeout (see docs/evaluate.md).
+@pytest.mark.parametrize("transport", [t for t in TRANSPORTS if t.values[0] == "zenoh"])
+def test_a_world_process_that_dies_is_counted_not_waited_for(transport: str, tmp_path: Path) -> None:
+    run = run_evaluation(_evaluation([0, DIES, 0]), tmp_path, transport=transport,
+                         transport_options=transport_options(transport), world_process=True, progress=False)
     assert [r["ended"] for r in run.results] == ["success", "world_died", "success"]
     assert "died" in run.results[1]["reason"]
     assert run.results[1]["wall_s"] < 20

@@ -175,11 +175,30 @@ class _Episodes:
             raise ConfigError(f"world {self.name!r}: run_episode answered {result!r}")
         return result
 
+    def answers(self, timeout: float) -> bool:
+        """Whether the world answers on ``execute_method`` within ``timeout`` s (asked again until then).
+
+        A request sent before this process's client has discovered a (re)started world may be lost on
+        ROS 2 (the dead server still looks ready), and would then wait out the whole episode's timeout: the
+        episode is only sent once this same service answers (``stop_episode``: nothing runs between episodes).
+        """
+        deadline = time.monotonic() + timeout
+        while True:
+            left = deadline - time.monotonic()
+            if left <= 0:
+                return False
+            try:
+                self.launcher.transport.request(f"{self.name}/execute_method", {"method": "stop_episode"},
+                                                timeout=min(2.0, max(left, 0.1)))
+                return True
+            except Exception:  # not there yet: no server, or no answer in time
+                time.sleep(0.1)
+
     def wait_respawned(self) -> bool:
         deadline = time.monotonic() + RESPAWN_WAIT_S
         while time.monotonic() < deadline:
             if self._pid() is not None and self.launcher.all_active():
-                return True
+                return self.answers(deadline - time.monotonic())
             time.sleep(0.1)
         return False
 
@@ -373,7 +392,11 @@ def run_evaluation(evaluation: Evaluation, out_dir: str | Path, *, transport: st
     try:
         for launcher, (set_world, _agents) in zip(launchers, sets, strict=True):
             _start(launcher, evaluation.name, start_timeout)
-            runners.append(_Episodes(launcher, set_world, evaluation, out))
+            runner = _Episodes(launcher, set_world, evaluation, out)
+            if not runner.answers(start_timeout):
+                raise ConfigError(f"evaluation {evaluation.name!r}: the world {runner.name!r} does not answer "
+                                  f"requests after {start_timeout:g} s")
+            runners.append(runner)
         if workers == 1:
             _run_episodes(runners[0], seeds, episode_hooks, bar, run)
         else:
