@@ -77,7 +77,7 @@ def tests(session: nox.Session) -> None:
     """
     # voice-gpl (espeak-ng, GPL-3.0) only in this test environment, never in the core install.
     _install_with_local_models(session, "dev,zenoh,ros2,local,voice,voice-gpl,roboml,vla,servers,cli,ui,memory,"
-                                        "record,foxglove,dataset,mcp")
+                                        "record,foxglove,dataset,mcp,sim")
     _install_ros2_interfaces(session)
     _install_browser(session)
     _private_ros_discovery(session)
@@ -91,6 +91,17 @@ def tests_ros2(session: nox.Session) -> None:
     _install_ros2_interfaces(session)
     _private_ros_discovery(session)
     session.run("pytest", "tests", "-m", "ros2", *session.posargs)
+
+
+@nox.session
+def sim_aloha(session: nox.Session) -> None:
+    """The ALOHA transfer-cube scripted expert over 5 episodes (~2 min each on 2 cores; not in the default sessions).
+
+    ``-- --episodes N`` runs more; the results directory is ``eval-aloha/`` (report.html in it).
+    """
+    session.install("-e", ".[sim,aloha,cli]")
+    session.env.setdefault("MUJOCO_GL", "egl")
+    session.run("python", "examples/evaluate_aloha.py", *(session.posargs or ["--episodes", "5"]))
 
 
 @nox.session
@@ -236,9 +247,16 @@ def _installed(session: nox.Session, extras: str, also: list[str]) -> bool:
 def demo(session: nox.Session) -> None:
     """The demo: an LLM agent on the local SmolLM2 model over Zenoh, answering in a stream (README's first command).
 
-    ``-- vision --model ... --images DIR`` and ``-- voice --wav FILE`` run the other demos (``-- --help``).
+    ``-- vision --model ... --images DIR``, ``-- voice --wav FILE`` and ``-- eval`` (the Reacher expert scored
+    against a random agent) run the other demos (``-- --help``).
     What is already installed is not installed again: a second run starts in seconds.
     """
+    if session.posargs[:1] == ["eval"]:  # the evaluation demo: the sim extra only (no model files)
+        if not _installed(session, "sim", []):
+            session.install("-e", ".[sim]")
+        session.env.setdefault("MUJOCO_GL", "egl")
+        session.run("python", "-m", "agents_core.demo", *session.posargs)
+        return
     voice = bool(session.posargs) and session.posargs[0] == "voice"
     # The voice demo speaks: its voice and phonemizer (GPL-3.0 espeak-ng) come only when asked for.
     extras = "zenoh,local,voice,voice-gpl" if voice else "zenoh,local"
@@ -273,8 +291,8 @@ def servers(session: nox.Session) -> None:
 def bench(session: nox.Session) -> None:
     """Benchmarks: the framework against the raw middleware in one run (``-- --quick`` for CI; benchmarks/README.md)."""
     # servers: the map suite writes into a local Chroma server; ui: the UI suite measures what a user of the
-    # ui extra gets (simplejpeg's JPEG path, not only Pillow's).
-    _install_with_local_models(session, "zenoh,ros2,local,voice,voice-gpl,vla,servers,memory,record,ui,mcp")
+    # ui extra gets (simplejpeg's JPEG path, not only Pillow's); sim: the world suite (Reacher-v5 in MuJoCo).
+    _install_with_local_models(session, "zenoh,ros2,local,voice,voice-gpl,vla,servers,memory,record,ui,mcp,sim")
     session.install("matplotlib")
     _install_ros2_interfaces(session)
     session.run("python", "-m", "benchmarks.run", *session.posargs)

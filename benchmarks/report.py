@@ -56,6 +56,10 @@ METRICS: dict[str, list[tuple[str, str, str, str]]] = {
     # a whole loop (voice: speech file -> STT -> LLM -> TTS -> first audio; perception: image -> Vision ->
     # VLM answer) through the recipe vs the sum of its stages run directly; ratio - 1 = framework overhead.
     "e2e": [("loop", "ms", "lower", "loop_ms")],
+    # Reacher-v5 with the scripted expert in lock-step: GymWorld + the expert component (run_evaluation) vs the
+    # same expert stepping the environment directly; steps inside episodes, and whole evaluations.
+    "sim": [("steps_per_s", "steps/s", "higher", "steps_per_s"), ("episodes_per_s", "episodes/s", "higher",
+                                                                   "episodes_per_s")],
 }
 
 #: Above this slowdown (framework cost / raw cost) a latency figure needs a profile note.

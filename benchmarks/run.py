@@ -1,7 +1,7 @@
 """Run the benchmarks: ``python -m benchmarks.run [--quick] [--transports memory,zenoh,ros2] [--out DIR]``.
 
 Runs the suites (hop latency and throughput, start-up, model path, import cost, vision, voice, map,
-processes, ui, goals, vla, cli, e2e) for every transport this environment has, framework and raw library
+processes, ui, goals, vla, cli, sim, e2e) for every transport this environment has, framework and raw library
 side by side, then writes
 ``<out>/<stamp>-<quick|full>.json`` and ``.png`` and prints a markdown table. A transport or suite
 that cannot run here (its extra is not installed) is skipped, and the reason is recorded in the
@@ -27,6 +27,7 @@ from . import map as map_suite  # the module name is the suite name; "map" alone
 from . import mcp as mcp_suite
 from . import memory as memory_suite
 from . import recording as recording_suite
+from . import sim as sim_suite
 from .common import IMAGE_SHAPE, REPO, STRING_BYTES, Children, available
 from .throughput import WINDOW
 
@@ -40,7 +41,7 @@ SETTINGS: dict[str, dict[str, Any]] = {
               "processes_reps": 2, "processes_respawns": 3, "ui_count": 100, "ui_warmup": 10,
               "goal_count": 20, "goal_feedbacks": 10, "vla_reps": 30, "vla_warmup": 5,
               "cli_rates": (100.0,), "cli_window": 2.0, "e2e_reps": 1, "e2e_max_tokens": 16,
-              "e2e_transports": ("memory",), "mcp_reps": 50, "mcp_warmup": 10},
+              "e2e_transports": ("memory",), "mcp_reps": 50, "mcp_warmup": 10, "sim_episodes": 5},
     "full": {"string_warmup": 200, "string_count": 2000, "image_warmup": 30, "image_count": 300,
              "throughput_seconds": 5.0, "latency_max_seconds": 120.0, "startup_reps": 5,
              "model_reps": 8, "model_max_tokens": 64, "model_threads": 1, "rounds": 3, "import_reps": 15,
@@ -48,11 +49,11 @@ SETTINGS: dict[str, dict[str, Any]] = {
              "map_reps": 3, "processes_reps": 5, "processes_respawns": 10, "ui_count": 1000, "ui_warmup": 50,
              "goal_count": 200, "goal_feedbacks": 10, "vla_reps": 200, "vla_warmup": 10,
              "cli_rates": (10.0, 100.0, 1000.0), "cli_window": 3.0, "e2e_reps": 5, "e2e_max_tokens": 24,
-             "e2e_transports": ("memory", "zenoh"), "mcp_reps": 300, "mcp_warmup": 30},
+             "e2e_transports": ("memory", "zenoh"), "mcp_reps": 300, "mcp_warmup": 30, "sim_episodes": 20},
 }
 
 SUITES = ("hop", "startup", "model", "imports", "vision", "voice", "map", "processes", "ui", "goals", "vla",
-          "cortex", "cli", "memory", "recording", "e2e", "mcp")
+          "cortex", "cli", "memory", "recording", "sim", "e2e", "mcp")
 
 
 def transport_unavailable(name: str) -> str | None:
@@ -121,6 +122,7 @@ def run_suites(transports: list[str], suites: list[str], settings: dict[str, Any
         ("cli", "zenoh", lambda: cli_hz.run_suite(settings, p)),
         ("memory", "memory", lambda: memory_suite.run_suite(settings, p)),
         ("recording", "memory", lambda: recording_suite.run_suite(settings, p)),
+        ("sim", None, lambda: sim_suite.run_suite(settings, t, c, d, p)),
         ("e2e", "memory", lambda: e2e.run_suite({**settings, "e2e_transports": [
             x for x in settings["e2e_transports"] if x in t]}, c, p)),
     ]

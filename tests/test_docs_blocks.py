@@ -25,7 +25,8 @@ FRAGMENT, CONTINUES = "<!-- fragment -->", "<!-- continues -->"
 #: Seconds one block (with the blocks it continues) may take.
 BLOCK_TIMEOUT = 90.0
 #: Optional packages: a block that imports one is skipped, naming it, where it is not installed.
-OPTIONAL_MODULES = ("zenoh", "rclpy", "agents_interfaces", "emem", "llama_cpp", "sherpa_onnx", "onnxruntime")
+OPTIONAL_MODULES = ("zenoh", "rclpy", "agents_interfaces", "emem", "llama_cpp", "sherpa_onnx", "onnxruntime",
+                    "gymnasium")
 
 _FENCE_OPEN = re.compile(r"^(?P<indent>[ \t]*)```(?P<info>[^`\n]*)$")
 

@@ -54,6 +54,8 @@ SUBCOMMANDS_HELP = """other demos (each with its own --help):
   vision --model detector.onnx --images DIR [--out DIR]
                         the Vision component's local detector over a folder of images: a table of
                         what it found and each image annotated with its boxes
+  eval [--episodes N]   score the Reacher-v5 scripted expert against a random agent in a
+                        MuJoCo world over seeded episodes; prints where the reports are
   voice --wav FILE [--out answer.wav]
                         the offline voice loop: SpeechToText (Whisper + Silero VAD) -> LLM ->
                         TextToSpeech, on a WAV file streamed in as a microphone would send it
@@ -359,6 +361,10 @@ def main(argv: list[str] | None = None) -> int:
         return _vision_demo(argv[1:])
     if argv[:1] == ["voice"]:
         return _voice_demo(argv[1:])
+    if argv[:1] == ["eval"]:
+        from .demo_eval import main as eval_demo  # noqa: PLC0415 - the sim extra
+
+        return eval_demo(argv[1:])
     parser = argparse.ArgumentParser(prog="python -m agents_core.demo", description=__doc__.splitlines()[0],
                                      formatter_class=argparse.RawDescriptionHelpFormatter, epilog=SUBCOMMANDS_HELP)
     parser.add_argument("--question", action="append", help="a question to ask (repeatable); default: two examples")

@@ -15,7 +15,7 @@ from ..console import QUIET_ENV_VAR
 from ..errors import AgentsError, ConfigError
 from ..install_hint import install_hint
 from ..transport.registry import TRANSPORT_ENV_VAR, available_transports
-from . import components, episodes, recipe, recording, topics
+from . import components, episodes, eval_run, recipe, recording, topics  # noqa: F401 - eval_run registers `eval run`
 from . import mcp as mcp_cli
 from .connection import attachable_transports, fail, one_line_errors
 from .evals import eval_app
