@@ -43,7 +43,7 @@ LAYERS: tuple[tuple[str, frozenset[str]], ...] = (
     ("clients", frozenset({"clients", "engines"})),
     ("components", frozenset({"components", "sim"})),
     ("wings", frozenset({"launch", "recording", "foxglove", "ui", "episodes", "evals", "mcp"})),
-    ("entry points", frozenset({"cli", "testing", "demo", "ros", "example_servers"})),
+    ("entry points", frozenset({"cli", "testing", "demo", "demo_eval", "ros", "example_servers"})),
 )
 ADAPTER_LAYER = "runtime"
 #: At most this many imports run back up the layers (each one listed in docs/architecture.md).
