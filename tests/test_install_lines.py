@@ -51,6 +51,8 @@ LINES: dict[str, tuple[str, object]] = {
     "pip install -e '.[ui]'": ("run", None),
     "pip install -e '.[record]'": ("run", None),
     "pip install -e '.[foxglove]'": ("run", None),
+    "pip install -e '.[dataset]'": ("run", None),
+    "pip install -e '.[zenoh,cli,mcp]'": ("run", None),
 }
 
 #: Lines run in the wheel's environment (from a scratch directory); all others in the checkout's.

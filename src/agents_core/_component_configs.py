@@ -224,7 +224,7 @@ class VisionConfig(ModelComponentConfig):
     enable_local_classifier: bool = field(default=False, metadata=AT_CONFIGURE)
     recordings_dir: str = field(default="~/emos/videos", validator=_non_empty)
     max_recordings: int = field(default=2, validator=base_validators.in_range(1, 64))
-    max_recording_bytes: int = field(default=256 * 1024 * 1024, validator=base_validators.in_range(1, 1 << 40))
+    max_recording_bytes: int = field(default=268_435_456, validator=base_validators.in_range(1, 1 << 40))  # 256 MiB
 
     def __attrs_post_init__(self) -> None:
         # One setting under two names: either turns the local detector on, both read the same afterwards.

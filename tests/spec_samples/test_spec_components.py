@@ -57,7 +57,7 @@ class EchoClient(ModelClient):
         self.events.append("deinit")
 
 
-class DepthClient(ModelClient):
+class SpecDepthClient(ModelClient):
     """A "depth model": each pixel's depth is the image's mean brightness divided by ten."""
 
     def __init__(self, **kwargs: Any) -> None:
@@ -169,12 +169,12 @@ def test_block_4_allowed_io_set_before_super_init() -> None:
         def _warmup(self, *args: Any, **kwargs: Any) -> None: ...
 
     camera, depth = Topic("camera", "Image"), Topic("depth", "Image")
-    made = Depth(inputs=[camera], outputs=[depth], model_client=DepthClient(), trigger=camera)
+    made = Depth(inputs=[camera], outputs=[depth], model_client=SpecDepthClient(), trigger=camera)
     assert made.allowed_inputs == {"Required": [Image]}
     with pytest.raises(WiringError, match="Image"):
-        Depth(inputs=[Topic("t", "String")], outputs=[depth], model_client=DepthClient(), trigger=1.0)
+        Depth(inputs=[Topic("t", "String")], outputs=[depth], model_client=SpecDepthClient(), trigger=1.0)
     with pytest.raises(WiringError, match="output"):
-        Depth(inputs=[camera], outputs=[Topic("t", "String")], model_client=DepthClient(), trigger=camera)
+        Depth(inputs=[camera], outputs=[Topic("t", "String")], model_client=SpecDepthClient(), trigger=camera)
 
 
 @covers((5, "from abc import abstractmethod"))
@@ -185,7 +185,7 @@ def test_block_5_the_hooks_a_model_component_must_implement() -> None:
     # Still abstract: refused at construction, naming the class and every hook left to implement.
     with pytest.raises(TypeError, match=r"DepthEstimator .*_execution_step, _create_input, _warmup, "
                                         r"_handle_websocket_streaming"):
-        outline(inputs=[camera], outputs=[], model_client=DepthClient(), trigger=camera)
+        outline(inputs=[camera], outputs=[], model_client=SpecDepthClient(), trigger=camera)
 
     class Depth(outline):  # type: ignore[misc,valid-type]
         def _execution_step(self, **kwargs: Any) -> None: ...
@@ -196,13 +196,13 @@ def test_block_5_the_hooks_a_model_component_must_implement() -> None:
 
         def _handle_websocket_streaming(self) -> None: ...
 
-    Depth(inputs=[camera], outputs=[], model_client=DepthClient(), trigger=camera)
+    Depth(inputs=[camera], outputs=[], model_client=SpecDepthClient(), trigger=camera)
 
     class NoWarmup(Depth):
         _warmup = outline._warmup  # the abstract one again
 
     with pytest.raises(TypeError, match=r"NoWarmup .*must implement _warmup"):
-        NoWarmup(inputs=[camera], outputs=[], model_client=DepthClient(), trigger=camera)
+        NoWarmup(inputs=[camera], outputs=[], model_client=SpecDepthClient(), trigger=camera)
 
 
 @covers((6, "from attrs import define, field"))
@@ -247,7 +247,7 @@ def test_block_9_the_complete_depth_estimator_runs() -> None:
     namespace = run_block(9)
     depth_estimator, config_class = namespace["DepthEstimator"], namespace["DepthEstimatorConfig"]
     camera, depth_map = Topic("camera", "Image"), Topic("depth", "Image")
-    client = DepthClient()
+    client = SpecDepthClient()
     depth = depth_estimator(inputs=[camera], outputs=[depth_map], model_client=client, trigger=camera,
                             config=config_class(max_depth=10.0, input_height=8, input_width=8, warmup=True))
     got = _run(depth, camera, np.full((8, 8, 3), 50, np.uint8), depth_map)
@@ -265,22 +265,22 @@ def _depth_namespace() -> dict[str, Any]:
 def test_block_8_wiring_the_trigger() -> None:
     namespace = _depth_namespace()
     camera, depth_map = Topic("camera", "Image"), Topic("depth", "Image")
-    namespace.update(camera=camera, depth_map=depth_map, my_client=DepthClient())
+    namespace.update(camera=camera, depth_map=depth_map, my_client=SpecDepthClient())
     namespace = run_block(8, namespace, ("    ...,\n", "    inputs=[camera], outputs=[depth_map], "
                                                         "model_client=my_client,\n"))
     # The last assignment wins in the block; rebuild each of the three to check them.
     depth = namespace["depth"]
     assert depth.run_type == ComponentRunType.EVENT or isinstance(depth.trigger, Event)
-    by_topic = namespace["DepthEstimator"](inputs=[camera], outputs=[depth_map], model_client=DepthClient(),
+    by_topic = namespace["DepthEstimator"](inputs=[camera], outputs=[depth_map], model_client=SpecDepthClient(),
                                            trigger=camera)
     assert by_topic.run_type == ComponentRunType.EVENT
     assert "camera" in by_topic.trig_callbacks and "camera" not in by_topic.callbacks
-    timed = namespace["DepthEstimator"](inputs=[camera], outputs=[depth_map], model_client=DepthClient(),
+    timed = namespace["DepthEstimator"](inputs=[camera], outputs=[depth_map], model_client=SpecDepthClient(),
                                         trigger=2.0)
     assert timed.run_type == ComponentRunType.TIMED and timed.trigger == 2.0
     assert isinstance(namespace["my_event"], Event) and namespace["my_event"].name == "estimate_depth"
     with pytest.raises(WiringError):
-        namespace["DepthEstimator"](inputs=[camera], outputs=[depth_map], model_client=DepthClient(),
+        namespace["DepthEstimator"](inputs=[camera], outputs=[depth_map], model_client=SpecDepthClient(),
                                     trigger=Topic("not_an_input", "Image"))
     # "_execution_step() is wired as a post-callback" of the trigger topic's callback, at activate.
     launcher = Launcher("memory")

@@ -107,7 +107,10 @@ def encode_value(value: Any, where: str = "value") -> Any:
         return [encode_value(v, f"{where}[{i}]") for i, v in enumerate(value)]
     if isinstance(value, dict) and all(isinstance(k, str) for k in value) and TAG not in value:
         return {k: encode_value(v, f"{where}[{k!r}]") for k, v in value.items()}
-    codec = _by_class.find_for_class(type(value)) or _client_codec_for(value)
+    codec = _by_class.find_for_class(type(value))
+    if codec is not None and not isinstance(value, codec.kind):
+        codec = None  # the registry matches class names: threading.Event is not our Event
+    codec = codec or _client_codec_for(value)
     if codec is None and attrs.has(type(value)):
         # Any attrs class (SemanticRouter's Route, a recipe's own data class), not only configs:
         # rebuilt from its init fields, as a BaseAttrs is.

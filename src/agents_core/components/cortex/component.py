@@ -201,7 +201,7 @@ class Cortex(ModelComponent):
         for method, raw in description["actions"].items():  # shape checked by checked_description
             function = raw["function"]
             tool_name = f"{name}.{method}"
-            phase = raw["phase"]
+            phase = raw.get("phase") or function.get("phase")
             parameters = function.get("parameters")
             self._tools.add(Tool(
                 name=tool_name, kind="component_action", component=name, target=method,
