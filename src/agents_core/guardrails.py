@@ -45,9 +45,22 @@ from attrs import define, field
 
 from .errors import ComponentError, ConfigError
 
-__all__ = ["DEFAULT_APPROVAL_TIMEOUT", "ActionGuard", "ApprovalBroker", "AuditLog", "GuardrailRefused", "PendingCall",
-           "Admission", "admit_call", "approvals",
-           "audit_log", "configure_audit_log", "current_caller", "run_guarded", "with_caller"]
+__all__ = [
+    "DEFAULT_APPROVAL_TIMEOUT",
+    "ActionGuard",
+    "Admission",
+    "ApprovalBroker",
+    "AuditLog",
+    "GuardrailRefused",
+    "PendingCall",
+    "admit_call",
+    "approvals",
+    "audit_log",
+    "configure_audit_log",
+    "current_caller",
+    "run_guarded",
+    "with_caller",
+]
 
 #: Who is calling the action now (set by services for the call they run).
 current_caller: contextvars.ContextVar[str] = contextvars.ContextVar("agents_core_caller", default="python")

@@ -32,9 +32,6 @@ pytest.importorskip("gymnasium", reason="nox -s lerobot")
 pytest.importorskip("agents_core.sim", reason="the framework's Gymnasium world (agents_core.sim)")
 lerobot_dataset = pytest.importorskip("lerobot.datasets.lerobot_dataset", reason="nox -s lerobot")
 
-from agents_core.evals import Evaluation, run_evaluation  # noqa: E402
-from agents_core.sim import GymWorld, GymWorldConfig  # noqa: E402
-
 from agents_core import Component, Topic  # noqa: E402
 from agents_core.clients.lerobot import LeRobotClient  # noqa: E402
 from agents_core.components import VLA  # noqa: E402
@@ -45,8 +42,10 @@ from agents_core.episodes import (  # noqa: E402
     EpisodeRecordingHooks,
     export_lerobot_dataset,
 )
+from agents_core.evals import Evaluation, run_evaluation  # noqa: E402
 from agents_core.messages import JointStateMsg  # noqa: E402
 from agents_core.models import LeRobotPolicy  # noqa: E402
+from agents_core.sim import GymWorld, GymWorldConfig  # noqa: E402
 
 from .policy_parts import build_act_checkpoint, free_port, policy_server  # noqa: E402
 from .toy_world import JOINTS, register, target_of  # noqa: E402

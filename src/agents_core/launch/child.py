@@ -43,9 +43,9 @@ import time
 from collections.abc import Callable
 from typing import IO, TYPE_CHECKING, Any, NoReturn
 
-from .descendants import end_descendants, guard_process
 from ..errors import AgentsError
 from .child_health import start_health_reports
+from .descendants import end_descendants, guard_process
 from .short_errors import debug_requested
 
 if TYPE_CHECKING:
