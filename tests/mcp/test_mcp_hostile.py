@@ -13,28 +13,10 @@ pytest.importorskip("mcp", reason="the mcp extra is not installed")
 
 from mcp import Client
 
-from agents_core import Launcher
-from agents_core.mcp import McpBridge
-
-from .mcp_parts import arm
-
 HEADERS = {"content-type": "application/json", "accept": "application/json, text/event-stream"}
 INIT = {"jsonrpc": "2.0", "id": 1, "method": "initialize",
         "params": {"protocolVersion": "2025-06-18", "capabilities": {},
                    "clientInfo": {"name": "hostile", "version": "0"}}}
-
-
-@pytest.fixture
-def served(tmp_path):
-    component = arm()
-    launcher = Launcher("memory")
-    launcher.add_pkg(components=[component])
-    with launcher:
-        server = McpBridge(launcher.transport, components=["arm"], audit_log=tmp_path / "a.jsonl").serve_http(port=0)
-        try:
-            yield component, server
-        finally:
-            server.stop()
 
 
 def _still_serves(server) -> str:
@@ -46,7 +28,7 @@ def _still_serves(server) -> str:
 
 
 def test_deep_and_malformed_json_rpc_bodies_are_clear_errors(served):
-    _, server = served
+    _, server, _ = served
     with httpx.Client(timeout=10) as http:
         deep = http.post(server.url, content=b'{"a":' * 100_000 + b"1" + b"}" * 100_000, headers=HEADERS)
         assert deep.status_code in (400, 413)
@@ -58,7 +40,7 @@ def test_deep_and_malformed_json_rpc_bodies_are_clear_errors(served):
 
 
 def test_a_hundred_parallel_sessions_are_bounded(served):
-    _, server = served
+    _, server, _ = served
     statuses: list[int] = []
     lock = threading.Lock()
 
@@ -85,7 +67,7 @@ def test_a_hundred_parallel_sessions_are_bounded(served):
 
 
 def test_a_client_that_never_reads_does_not_stop_the_others(served):
-    _, server = served
+    _, server, _ = served
     host, port = "127.0.0.1", server.port
     stalled = []
     for _ in range(20):  # connections that send half a request and never read
@@ -101,7 +83,7 @@ def test_a_client_that_never_reads_does_not_stop_the_others(served):
 
 
 def test_a_tool_call_while_the_component_deactivates_is_a_clear_error(served):
-    component, server = served
+    component, server, _ = served
 
     async def go():
         async with Client(server.url) as client:

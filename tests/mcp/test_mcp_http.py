@@ -17,28 +17,10 @@ from mcp import Client
 from agents_core import Launcher
 from agents_core.errors import AgentsError, ConfigError
 from agents_core.guardrails import approvals
-from agents_core.mcp import McpBridge
 from agents_core.mcp.server import McpHttpServer
 from agents_core.testing.helpers import wait_for
 
-from .mcp_parts import MOTION, arm
-
-
-@pytest.fixture
-def served(tmp_path):
-    component = arm()
-    launcher = Launcher("memory")
-    launcher.add_pkg(components=[component])
-    with launcher:
-        seen: list[str] = []
-        sub = launcher.transport.create_subscription(MOTION, seen.append)
-        bridge = McpBridge(launcher.transport, components=["arm"], audit_log=tmp_path / "audit.jsonl")
-        server = bridge.serve_http(port=0)
-        try:
-            yield component, server, seen
-        finally:
-            server.stop()
-            sub.close()
+from .mcp_parts import arm
 
 
 def _run(coro_fn, *args):

@@ -6,10 +6,7 @@ The package is installed once into a cache folder (:mod:`tests.mcp.npm_tools`).
 
 from __future__ import annotations
 
-import contextlib
 import json
-import os
-import signal
 import subprocess
 import sys
 import time
@@ -22,6 +19,7 @@ pytest.importorskip("mcp", reason="the mcp extra is not installed")
 from agents_core.testing.helpers import free_tcp_port
 
 from .npm_tools import INSPECTOR, npm_binary
+from .processes import stop_group
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -43,15 +41,7 @@ def mcp_url(tmp_path):
         assert "READY" in line, line + proc.stdout.read()
         yield f"http://127.0.0.1:{port}/mcp"
     finally:
-        with contextlib.suppress(ProcessLookupError):
-            os.killpg(proc.pid, signal.SIGTERM)
-        try:
-            proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            os.killpg(proc.pid, signal.SIGKILL)
-            proc.wait(timeout=5)
-        if proc.stdout is not None:
-            proc.stdout.close()
+        stop_group(proc)
 
 
 def _inspect(binary: Path, url: str, *args: str) -> dict:

@@ -6,10 +6,8 @@ The official SDK's stdio client starts ``agentsctl mcp``; the recipe runs in a p
 
 from __future__ import annotations
 
-import contextlib
 import json
 import os
-import signal
 import subprocess
 import sys
 import threading
@@ -25,6 +23,8 @@ pytest.importorskip("zenoh", reason="the zenoh extra is not installed")
 from mcp import Client, StdioServerParameters
 
 from agents_core.testing.helpers import free_tcp_port
+
+from .processes import stop_group
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -44,15 +44,7 @@ def zenoh_recipe(tmp_path):
         assert proc.poll() is None, "the recipe process ended before it was ready"
         yield endpoint
     finally:
-        with contextlib.suppress(ProcessLookupError):
-            os.killpg(proc.pid, signal.SIGTERM)
-        try:
-            proc.wait(timeout=15)
-        except subprocess.TimeoutExpired:
-            os.killpg(proc.pid, signal.SIGKILL)
-            proc.wait(timeout=5)
-        if proc.stdout is not None:
-            proc.stdout.close()
+        stop_group(proc)
 
 
 def _agentsctl(*args: str) -> list[str]:
