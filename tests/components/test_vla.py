@@ -112,6 +112,8 @@ class TestRecipe:
             goal = r.send(max_steps=80)
             assert goal.accepted
             status, result = goal.result(timeout=20)
+            # The result can arrive before the arm's subscription has delivered the last command.
+            wait_for(lambda: sum(isinstance(c, JointStateMsg) for c in r.arm.commands) >= 80, timeout=5.0)
             commands = [c for c in r.arm.commands if isinstance(c, JointStateMsg)]
             final = r.arm.snapshot()
         assert status == GoalStatus.SUCCEEDED, result
