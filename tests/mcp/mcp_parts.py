@@ -61,8 +61,21 @@ class Arm(Component):
         return len(self.moves)
 
 
-def arm(name: str = "arm") -> Arm:
-    return Arm(inputs=[COMMANDS], outputs=[MOTION], trigger=COMMANDS, component_name=name)
+class PatientArm(Arm):
+    """The Arm of a recipe in another process: its yes comes from ``agentsctl approve``, itself a new process
+    (seconds to start on a loaded machine), so the call waits longer than the in-process tests' 5 s."""
+
+    @component_action(approval=True, approval_timeout=45.0)
+    def launch(self, target: str) -> str:
+        """Throw the payload at ``target`` (needs a person's yes).
+
+        :param target: where to
+        """
+        return super().launch(target)
+
+
+def arm(name: str = "arm", kind: type[Arm] = Arm) -> Arm:
+    return kind(inputs=[COMMANDS], outputs=[MOTION], trigger=COMMANDS, component_name=name)
 
 
 def main() -> int:
@@ -73,7 +86,7 @@ def main() -> int:
     options = ({"mode": "peer", "listen": [args.listen], "connect": [], "multicast_scouting": False}
                if args.transport == "zenoh" else {})
     launcher = Launcher(args.transport, transport_options=options)
-    launcher.add_pkg(components=[arm()])
+    launcher.add_pkg(components=[arm(kind=PatientArm)])
     stop = threading.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: stop.set())

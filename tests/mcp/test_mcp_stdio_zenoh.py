@@ -58,7 +58,7 @@ def test_stdio_lists_calls_refuses_and_an_approval_from_agentsctl_runs_it(zenoh_
     approved: list[subprocess.CompletedProcess[str]] = []
 
     def approve_when_waiting():
-        for _ in range(40):  # bounded: about 20 s
+        for _ in range(80):  # bounded: about 40 s plus the processes' start
             time.sleep(0.5)
             done = subprocess.run(_agentsctl("approve", "--transport", "zenoh", "--connect", zenoh_recipe),
                                   capture_output=True, text=True, timeout=60, cwd=ROOT, check=False)
@@ -74,7 +74,7 @@ def test_stdio_lists_calls_refuses_and_an_approval_from_agentsctl_runs_it(zenoh_
             helper = threading.Thread(target=approve_when_waiting)
             helper.start()
             launched = await client.call_tool("arm__launch", {"target": "the bin"})
-            helper.join(30)
+            helper.join(90)
             count = await client.call_tool("arm__count", {})
             return names, moved, refused, launched, count
 
