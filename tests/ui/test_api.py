@@ -18,6 +18,7 @@ from starlette.testclient import TestClient
 
 from agents_core import Launcher, Topic
 from agents_core.errors import ConfigError
+from agents_core.testing.helpers import wait_for
 from agents_core.ui import LocalRecipe, UISettings
 from agents_core.ui.app import UIState, create_app
 
@@ -197,13 +198,17 @@ def test_only_component_actions_can_be_called(running: Launcher) -> None:
 
 
 def test_status_changes_reach_websocket_clients(running: Launcher) -> None:
-    with _client(running) as client, _ws(client, "/api/outputs?topics=shouts") as ws:
-        first = _next_frame(ws, "status")  # the current status comes first
-        assert (first["component"], first["state"]) == ("shouter", "active")
-        client.post("/api/components/shouter/transition", json={"transition": "deactivate"})
-        states = [_next_frame(ws, "status")["state"] for _ in range(1)]
-        while states[-1] != "inactive" and len(states) < 5:  # bounded
-            states.append(_next_frame(ws, "status")["state"])
+    state = UIState(LocalRecipe(running.components), running.transport, [WORDS], [SHOUTS], UISettings())
+    with TestClient(create_app(state), base_url=BASE) as client:
+        # The status topic's backlog reaches a just-started hub on the transport's delivery thread.
+        assert wait_for(lambda: (state.hub.latest_status("shouter") or {}).get("state") == "active", 10.0)
+        with _ws(client, "/api/outputs?topics=shouts") as ws:
+            first = _next_frame(ws, "status")  # the current status comes first
+            assert (first["component"], first["state"]) == ("shouter", "active")
+            client.post("/api/components/shouter/transition", json={"transition": "deactivate"})
+            states = [_next_frame(ws, "status")["state"]]
+            while states[-1] != "inactive" and len(states) < 5:  # bounded
+                states.append(_next_frame(ws, "status")["state"])
     assert states[-1] == "inactive"
 
 

@@ -102,6 +102,8 @@ class OutputClient:
         self.dropped = False
         #: Called on the event loop when the client is dropped (its handler stops a send that is stuck).
         self.on_drop: Callable[[], object] | None = None
+        #: component -> the arrival number of the newest status it was sent (older ones are not sent).
+        self.status_seen: dict[str, int] = {}
 
     def wants(self, topic: str, kind: str) -> bool:
         return kind == "status" or self.topics is None or topic in self.topics
@@ -138,6 +140,9 @@ class OutputHub:
         self._subscriptions: list[Subscription] = []
         self._lock = threading.Lock()
         self._status: dict[str, dict[str, Any]] = {}
+        #: component -> (arrival number, text) of its newest status frame: what a status fan-out sends.
+        self._status_text: dict[str, tuple[int, str]] = {}
+        self._status_count = 0
         #: output topic -> the ``topic_id`` of its binary frames (its place in ``outputs``).
         self.topic_ids = {name: i for i, name in enumerate(self.outputs)}
         self._binary_clients = 0
@@ -204,8 +209,16 @@ class OutputHub:
                 frame, payload = self.encode(name, type_name, value)
                 kind = frame["kind"]
                 if kind == "status":
+                    component = frame["component"]
                     with self._lock:
-                        self._status[frame["component"]] = frame
+                        self._status_count += 1
+                        self._status[component] = frame
+                        self._status_text[component] = (self._status_count, payload)
+                    loop = self._loop
+                    if loop is not None:
+                        with contextlib.suppress(RuntimeError):
+                            loop.call_soon_threadsafe(self._fan_out_status, component)
+                    return
             loop = self._loop
             if loop is not None:
                 with contextlib.suppress(RuntimeError):  # the loop closed while the server stops
@@ -237,6 +250,24 @@ class OutputHub:
             client.queue.put_nowait(data)
             self.frames_sent += 1
 
+    def _fan_out_status(self, component: str) -> None:
+        """On the event loop: send each client ``component``'s newest status, unless it has it already.
+
+        Status is latest-wins: a fan-out scheduled for an older status (a transient-local backlog still
+        being delivered, or a burst of transitions) sends the newest one instead, and a client never gets a
+        status older than one it was given, so a page never shows a state the component has left."""
+        with self._lock:
+            number, text = self._status_text[component]
+        for client in list(self._clients):
+            if client.dropped or client.status_seen.get(component, 0) >= number:
+                continue
+            if client.backlog >= client.depth:
+                self._drop(client)
+                continue
+            client.status_seen[component] = number
+            client.queue.put_nowait(text)
+            self.frames_sent += 1
+
     def _drop(self, client: OutputClient) -> None:
         client.dropped = True
         self.dropped_clients += 1
@@ -260,9 +291,10 @@ class OutputHub:
         else:
             self._json_clients += 1
         with self._lock:
-            known = list(self._status.values())
-        for frame in known[: client.depth]:  # the current status of each component, first
-            client.queue.put_nowait(json.dumps(frame, separators=(",", ":")))
+            known = list(self._status_text.items())
+        for component, (number, text) in known[: client.depth]:  # the current status of each component, first
+            client.status_seen[component] = number
+            client.queue.put_nowait(text)
         return client
 
     def disconnect(self, client: OutputClient) -> None:
