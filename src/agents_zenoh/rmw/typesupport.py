@@ -80,6 +80,8 @@ class RosTypes:
                 return
             pkg, kind, name = typename.split("/")
             if kind == "srv":
+                for suffix in ("_Request", "_Response", "_Event"):
+                    name = name.removesuffix(suffix)
                 self._ensure_service(pkg, name)
                 return
             path = self._find(pkg, kind, name)
