@@ -35,4 +35,4 @@ DESCRIPTOR = TransportDescriptor(
     extra="rmw_zenoh", requires=("zenoh", "rosbags", "xxhash"), needs_router=True,
     rendezvous="tcp/localhost:7447", endpoints=True,
     carries=frozenset({"values", "requests", "discovery", "cross-process", "attach"}),
-    observer_options=observer_options, describe=describe)
+    observer_options=observer_options, describe=describe, pair="agents_zenoh.rmw.testing:rmw_zenoh_pair")

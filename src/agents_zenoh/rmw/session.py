@@ -64,6 +64,8 @@ def session_config(*, mode: str | None = None, connect: list[str] | None = None,
         cfg.insert_json5("connect/endpoints", json.dumps([DEFAULT_ROUTER]))
         cfg.insert_json5("listen/endpoints", json.dumps(["tcp/localhost:0"]))
         cfg.insert_json5("scouting/multicast/enabled", "false")
+    # transient_local needs it (Zenoh's advanced publisher orders its cache by timestamp), as in rmw_zenoh's defaults.
+    cfg.insert_json5("timestamping/enabled", "true")
     if mode is not None:
         cfg.insert_json5("mode", json.dumps(mode))
     if connect is not None:
