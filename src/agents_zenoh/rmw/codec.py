@@ -8,6 +8,7 @@ reads as it reads an rclpy message.
 
 from __future__ import annotations
 
+import array
 from typing import Any
 
 from attrs import define
@@ -47,6 +48,41 @@ class RmwCodec:
         return self._from_ros(self._types.deserialize(data, self.ros_type))
 
 
+def as_class(message: Any, cls: type[Any]) -> Any:
+    """A received (rosbags) message as an instance of ``cls`` (an rclpy message class), field by field."""
+    if isinstance(message, cls):
+        return message
+    out = cls()
+    for name in cls.get_fields_and_field_types():
+        value = getattr(message, name)
+        current = getattr(out, name)
+        if hasattr(type(current), "get_fields_and_field_types"):
+            value = as_class(value, type(current))
+        elif isinstance(current, array.array) and hasattr(value, "tobytes"):
+            converted = array.array(current.typecode)
+            converted.frombytes(value.tobytes())  # the same element type on both sides
+            value = converted
+        elif isinstance(value, list) and value and hasattr(value[0], "__msgtype__"):
+            item_cls = _item_class(cls, name)
+            value = [as_class(v, item_cls) for v in value] if item_cls is not None else value
+        setattr(out, name, value)
+    return out
+
+
+def _item_class(cls: type[Any], field: str) -> type[Any] | None:
+    """The message class of the items of a sequence field of an rclpy class (from its SLOT_TYPES)."""
+    import importlib  # noqa: PLC0415
+
+    index = list(cls.get_fields_and_field_types()).index(field)
+    slot = cls.SLOT_TYPES[index]
+    value_type = getattr(slot, "value_type", None)
+    namespaces = getattr(value_type, "namespaces", None)
+    if value_type is None or not namespaces:
+        return None
+    item: type[Any] = getattr(importlib.import_module(".".join(namespaces)), value_type.name)
+    return item
+
+
 _codecs: dict[str, RmwCodec] = {}
 
 
@@ -61,6 +97,14 @@ def codec_for(msg_type: type[SupportedType]) -> RmwCodec:
     conversion = conversion_for(msg_type)
     types = ros_types()
     ros_type = ros_type_name(conversion.ros_type)
-    codec = RmwCodec(msg_type, ros_type, types.type_hash(ros_type), conversion.to_ros, conversion.from_ros, types)
+    from_ros = conversion.from_ros
+    if msg_type.value_class is object:
+        # The upstream way: the value is the ROS message itself, so a received one is given as that class too.
+        cls = conversion.ros_type
+
+        def from_ros(message: Any) -> Any:
+            return msg_type.validate(as_class(message, cls))
+
+    codec = RmwCodec(msg_type, ros_type, types.type_hash(ros_type), conversion.to_ros, from_ros, types)
     _codecs[name] = codec
     return codec
