@@ -128,3 +128,33 @@ def test_our_request_reaches_raw_server(router: str) -> None:
             except Exception:  # noqa: BLE001  # the server's queryable may not have reached us yet
                 time.sleep(0.2)
         assert reply["raw_got"]["n"] == 42  # the core adds the caller's deadline (_timeout_s)
+
+
+def test_agentsctl_components_and_call_on_a_recipe(router: str, tmp_path: Path) -> None:
+    from agents_core.testing.recipes import RecipeProcess, recipe_environment
+
+    env = recipe_environment(ROS_DOMAIN_ID="21", PYTHONPATH=os.pathsep.join(sys.path),
+                             ZENOH_CONFIG_OVERRIDE=f'connect/endpoints=["{router}"];listen/endpoints=["tcp/127.0.0.1:0"]')
+    recipe = RecipeProcess(str(Path(__file__).with_name("recipe.py")), [], tmp_path / "recipe.log", env=env)
+    try:
+        recipe.wait_ready(90)
+
+        def cli(*args: str) -> Any:
+            done = subprocess.run([sys.executable, "-m", "agents_core.cli", *args, "--transport", "rmw_zenoh",
+                                   "--connect", router, "--json"], capture_output=True, text=True, timeout=120,
+                                  env=env, check=False)
+            assert done.returncode == 0, done.stdout + done.stderr[-2000:]
+            return json.loads(done.stdout)
+
+        listed = cli("components", "list")
+        rows = listed if isinstance(listed, list) else listed.get("components", listed)
+        assert any(r["name"] == "relay" and r["state"] == "active" for r in rows), listed
+        assert cli("call", "relay", "shout", "hey")["result"] == "HEY!"
+        # And a raw ROS peer drives it: its String reaches the relay, the relay's answer reaches our asker.
+        with _transport(router) as asker:
+            got: list[str] = []
+            asker.create_subscription(Topic("relay_out", get_type("String")), got.append)
+            _run_peer(router, "talk", "/relay_in")
+            assert got and got[0].startswith("RAW ")
+    finally:
+        recipe.stop()

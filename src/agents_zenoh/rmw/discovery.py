@@ -1,8 +1,14 @@
-"""The ROS 2 graph from rmw_zenoh's liveliness tokens: topics with their counts, and the lifecycle nodes."""
+"""The ROS 2 graph from rmw_zenoh's liveliness tokens: topics with their counts, and the lifecycle nodes.
+
+Like rmw_zenoh's graph cache, a :class:`GraphCache` subscribes (with history) to every token of the domain
+from the moment the session opens, so a graph read later holds every entity announced since, even through a
+router that has only just learnt of them.
+"""
 
 from __future__ import annotations
 
 import logging
+import threading
 import time
 from typing import Any
 
@@ -12,7 +18,7 @@ from agents_core.transport.graph import Graph, TopicInfo
 
 from .wire import TokenError, parse_token
 
-__all__ = ["core_type_names", "discover_graph"]
+__all__ = ["GraphCache", "core_type_names", "graph_of"]
 
 logger = logging.getLogger(__name__)
 
@@ -33,37 +39,59 @@ def core_type_names() -> dict[str, str]:
     return names
 
 
-def _tokens(session: zenoh.Session, domain_id: int, timeout: float) -> set[str]:
-    """Every live token of the domain. Two gets, 50 ms apart: a get right after another one may be answered by
-    nobody (seen with zenoh-python 1.10 through a router), and a token missing from both is not live."""
-    found: set[str] = set()
-    deadline = time.monotonic() + timeout
-    for attempt in range(2):
-        if attempt:
-            time.sleep(0.05)
-        remaining = max(0.05, deadline - time.monotonic())
-        replies: Any = session.liveliness().get(f"@ros2_lv/{domain_id}/**", timeout=remaining)
-        found.update(str(reply.ok.key_expr) for reply in replies if reply.ok is not None)
-    return found
+class GraphCache:
+    """Every live token under ``@ros2_lv/<domain>/`` (bogus ones skipped and counted)."""
 
+    def __init__(self, session: zenoh.Session, domain_id: int) -> None:
+        self._lock = threading.Lock()
+        self._tokens: set[str] = set()
+        self.bogus = 0
+        self.opened = time.monotonic()
+        self._sub: Any = session.liveliness().declare_subscriber(f"@ros2_lv/{domain_id}/**", self._on_token,
+                                                                 history=True)
 
-def discover_graph(session: zenoh.Session, domain_id: int, timeout: float) -> Graph:
-    """Every token under ``@ros2_lv/<domain>/**`` as a :class:`Graph` (bogus tokens are skipped, logged)."""
-    counts: dict[tuple[str, str], list[int]] = {}
-    services: set[str] = set()
-    names = core_type_names()
-    for key in _tokens(session, domain_id, timeout):
+    def _on_token(self, sample: zenoh.Sample) -> None:
+        key = str(sample.key_expr)
+        with self._lock:
+            if sample.kind == zenoh.SampleKind.DELETE:
+                self._tokens.discard(key)
+                return
+            try:
+                parse_token(key)
+            except TokenError as exc:
+                self.bogus += 1
+                logger.debug("skipped a liveliness token: %s", exc)
+                return
+            self._tokens.add(key)
+
+    def tokens(self, settle: float) -> set[str]:
+        """The live tokens, once the cache is at least ``settle`` seconds old."""
+        wait = self.opened + settle - time.monotonic()
+        if wait > 0:
+            time.sleep(wait)
+        with self._lock:
+            return set(self._tokens)
+
+    def close(self) -> None:
+        """Stop watching."""
         try:
-            token = parse_token(key)
-        except TokenError as exc:
-            logger.debug("skipped a liveliness token: %s", exc)
-            continue
+            self._sub.undeclare()
+        except zenoh.ZError:
+            pass
+
+
+def graph_of(tokens: set[str]) -> Graph:
+    """A :class:`Graph` of tokens: MP / MS counted per topic and type, nodes serving ``change_state`` as components."""
+    counts: dict[tuple[str, str], list[int]] = {}
+    components: set[str] = set()
+    names = core_type_names()
+    for key in tokens:
+        token = parse_token(key)
         if token.kind in ("MP", "MS"):
-            msg_type = names.get(token.ros_type, token.ros_type.replace("::dds_::", "::").replace("::", "/")
-                                 .rstrip("_"))
-            entry = counts.setdefault((token.name.lstrip("/"), msg_type), [0, 0])
+            fallback = token.ros_type.replace("::dds_::", "/").replace("::", "/").removesuffix("_")
+            entry = counts.setdefault((token.name.lstrip("/"), names.get(token.ros_type, fallback)), [0, 0])
             entry[0 if token.kind == "MP" else 1] += 1
         elif token.kind == "SS" and token.name.endswith("/change_state"):
-            services.add(token.name.lstrip("/").removesuffix("/change_state"))
+            components.add(token.name.lstrip("/").removesuffix("/change_state"))
     topics = [TopicInfo(name=n, msg_type=t, publishers=p, subscribers=s) for (n, t), (p, s) in counts.items()]
-    return Graph(topics=topics, components=sorted(services))
+    return Graph(topics=topics, components=sorted(components))

@@ -47,7 +47,7 @@ from agents_core.transport.driver import DriverBase, Lane, ServiceHandler, Sink,
 from agents_core.transport.graph import Graph
 
 from .codec import codec_for
-from .discovery import discover_graph
+from .discovery import GraphCache, graph_of
 from .entities import SERVICE_QOS, Entity, Node, Publisher, ServiceServer, Subscription, absolute
 from .session import domain_from_environment, open_rmw_session, session_config
 from .typesupport import ros_types
@@ -62,6 +62,8 @@ GET_STATE = "lifecycle_msgs/srv/GetState"
 CHANGE_STATE = "lifecycle_msgs/srv/ChangeState"
 #: lifecycle_msgs/msg/State ids of the resting states.
 STATE_IDS = {"unconfigured": 1, "inactive": 2, "active": 3, "finalized": 4, "errorprocessing": 15}
+#: How long a request waits for a route to a server of which no token is seen (discovery settling).
+_SETTLE_S = 1.0
 _OPTIONS = {"domain_id", "connect", "listen", "mode", "router_timeout", "zenoh_options", "request_workers"}
 
 
@@ -136,6 +138,7 @@ class RmwZenohDriver(DriverBase):
         self._status: dict[str, tuple[Subscription, _Latest]] = {}
         self.refused_requests = 0
         self._closed = False
+        self._graph = GraphCache(self._session, self.domain_id)
         self._own = Node(self._session, self.domain_id, f"agents_core_{os.getpid()}", self._ids)
 
     # -- nodes --------------------------------------------------------------------------------
@@ -198,23 +201,48 @@ class RmwZenohDriver(DriverBase):
         attachment = client.attachment()
         sent = decode_attachment(attachment)
         start = time.monotonic()
+        deadline = start + timeout
+        while True:
+            found = self._query_once(client.key, body, attachment, sent, deadline - time.monotonic(), name)
+            if found is not None:
+                return types.deserialize(found, f"{service_type}_Response")
+            now = time.monotonic()
+            if now >= deadline - 0.01:
+                raise RequestTimeoutError(f"request to {name!r} got no reply within {timeout:g} s")
+            # No route to the server yet (a fresh session learns of queryables a moment later): retry while its
+            # token is live, or for the discovery settle time when none is seen.
+            if now - start >= _SETTLE_S and not self._served(client.token):
+                raise ServiceUnavailableError(f"nobody serves {name!r} on rmw_zenoh (key {client.key!r})")
+            time.sleep(0.05)
+
+    def _query_once(self, key: str, body: bytes, attachment: bytes, sent: Any, timeout: float,
+                    name: str) -> bytes | None:
         try:
-            replies = self._session.get(client.key, payload=body, attachment=attachment, timeout=timeout,
+            replies = self._session.get(key, payload=body, attachment=attachment, timeout=max(timeout, 0.01),
                                         target=zenoh.QueryTarget.ALL_COMPLETE,
                                         consolidation=zenoh.ConsolidationMode.NONE)
             for reply in replies:
                 if reply.ok is None:
                     continue
                 raw = reply.ok.attachment
-                echo = decode_attachment(raw.to_bytes() if raw is not None else None)
+                try:
+                    echo = decode_attachment(raw.to_bytes() if raw is not None else None)
+                except ValueError as exc:
+                    logger.warning("rmw_zenoh: a reply from %r without rmw_zenoh's attachment: %s", name, exc)
+                    continue
                 if (echo.sequence_number, echo.gid) != (sent.sequence_number, sent.gid):
                     continue  # a reply to someone else's query
-                return types.deserialize(reply.ok.payload.to_bytes(), f"{service_type}_Response")
+                return bytes(reply.ok.payload.to_bytes())
         except zenoh.ZError as exc:
             raise TransportError(f"request to {name!r} failed: {exc}") from exc
-        if time.monotonic() - start >= timeout * 0.95:
-            raise RequestTimeoutError(f"request to {name!r} got no reply within {timeout:g} s")
-        raise ServiceUnavailableError(f"nobody serves {name!r} on rmw_zenoh (key {client.key!r})")
+        return None
+
+    def _served(self, client_token: str) -> bool:
+        """Whether a service server's token for the client's service and type is live."""
+        parts = client_token.split("/")
+        pattern = "/".join([*parts[:2], "*", "*", "*", "SS", "*", "*", "*", *parts[9:11], "**"])
+        replies: Any = self._session.liveliness().get(pattern, timeout=0.5)
+        return any(reply.ok is not None for reply in replies)
 
     def call(self, name: str, payload: dict[str, Any], timeout: float) -> dict[str, Any]:
         request = ros_types().message_class(f"{JSON_CALL}_Request")(request_json=json.dumps(payload))
@@ -266,8 +294,8 @@ class RmwZenohDriver(DriverBase):
         return bool(response.success)
 
     def discover(self, timeout: float) -> Graph:
-        """Topics and components from the ``@ros2_lv`` liveliness tokens (:mod:`.discovery`)."""
-        return discover_graph(self._session, self.domain_id, timeout)
+        """Topics and components from the ``@ros2_lv`` liveliness tokens seen since the session opened (:mod:`.discovery`)."""
+        return graph_of(self._graph.tokens(timeout))
 
     def peer_process_options(self) -> dict[str, Any]:
         """The same options: every process meets the others through the router."""
@@ -277,6 +305,7 @@ class RmwZenohDriver(DriverBase):
         if self._closed:
             return
         self._closed = True
+        self._graph.close()
         for sub, _latest in self._status.values():
             sub.close()
         for client in self._clients.values():
