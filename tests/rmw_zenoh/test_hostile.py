@@ -21,6 +21,12 @@ from .conftest import rmw_options
 pytestmark = pytest.mark.zenoh
 
 zenoh = pytest.importorskip("zenoh")
+pytest.importorskip("rosbags", reason="needs the rmw_zenoh extra")
+
+from agents_zenoh.rmw.codec import codec_for  # noqa: E402
+from agents_zenoh.rmw.transport import RmwZenohTransport  # noqa: E402
+from agents_zenoh.rmw.typesupport import ros_types  # noqa: E402
+from agents_zenoh.rmw.wire import data_key, encode_attachment  # noqa: E402
 
 
 @pytest.fixture
@@ -40,8 +46,6 @@ def attacker(router: str) -> Iterator[Any]:
 
 @pytest.fixture
 def ours(router: str) -> Iterator[Any]:
-    from agents_zenoh.rmw.transport import RmwZenohTransport
-
     transport = RmwZenohTransport(**rmw_options(router))
     try:
         yield transport
@@ -59,9 +63,6 @@ def _wait(predicate: Any, timeout: float = 10.0) -> bool:
 
 
 def test_bad_samples_are_refused_and_counted(ours: Any, attacker: Any) -> None:
-    from agents_zenoh.rmw.codec import codec_for
-    from agents_zenoh.rmw.wire import data_key, encode_attachment
-
     got: list[str] = []
     sub = ours.create_subscription(Topic("victim", get_type("String")), got.append)
     codec = codec_for(get_type("String"))
@@ -105,9 +106,6 @@ def test_bogus_tokens_do_not_break_discovery(ours: Any, attacker: Any) -> None:
 
 
 def test_bad_queries_are_refused_and_counted_without_a_state_change(ours: Any, attacker: Any) -> None:
-    from agents_zenoh.rmw.typesupport import ros_types
-    from agents_zenoh.rmw.wire import data_key, encode_attachment
-
     transitions: list[str] = []
     ours.declare_component("victim_node", on_transition=lambda t: transitions.append(t) or True)
     ours.create_service("victim_srv", lambda request: {"ok": True})

@@ -21,6 +21,11 @@ from agents_core.topics import Topic
 
 from .conftest import rmw_options
 
+pytest.importorskip("rosbags", reason="needs the rmw_zenoh extra")
+
+from agents_core.testing.recipes import RecipeProcess, recipe_environment
+from agents_zenoh.rmw.transport import RmwZenohTransport
+
 pytestmark = pytest.mark.zenoh
 
 PEER = Path(__file__).parent / "raw_ros_peer.py"
@@ -32,8 +37,6 @@ def _env() -> dict[str, str]:
 
 @contextmanager
 def _transport(router: str) -> Iterator[Any]:
-    from agents_zenoh.rmw.transport import RmwZenohTransport
-
     transport = RmwZenohTransport(**rmw_options(router))
     try:
         yield transport
@@ -125,14 +128,12 @@ def test_our_request_reaches_raw_server(router: str) -> None:
         while not reply and time.monotonic() < deadline:
             try:
                 reply = transport.request("raw_server", {"n": 42}, timeout=2.0)
-            except Exception:  # noqa: BLE001  # the server's queryable may not have reached us yet
+            except Exception:  # the server's queryable may not have reached us yet
                 time.sleep(0.2)
         assert reply["raw_got"]["n"] == 42  # the core adds the caller's deadline (_timeout_s)
 
 
 def test_agentsctl_components_and_call_on_a_recipe(router: str, tmp_path: Path) -> None:
-    from agents_core.testing.recipes import RecipeProcess, recipe_environment
-
     env = recipe_environment(ROS_DOMAIN_ID="21", PYTHONPATH=os.pathsep.join(sys.path),
                              ZENOH_CONFIG_OVERRIDE=f'connect/endpoints=["{router}"];listen/endpoints=["tcp/127.0.0.1:0"]')
     recipe = RecipeProcess(str(Path(__file__).with_name("recipe.py")), [], tmp_path / "recipe.log", env=env)

@@ -23,12 +23,19 @@ from agents_core.topics import QoSConfig, Topic
 
 from .conftest import free_port, rmw_options
 
+pytest.importorskip("rosbags", reason="needs the rmw_zenoh extra")
+pytest.importorskip("geometry_msgs", reason="needs the ros2 extra's message packages")
+
+from geometry_msgs.msg import Point
+
+from agents_core import supported_types
+from agents_ros2 import conversions
+from agents_zenoh.rmw.transport import RmwZenohTransport
+
 pytestmark = pytest.mark.zenoh
 
 
 def _open(**options: Any) -> Any:
-    from agents_zenoh.rmw.transport import RmwZenohTransport
-
     return RmwZenohTransport(**options)
 
 
@@ -41,7 +48,7 @@ def _wait(predicate: Any, timeout: float = 10.0) -> bool:
 
 def test_no_router_is_a_clear_error_within_seconds() -> None:
     start = time.monotonic()
-    with pytest.raises(TransportError, match="no Zenoh router answered.*agentsctl router"):
+    with pytest.raises(TransportError, match=r"no Zenoh router answered.*agentsctl router"):
         _open(connect=[f"tcp/127.0.0.1:{free_port()}"], listen=["tcp/127.0.0.1:0"], router_timeout=1.0)
     assert time.monotonic() - start < 5
 
@@ -129,9 +136,6 @@ class RmwRawPoint(SupportedType):
 def custom_types() -> Iterator[None]:
     add_additional_datatypes([RmwWheelSpeeds, RmwRawPoint])
     yield
-    from agents_core import supported_types
-    from agents_ros2 import conversions
-
     for name in ("RmwWheelSpeeds", "RmwRawPoint"):
         if name in registered_types():
             supported_types._registry.unregister(name)
@@ -139,8 +143,6 @@ def custom_types() -> Iterator[None]:
 
 
 def test_custom_ros_types_travel(pair: tuple[Any, Any], custom_types: None) -> None:
-    from geometry_msgs.msg import Point
-
     a, b = pair
     wheels: list[Any] = []
     points: list[Any] = []

@@ -34,6 +34,8 @@ pytest.importorskip("agents_interfaces", reason="needs agents_interfaces")
 
 pytestmark = [pytest.mark.zenoh, pytest.mark.slow]
 
+from agents_zenoh.rmw.transport import RmwZenohTransport  # noqa: E402
+
 ROUTER = Path(__file__).resolve().parents[1] / "rmw_zenoh" / "router.py"
 
 
@@ -51,8 +53,6 @@ def roboml() -> Iterator[RoboMLTestServer]:
 
 @contextmanager
 def _on_rmw_zenoh(recipe: Path, ports: Mapping[str, Any], tmp_path: Path) -> Iterator[tuple[RecipeProcess, Any]]:
-    from agents_zenoh.rmw.transport import RmwZenohTransport
-
     port = free_tcp_port()
     router = subprocess.Popen([sys.executable, str(ROUTER), str(port)], stdout=subprocess.PIPE, text=True,
                               env={**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)})

@@ -7,6 +7,7 @@ router that has only just learnt of them.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import threading
 import time
@@ -34,7 +35,7 @@ def core_type_names() -> dict[str, str]:
     for name, conversion in registered_conversions().items():
         try:
             names.setdefault(dds_type_name(ros_type_name(conversion.ros_type)), name)
-        except Exception:  # noqa: BLE001, S112  # a conversion without a ROS type name
+        except Exception:  # a conversion without a ROS type name
             continue
     return names
 
@@ -74,10 +75,8 @@ class GraphCache:
 
     def close(self) -> None:
         """Stop watching."""
-        try:
+        with contextlib.suppress(zenoh.ZError):
             self._sub.undeclare()
-        except zenoh.ZError:
-            pass
 
 
 def graph_of(tokens: set[str]) -> Graph:

@@ -6,6 +6,7 @@ Each declares its liveliness token (:func:`~agents_zenoh.rmw.wire.entity_token`)
 
 from __future__ import annotations
 
+import contextlib
 import itertools
 import threading
 import time
@@ -86,10 +87,8 @@ class Entity:
 
 
 def _undeclare(handle: Any) -> None:
-    try:
+    with contextlib.suppress(zenoh.ZError):
         handle.undeclare()
-    except zenoh.ZError:
-        pass
 
 
 class Publisher:
@@ -211,7 +210,7 @@ class ServiceServer:
             request = self._types.deserialize(payload.to_bytes() if payload is not None else b"", self._request)
         except Exception as exc:
             self._on_refused(exc)
-            query.drop()
+            query.drop()  # type: ignore[no-untyped-call]
             return
 
         def answer(response: Any) -> None:
@@ -221,7 +220,7 @@ class ServiceServer:
                     query.reply(self._entity.key, data,
                                 attachment=encode_attachment(att.sequence_number, time.time_ns(), att.gid))
             finally:
-                query.drop()
+                query.drop()  # type: ignore[no-untyped-call]
 
         self._serve(request, answer)
 

@@ -100,5 +100,6 @@ def open_rmw_session(config: zenoh.Config, router_timeout: float) -> zenoh.Sessi
     raise TransportError(
         f"rmw_zenoh: no Zenoh router answered within {router_timeout:g} s at {', '.join(connect) or 'no endpoint'}. "
         "Start one on this machine (`agentsctl router --listen tcp/0.0.0.0:7447`, or `ros2 run rmw_zenoh_cpp "
-        "rmw_zenohd`), or point the session at yours with ZENOH_CONFIG_OVERRIDE='connect/endpoints=[\"tcp/HOST:7447\"]' "
-        "(transport option router_timeout=0 skips this check)")
+        "rmw_zenohd`), or point the session at yours with "
+        "ZENOH_CONFIG_OVERRIDE='connect/endpoints=[\"tcp/HOST:7447\"]' (transport option router_timeout=0 skips "
+        "this check)")

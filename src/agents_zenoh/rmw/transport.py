@@ -51,7 +51,7 @@ from .discovery import GraphCache, graph_of
 from .entities import SERVICE_QOS, Entity, Node, Publisher, ServiceServer, Subscription, absolute
 from .session import domain_from_environment, open_rmw_session, session_config
 from .typesupport import ros_types
-from .wire import decode_attachment, encode_attachment
+from .wire import decode_attachment
 
 __all__ = ["RmwZenohDriver", "RmwZenohTransport"]
 
@@ -294,7 +294,7 @@ class RmwZenohDriver(DriverBase):
         return bool(response.success)
 
     def discover(self, timeout: float) -> Graph:
-        """Topics and components from the ``@ros2_lv`` liveliness tokens seen since the session opened (:mod:`.discovery`)."""
+        """Topics and components from the ``@ros2_lv`` tokens seen since the session opened (:mod:`.discovery`)."""
         return graph_of(self._graph.tokens(timeout))
 
     def peer_process_options(self) -> dict[str, Any]:

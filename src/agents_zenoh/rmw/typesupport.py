@@ -93,7 +93,7 @@ class RosTypes:
     def _register_text(self, text: str, typename: str) -> None:
         from rosbags.typesys import get_types_from_msg  # noqa: PLC0415
 
-        pkg, kind, name = typename.split("/")
+        pkg, _kind, name = typename.split("/")
         # rosbags resolves relative field types against the name's first part only as pkg/msg/...
         parsed = get_types_from_msg(text, f"{pkg}/msg/{name}")
         types = {typename if key == f"{pkg}/msg/{name}" else key: _char_as_uint8(value)
@@ -106,7 +106,7 @@ class RosTypes:
         self._store.register(types)
 
     def _ensure_service(self, pkg: str, name: str) -> None:
-        from rosbags.typesys.base import Nodetype  # noqa: PLC0415
+        from rosbags.interfaces import Nodetype  # noqa: PLC0415
 
         path = self._find(pkg, "srv", name)
         if path is None:
@@ -121,11 +121,11 @@ class RosTypes:
         event = [("info", (Nodetype.NAME, "service_msgs/msg/ServiceEventInfo")),
                  ("request", (Nodetype.SEQUENCE, ((Nodetype.NAME, f"{base}_Request"), 1))),
                  ("response", (Nodetype.SEQUENCE, ((Nodetype.NAME, f"{base}_Response"), 1)))]
-        self._store.register({f"{base}_Event": ([], event)})
+        self._store.register({f"{base}_Event": ([], event)})  # type: ignore[dict-item]
         whole = [("request_message", (Nodetype.NAME, f"{base}_Request")),
                  ("response_message", (Nodetype.NAME, f"{base}_Response")),
                  ("event_message", (Nodetype.NAME, f"{base}_Event"))]
-        self._store.register({base: ([], whole)})
+        self._store.register({base: ([], whole)})  # type: ignore[dict-item]
 
     def type_hash(self, typename: str) -> str:
         """The type's REP-2016 hash, ``RIHS01_<hex>``, computed from its definition."""
@@ -170,7 +170,7 @@ class RosTypes:
         return cls(**{name: self._field(getattr(message, name), desc) for name, desc in fields})
 
     def _field(self, value: Any, desc: Any) -> Any:
-        from rosbags.typesys.base import Nodetype  # noqa: PLC0415
+        from rosbags.interfaces import Nodetype  # noqa: PLC0415
 
         kind, rest = desc
         if kind == Nodetype.NAME:
@@ -187,13 +187,11 @@ class RosTypes:
             return list(value)
         if isinstance(value, np.ndarray):
             return value.astype(dtype, copy=False)
-        if isinstance(value, array.array | bytes | bytearray | memoryview):
-            view = np.frombuffer(value, dtype=np.uint8) if isinstance(value, bytes | bytearray) else None
-            if view is not None and np.dtype(dtype).itemsize == 1:
-                return view.view(dtype)
-            return np.asarray(memoryview(value).cast("B")).view(np.uint8).view(dtype) \
-                if not isinstance(value, memoryview) and np.dtype(dtype).itemsize == value.itemsize \
-                else np.asarray(list(value), dtype=dtype)
+        itemsize = np.dtype(dtype).itemsize
+        if isinstance(value, bytes | bytearray) and itemsize == 1:
+            return np.frombuffer(value, dtype=np.uint8).view(dtype)
+        if isinstance(value, array.array) and value.itemsize == itemsize:
+            return np.frombuffer(value, dtype=dtype)  # a view: rclpy-style sequences are not copied
         return np.asarray(value, dtype=dtype)
 
 
@@ -214,7 +212,7 @@ def _char_as_uint8(definition: Any) -> Any:
 
 
 def _references(desc: Any) -> list[str]:
-    from rosbags.typesys.base import Nodetype  # noqa: PLC0415
+    from rosbags.interfaces import Nodetype  # noqa: PLC0415
 
     kind, rest = desc
     if kind == Nodetype.NAME:
