@@ -25,9 +25,9 @@ from typing import Any
 from . import cli_hz, cortex, e2e, goals, hop, imports, model, processes, report, startup, ui, vision, vla, voice
 from . import map as map_suite  # the module name is the suite name; "map" alone would hide the builtin
 from . import mcp as mcp_suite
-from . import rmw_zenoh as rmw_zenoh_suite
 from . import memory as memory_suite
 from . import recording as recording_suite
+from . import rmw_zenoh as rmw_zenoh_suite
 from . import sim as sim_suite
 from .common import IMAGE_SHAPE, REPO, STRING_BYTES, Children, available
 from .throughput import WINDOW
