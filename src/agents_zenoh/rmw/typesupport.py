@@ -148,7 +148,7 @@ class RosTypes:
         """``message`` (any object with the type's field names) as CDR bytes."""
         self.ensure(typename)
         data = self._store.serialize_cdr(self.adapt(message, typename), typename)
-        return bytes(data)
+        return data.tobytes()  # one copy of the buffer (bytes(array) would walk it item by item)
 
     def deserialize(self, data: bytes | bytearray | memoryview, typename: str) -> Any:
         """CDR bytes as the rosbags dataclass of ``typename`` (TypeValidationError for malformed bytes)."""
