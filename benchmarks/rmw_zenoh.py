@@ -22,7 +22,7 @@ def unavailable() -> str | None:
     """Why the suite cannot run here, or None."""
     for module in ("zenoh", "rosbags", "xxhash", "agents_interfaces"):
         if not available(module):
-            return f"{module} is not installed (pip install -e '.[rmw_zenoh]' and ./interfaces)"
+            return f"{module} is not installed (pip install -e '.[rmw-zenoh]' and ./interfaces)"
     return None
 
 

@@ -46,7 +46,7 @@ TRANSPORT_ALIASES: dict[str, tuple[str, str | None]] = {
     "memory": ("agents_core.transport.memory:MemoryTransport", None),
     "zenoh": ("agents_zenoh.transport:ZenohTransport", "zenoh"),
     "ros2": ("agents_ros2.transport:Ros2Transport", "ros2"),
-    "rmw_zenoh": ("agents_zenoh.rmw.transport:RmwZenohTransport", "rmw_zenoh"),
+    "rmw_zenoh": ("agents_zenoh.rmw.transport:RmwZenohTransport", "rmw-zenoh"),
 }
 
 #: name -> ``"module:attribute"`` of the built-in transports' descriptors (none of them imports its middleware).
