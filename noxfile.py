@@ -76,8 +76,9 @@ def tests(session: nox.Session) -> None:
     Markers select subsets: ``nox -s tests -- -m zenoh``, ``-- -m "not ros2"``, ``-- -m conformance``.
     """
     # voice-gpl (espeak-ng, GPL-3.0) only in this test environment, never in the core install.
-    _install_with_local_models(session, "dev,zenoh,ros2,local,voice,voice-gpl,roboml,vla,servers,cli,ui,memory,"
-                                        "record,foxglove,dataset,mcp,sim")
+    _install_with_local_models(session, "dev,zenoh,rmw-zenoh,ros2,local,voice,voice-gpl,roboml,vla,servers,cli,ui,"
+                                        "memory,record,foxglove,dataset,mcp,sim")
+    session.install("pamoja-ros2")  # an independent rmw_zenoh key / hash implementation: a test oracle
     _install_ros2_interfaces(session)
     _install_browser(session)
     _private_ros_discovery(session)

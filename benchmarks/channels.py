@@ -274,6 +274,10 @@ def _open_framework(endpoint: Endpoint, transport: str, connect: str | None, nam
         assert connect is not None
         bus = resolve_transport("zenoh", **zenoh_framework_options([], [connect], namespace))
         endpoint.on_close(bus.close)
+    elif transport == "rmw_zenoh":
+        assert connect is not None
+        bus = resolve_transport("rmw_zenoh", connect=[connect], listen=["tcp/127.0.0.1:0"])
+        endpoint.on_close(bus.close)
     else:
         bus = resolve_transport("ros2", node_name="bench_pinger")
         endpoint.on_close(bus.close)

@@ -113,7 +113,7 @@ def measure_latency(channel: Channel, *, warmup: int, count: int, max_seconds: f
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description="The pinger: measures latency and throughput against a relay.")
-    parser.add_argument("--transport", choices=["memory", "zenoh", "ros2"], required=True)
+    parser.add_argument("--transport", choices=["memory", "zenoh", "ros2", "rmw_zenoh"], required=True)
     parser.add_argument("--mode", choices=["framework", "raw"], required=True)
     parser.add_argument("--connect", help="the relay's Zenoh endpoint")
     parser.add_argument("--namespace", default="")
@@ -192,6 +192,10 @@ def _run_pair(transport: str, mode: str, round_no: int, settings: dict[str, Any]
                 namespace = f"bench_{mode}_{endpoint.rsplit(':', 1)[1]}"
                 relay_argv += ["--listen", endpoint, "--namespace", namespace]
                 argv += ["--connect", endpoint, "--namespace", namespace]
+            elif transport == "rmw_zenoh":  # the relay process hosts the router it and the pinger meet through
+                endpoint = f"tcp/127.0.0.1:{free_tcp_port()}"
+                relay_argv += ["--listen", endpoint]
+                argv += ["--connect", endpoint]
             relay = children.start(f"relay-{tag}", relay_argv, env)
             relay.wait_ready(60.0)
         pinger = children.start(f"pinger-{tag}", argv, env)

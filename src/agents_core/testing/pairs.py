@@ -7,12 +7,13 @@ subscribes, requests and observes). Leaving the context closes both.
 Where a transport's pair factory comes from, first match wins:
 
 1. the built-in transports: :func:`memory_pair`, :func:`zenoh_pair`, :func:`ros2_pair`;
-2. an entry point of the :data:`PAIR_ENTRY_POINT_GROUP` group with the transport's name::
+2. the one the transport's descriptor names (:attr:`~agents_core.transport.descriptor.TransportDescriptor.pair`);
+3. an entry point of the :data:`PAIR_ENTRY_POINT_GROUP` group with the transport's name::
 
        [project.entry-points."agents_core.conformance_pairs"]
        mqtt = "my_package.testing:mqtt_pair"
 
-3. otherwise :func:`shared_instance_pair`: **one** instance, made with
+4. otherwise :func:`shared_instance_pair`: **one** instance, made with
    ``resolve_transport(name)``, used as both ``a`` and ``b`` (as the memory transport is). Any
    transport reaches itself, so the default never fails for want of discovery; a transport that
    spans sessions or processes should register a pair factory of its own so that the suite also
@@ -27,6 +28,7 @@ factories, so importing this module needs neither zenoh nor rclpy.
 from __future__ import annotations
 
 import contextlib
+import importlib
 import importlib.util
 import os
 from collections.abc import Callable, Iterator
@@ -199,6 +201,11 @@ def pair_factory(name: str) -> PairFactory:
     """The pair factory for transport ``name`` (see the module docstring for the order)."""
     if name in BUILTIN_PAIRS:
         return BUILTIN_PAIRS[name]
+    with contextlib.suppress(TransportNotAvailableError):
+        named = describe_transport_kind(name).pair
+        if named:
+            module, _, attribute = named.partition(":")
+            return getattr(importlib.import_module(module), attribute)  # type: ignore[no-any-return]
     for ep in entry_points(group=PAIR_ENTRY_POINT_GROUP):
         if ep.name == name:
             factory = ep.load()

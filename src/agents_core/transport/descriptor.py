@@ -64,6 +64,8 @@ class TransportDescriptor:
     :param listener_options: options for a process other processes reach at ``endpoint``, on this host only.
     :param isolate: set up a private, this-host-only space for a test (ROS 2: a domain of the test's
         own, in ``os.environ``) and return the options both sides then open with; None: nothing needed.
+    :param pair: ``"module:function"`` of its conformance pair factory (a context manager yielding two
+        transports that reach each other, :mod:`agents_core.testing.pairs`); None: the default.
     :param describe: ``describe(transport) -> str``: where an open transport reaches, for the launch
         report (endpoints, domain); None: nothing beyond the name.
     """
@@ -82,6 +84,7 @@ class TransportDescriptor:
     listener_options: Callable[[str], dict[str, Any]] | None = field(default=None, eq=False)
     isolate: Callable[[], dict[str, Any]] | None = field(default=None, eq=False)
     describe: Callable[[Any], str] | None = field(default=None, eq=False)
+    pair: str | None = None
 
     @property
     def cross_process(self) -> bool:

@@ -46,6 +46,7 @@ TRANSPORT_ALIASES: dict[str, tuple[str, str | None]] = {
     "memory": ("agents_core.transport.memory:MemoryTransport", None),
     "zenoh": ("agents_zenoh.transport:ZenohTransport", "zenoh"),
     "ros2": ("agents_ros2.transport:Ros2Transport", "ros2"),
+    "rmw_zenoh": ("agents_zenoh.rmw.transport:RmwZenohTransport", "rmw-zenoh"),
 }
 
 #: name -> ``"module:attribute"`` of the built-in transports' descriptors (none of them imports its middleware).
@@ -53,6 +54,7 @@ BUILTIN_DESCRIPTORS: dict[str, str] = {
     "memory": "agents_core.transport.descriptor:MEMORY",
     "zenoh": "agents_zenoh.descriptor:DESCRIPTOR",
     "ros2": "agents_ros2.descriptor:DESCRIPTOR",
+    "rmw_zenoh": "agents_zenoh.rmw.descriptor:DESCRIPTOR",
 }
 
 #: The cross-process transport chosen when one is needed and none is named (CLI observers, multiprocessing).

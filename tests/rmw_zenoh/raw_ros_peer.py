@@ -1,0 +1,159 @@
+"""A ROS 2 peer in rmw_zenoh's format built from zenoh-python, rosbags, xxhash and the installed type descriptions.
+
+None of agents_zenoh's code: keys and tokens are written here, CDR by rosbags, attachments by zenoh.ext, type hashes
+read from ``share/<pkg>/<kind>/<Type>.json``. Usage: ``python raw_ros_peer.py ROUTER DOMAIN MODE [ARG]``:
+
+- ``talk TOPIC``: declare a node and a publisher of std_msgs/String, publish "raw 1".."raw 50" (20 ms apart);
+- ``listen TOPIC``: print one JSON line per String sample: data, sequence number, whether the GID is the hash of
+  a publisher token seen on the topic;
+- ``call SERVICE``: one JsonCall query ``{"from": "raw"}``, print the reply and whether seq / GID were echoed;
+- ``get_state NODE``: one lifecycle_msgs/GetState query, print the label;
+- ``serve SERVICE``: serve JsonCall (reply ``{"raw_got": <request>}``) until stdin closes.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+import xxhash
+import zenoh
+from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+from zenoh import ext as zext
+
+ROUTER, DOMAIN, MODE = sys.argv[1], int(sys.argv[2]), sys.argv[3]
+ARG = sys.argv[4] if len(sys.argv) > 4 else ""
+SHARE = Path(os.environ.get("AMENT_PREFIX_PATH", sys.prefix).split(os.pathsep)[0]) / "share"
+store = get_typestore(Stores.ROS2_JAZZY)
+
+
+def installed_hash(ros_type: str) -> str:
+    pkg, kind, name = ros_type.split("/")
+    return str(json.loads((SHARE / pkg / kind / f"{name}.json").read_text())["type_hashes"][0]["hash_string"])
+
+
+def load_service(ros_type: str) -> tuple[str, str]:
+    pkg, _, name = ros_type.split("/")
+    text = (SHARE / pkg / "srv" / f"{name}.srv").read_text()
+    request, response = text.split("\n---\n") if not text.startswith("---") else ("", text[4:])
+    req, res = f"{pkg}/msg/{name}_Request", f"{pkg}/msg/{name}_Response"
+    store.register({**get_types_from_msg(request or "uint8 structure_needs_at_least_one_member", req),
+                    **get_types_from_msg(response, res)})
+    return req, res
+
+
+def dds(ros_type: str) -> str:
+    pkg, kind, name = ros_type.split("/")
+    return f"{pkg}::{kind}::dds_::{name}_"
+
+
+def gid(token: str) -> bytes:
+    d = xxhash.xxh3_128(token.encode()).digest()
+    return d[8:][::-1] + d[:8][::-1]
+
+
+def attachment(seq: int, g: bytes) -> bytes:
+    return zext.z_serialize((zext.Int64(seq), zext.Int64(time.time_ns()), g)).to_bytes()
+
+
+def read_attachment(raw: zenoh.ZBytes | None) -> tuple[int, int, bytes]:
+    assert raw is not None, "no attachment"
+    seq, stamp, g = zext.z_deserialize(tuple[zext.Int64, zext.Int64, bytes], raw)
+    return int(seq), int(stamp), bytes(g)
+
+
+conf = zenoh.Config()
+conf.insert_json5("mode", '"peer"')
+conf.insert_json5("connect/endpoints", json.dumps([ROUTER]))
+conf.insert_json5("listen/endpoints", '["tcp/127.0.0.1:0"]')
+conf.insert_json5("scouting/multicast/enabled", "false")
+session = zenoh.open(conf)
+zid = str(session.zid())
+node = "raw_peer"
+tokens = [session.liveliness().declare_token(f"@ros2_lv/{DOMAIN}/{zid}/0/0/NN/%/%/{node}")]
+
+
+def entity(kind: str, eid: int, name: str, ros_type: str, qos: str = "::,10:,:,:,,") -> tuple[str, bytes]:
+    h = installed_hash(ros_type)
+    token = f"@ros2_lv/{DOMAIN}/{zid}/0/{eid}/{kind}/%/%/{node}/{name.replace('/', '%')}/{dds(ros_type)}/{h}/{qos}"
+    tokens.append(session.liveliness().declare_token(token))
+    return f"{DOMAIN}/{name.strip('/')}/{dds(ros_type)}/{h}", gid(token)
+
+
+if MODE == "talk":
+    key, g = entity("MP", 1, ARG, "std_msgs/msg/String")
+    pub = session.declare_publisher(key)
+    time.sleep(0.5)
+    for i in range(1, 51):
+        pub.put(bytes(store.serialize_cdr(store.types["std_msgs/msg/String"](data=f"raw {i}"), "std_msgs/msg/String")),
+                attachment=attachment(i, g))
+        time.sleep(0.02)
+elif MODE == "listen":
+    key, _ = entity("MS", 1, ARG, "std_msgs/msg/String")
+    publisher_gids: set[bytes] = set()
+
+    def on_token(sample: zenoh.Sample) -> None:
+        if sample.kind == zenoh.SampleKind.PUT and "/MP/" in str(sample.key_expr):
+            publisher_gids.add(gid(str(sample.key_expr)))
+
+    watch = session.liveliness().declare_subscriber(f"@ros2_lv/{DOMAIN}/**", on_token, history=True)
+
+    def on_sample(sample: zenoh.Sample) -> None:
+        seq, _stamp, g = read_attachment(sample.attachment)
+        for _ in range(100):  # the publisher's token may reach us just after its first sample
+            if g in publisher_gids:
+                break
+            time.sleep(0.01)
+        msg = store.deserialize_cdr(sample.payload.to_bytes(), "std_msgs/msg/String")
+        print(json.dumps({"data": msg.data, "seq": seq, "gid_of_a_publisher_token": g in publisher_gids}), flush=True)
+
+    sub = session.declare_subscriber(key, on_sample)
+    print("ready", flush=True)
+    sys.stdin.read()
+elif MODE in ("call", "get_state"):
+    ros_type = "agents_interfaces/srv/JsonCall" if MODE == "call" else "lifecycle_msgs/srv/GetState"
+    req_t, res_t = load_service(ros_type)
+    name = ARG if MODE == "call" else f"/{ARG}/get_state"
+    key, g = entity("SC", 1, name, ros_type)
+    request = (store.types[req_t](request_json=json.dumps({"from": "raw"})) if MODE == "call"
+               else store.types[req_t](structure_needs_at_least_one_member=0))
+    body = bytes(store.serialize_cdr(request, req_t))
+    out: dict[str, object] = {"replies": 0}
+    for _attempt in range(20):
+        for reply in session.get(key, payload=body, attachment=attachment(7, g), timeout=2.0,
+                                 target=zenoh.QueryTarget.ALL_COMPLETE):
+            if reply.ok is None:
+                continue
+            seq, _stamp, echoed = read_attachment(reply.ok.attachment)
+            response = store.deserialize_cdr(reply.ok.payload.to_bytes(), res_t)
+            out = {"replies": 1, "seq_echoed": seq == 7, "gid_echoed": echoed == g,
+                   "reply": (json.loads(response.response_json) if MODE == "call"
+                             else response.current_state.label)}
+            if MODE == "call":
+                out["success"] = bool(response.success)
+        if out["replies"]:
+            break
+        time.sleep(0.2)
+    print(json.dumps(out), flush=True)
+elif MODE == "serve":
+    req_t, res_t = load_service("agents_interfaces/srv/JsonCall")
+    key, _ = entity("SS", 1, ARG, "agents_interfaces/srv/JsonCall")
+
+    def on_query(query: zenoh.Query) -> None:
+        with query:
+            seq, _stamp, client = read_attachment(query.attachment)
+            assert query.payload is not None
+            request = store.deserialize_cdr(query.payload.to_bytes(), req_t)
+            answer = store.types[res_t](success=True, error="",
+                                        response_json=json.dumps({"raw_got": json.loads(request.request_json)}))
+            query.reply(key, bytes(store.serialize_cdr(answer, res_t)), attachment=attachment(seq, client))
+
+    queryable = session.declare_queryable(key, on_query, complete=True)
+    print("ready", flush=True)
+    sys.stdin.read()
+for token in tokens:
+    token.undeclare()
+session.close()

@@ -1,0 +1,127 @@
+"""Hostile input on rmw_zenoh: malformed CDR, wrong type hashes, bogus liveliness tokens, garbage attachments.
+
+Each is refused and counted (a subscription's decode_errors, the driver's refused_requests), never delivered,
+never a crash or a component's state change; good traffic keeps flowing.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from collections.abc import Iterator
+from typing import Any
+
+import pytest
+
+from agents_core.supported_types import get_type
+from agents_core.topics import Topic
+
+from .conftest import rmw_options
+
+pytestmark = pytest.mark.zenoh
+
+zenoh = pytest.importorskip("zenoh")
+pytest.importorskip("rosbags", reason="needs the rmw_zenoh extra")
+
+from agents_zenoh.rmw.codec import codec_for  # noqa: E402
+from agents_zenoh.rmw.transport import RmwZenohTransport  # noqa: E402
+from agents_zenoh.rmw.typesupport import ros_types  # noqa: E402
+from agents_zenoh.rmw.wire import data_key, encode_attachment  # noqa: E402
+
+
+@pytest.fixture
+def attacker(router: str) -> Iterator[Any]:
+    """A plain Zenoh session on the same router."""
+    conf = zenoh.Config()
+    conf.insert_json5("mode", '"peer"')
+    conf.insert_json5("connect/endpoints", json.dumps([router]))
+    conf.insert_json5("listen/endpoints", '["tcp/127.0.0.1:0"]')
+    conf.insert_json5("scouting/multicast/enabled", "false")
+    session = zenoh.open(conf)
+    try:
+        yield session
+    finally:
+        session.close()
+
+
+@pytest.fixture
+def ours(router: str) -> Iterator[Any]:
+    transport = RmwZenohTransport(**rmw_options(router))
+    try:
+        yield transport
+    finally:
+        transport.close()
+
+
+def _wait(predicate: Any, timeout: float = 10.0) -> bool:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if predicate():
+            return True
+        time.sleep(0.02)
+    return bool(predicate())
+
+
+def test_bad_samples_are_refused_and_counted(ours: Any, attacker: Any) -> None:
+    got: list[str] = []
+    sub = ours.create_subscription(Topic("victim", get_type("String")), got.append)
+    codec = codec_for(get_type("String"))
+    key = data_key(21, "/victim", codec.ros_type, codec.type_hash)
+    good = codec.encode("good")
+    att = encode_attachment(1, time.time_ns(), bytes(16))
+    wrong_hash = data_key(21, "/victim", codec.ros_type, "RIHS01_" + "0" * 64)
+    wrong_type = data_key(21, "/victim", "std_msgs/msg/Int32", codec_for(get_type("Int32")).type_hash)
+    bad = [
+        (key, good, None),                                   # no attachment
+        (key, good, b"\x01\x02\x03"),                        # garbage attachment
+        (key, good, att[:-1] + b""),                         # truncated attachment
+        (key, b"\x00\x01\x00\x00\xff\xff\xff\x7fhi", att),   # string length far past the payload
+        (key, b"\x07\x07", att),                             # not even a CDR header
+        (key, b"\x00\x01\x00\x00\x03\x00\x00\x00\xff\xfe\x00", att),  # not UTF-8
+        (wrong_hash, good, att),
+        (wrong_type, codec_for(get_type("Int32")).encode(5), att),
+    ]
+    time.sleep(0.5)
+    for k, payload, attachment in bad:
+        attacker.put(k, payload, **({"attachment": attachment} if attachment is not None else {}))
+    attacker.put(key, good, attachment=att)
+    assert _wait(lambda: got == ["good"] and sub.statistics().decode_errors == len(bad))
+    time.sleep(0.2)
+    assert got == ["good"]
+    assert sub.statistics().decode_errors == len(bad)
+
+
+def test_bogus_tokens_do_not_break_discovery(ours: Any, attacker: Any) -> None:
+    ours.create_publisher(Topic("real_topic", get_type("String")))
+    bogus = ["@ros2_lv/21/x/y", "@ros2_lv/21/z/0/0/MP/%/%/n/%t/T/H/not-a-qos",
+             "@ros2_lv/21/z/0/0/QQ/%/%/n", "@ros2_lv/21/z/0/0/MP/%/%/n/%t/T/H/99::,:,:,:,,/extra",
+             "@ros2_lv/21/z/0/0/MS/%/%/n/%t/T/H/1:2:3:4:5:6"]
+    tokens = [attacker.liveliness().declare_token(t) for t in bogus]
+    try:
+        graph = ours.discover(1.0)
+        assert [t.name for t in graph.topics] == ["real_topic"]
+    finally:
+        for token in tokens:
+            token.undeclare()
+
+
+def test_bad_queries_are_refused_and_counted_without_a_state_change(ours: Any, attacker: Any) -> None:
+    transitions: list[str] = []
+    ours.declare_component("victim_node", on_transition=lambda t: transitions.append(t) or True)
+    ours.create_service("victim_srv", lambda request: {"ok": True})
+    types = ros_types()
+    change = data_key(21, "/victim_node/change_state", "lifecycle_msgs/srv/ChangeState",
+                      types.type_hash("lifecycle_msgs/srv/ChangeState"))
+    call = data_key(21, "/victim_srv", "agents_interfaces/srv/JsonCall",
+                    types.type_hash("agents_interfaces/srv/JsonCall"))
+    att = encode_attachment(1, time.time_ns(), bytes(16))
+    cases = [(change, b"\x00\x01\x00\x00\x01", None), (change, b"\x00\x01\x00\x00", b"junk"),
+             (change, b"garbage", att), (call, b"\x00\x01\x00\x00\xff\xff\xff\xff", att), (call, b"", att)]
+    time.sleep(0.3)
+    for key, payload, attachment in cases:
+        replies = list(attacker.get(key, payload=payload, timeout=2.0,
+                                    **({"attachment": attachment} if attachment is not None else {})))
+        assert all(r.ok is None for r in replies)
+    assert ours.driver.refused_requests == len(cases)
+    assert transitions == []
+    assert ours.request("victim_srv", {}, timeout=3.0) == {"ok": True}
