@@ -238,12 +238,12 @@ class ApprovalBroker:
 
     def decide(self, call_id: str, approve: bool, by: str = "") -> bool:
         """Approve or deny the waiting call ``call_id``; False when no such call waits (decided or expired)."""
-        with self._lock:
+        with self._lock:  # decided under the lock: a call that timed out can no longer be approved
             pending = self._pending.pop(str(call_id), None)
-        if pending is None:
-            return False
-        pending.approved, pending.decided_by = bool(approve), str(by)[:200]
-        pending.decided.set()
+            if pending is None:
+                return False
+            pending.approved, pending.decided_by = bool(approve), str(by)[:200]
+            pending.decided.set()
         return True
 
     def wait(self, component: str, action: str, arguments: dict[str, Any], timeout: float) -> PendingCall:
@@ -263,7 +263,9 @@ class ApprovalBroker:
                 listener(pending)
         pending.decided.wait(timeout)
         with self._lock:
-            self._pending.pop(call_id, None)
+            # Still listed: nobody decided in time (a decision after this is refused by ``decide``).
+            if self._pending.pop(call_id, None) is not None:
+                pending.approved = False
         return pending
 
 
@@ -378,6 +380,8 @@ def _bound_arguments(func: Callable[..., Any], args: tuple[Any, ...], kwargs: di
 #: Set for a call already admitted (rate counted, approval granted) by :func:`admit_call` before dispatch.
 _admitted: contextvars.ContextVar[tuple[int, str] | None] = contextvars.ContextVar("agents_core_admitted",
                                                                                    default=None)
+#: Who approved the admitted call (for its audit record on the worker).
+_approved_by: contextvars.ContextVar[str] = contextvars.ContextVar("agents_core_approved_by", default="")
 
 
 def _names(func: Callable[..., Any], owner: Any) -> tuple[str, str, str]:
@@ -390,6 +394,8 @@ def _admit(guard: ActionGuard, owner: Any, component: str, action: str, where: s
            record: dict[str, Any], timeout: float | None = None) -> None:
     guard.check_arguments(where, arguments)
     if _admitted.get() == (id(owner), action):
+        if _approved_by.get():
+            record["approved_by"] = _approved_by.get()
         return  # rate and approval were settled before the call was dispatched
     if guard.rate_limit is not None and not _RATES.admit((id(owner), action), *guard.rate_limit):
         calls, seconds = guard.rate_limit
@@ -418,13 +424,16 @@ class Admission:
     caller: str
     call_id: str | None
     admitted: tuple[int, str] | None
+    approved_by: str = ""
 
     def run(self, func: Callable[..., Any], *args: Any, **kwargs: Any) -> Any:
         """``func(*args, **kwargs)`` with this admission's caller (and admission) set for the call only."""
         tokens = (current_caller.set(self.caller), _call_id.set(self.call_id), _admitted.set(self.admitted))
+        by_token = _approved_by.set(self.approved_by)
         try:
             return func(*args, **kwargs)
         finally:
+            _approved_by.reset(by_token)
             _admitted.reset(tokens[2])
             _call_id.reset(tokens[1])
             current_caller.reset(tokens[0])
@@ -439,6 +448,7 @@ def admit_call(func: Callable[..., Any], owner: Any, args: Sequence[Any], kwargs
     on the worker (with the caller and the admission). Raises :class:`GuardrailRefused`.
     """
     admitted: tuple[int, str] | None = None
+    approved_by = ""
     guard = getattr(func, "_agents_action_guard", None)
     if isinstance(guard, ActionGuard) and guard.active:
         target = getattr(func, "__wrapped__", func)
@@ -451,7 +461,8 @@ def admit_call(func: Callable[..., Any], owner: Any, args: Sequence[Any], kwargs
             _AUDIT.write({**record, "decision": "refused", "outcome": str(exc)})
             raise
         admitted = (id(owner), action)
-    return Admission(current_caller.get(), _call_id.get(), admitted)
+        approved_by = str(record.get("approved_by", ""))
+    return Admission(current_caller.get(), _call_id.get(), admitted, approved_by)
 
 
 def run_guarded(func: Callable[..., Any], guard: ActionGuard | None, args: tuple[Any, ...],
