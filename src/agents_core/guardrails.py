@@ -164,6 +164,15 @@ def _short(value: Any) -> str:
     return text if len(text) <= _AUDIT_VALUE_CHARS else text[:_AUDIT_VALUE_CHARS] + "..."
 
 
+def _shown(value: Any) -> Any:
+    """``value`` as JSON data when it is short and plain; otherwise its (cut) JSON text."""
+    text = _short(value)
+    try:
+        return json.loads(text, parse_constant=str)  # NaN / Infinity shown as text: they are not JSON
+    except ValueError:
+        return text
+
+
 class _RateWindow:
     """Call times of one (component, action) in a sliding window."""
 
@@ -204,7 +213,7 @@ class PendingCall:
     def to_json(self) -> dict[str, Any]:
         """What listing pending calls shows."""
         return {"id": self.id, "component": self.component, "action": self.action,
-                "arguments": {k: _short(v) for k, v in self.arguments.items()}, "caller": self.caller,
+                "arguments": {k: _shown(v) for k, v in self.arguments.items()}, "caller": self.caller,
                 "waiting_s": round(time.monotonic() - self.requested, 1),
                 "expires_in_s": round(max(0.0, self.deadline - time.monotonic()), 1)}
 
@@ -402,7 +411,7 @@ def _admit(guard: ActionGuard, owner: Any, component: str, action: str, where: s
         raise GuardrailRefused(f"{where}: more than {calls} calls in {seconds:g} s; the action did not run")
     if guard.approval:
         wait = guard.approval_timeout if timeout is None else max(0.0, min(guard.approval_timeout, timeout))
-        pending = _BROKER.wait(component, action, record["arguments"], wait)
+        pending = _BROKER.wait(component, action, arguments, wait)
         record["approval_id"] = pending.id
         if not pending.decided.is_set():
             raise GuardrailRefused(f"{where}: not approved within {wait:g} s; the action did not run")
