@@ -21,19 +21,11 @@ from agents_core.errors import ConfigError
 from agents_core.ui import LocalRecipe, UISettings
 from agents_core.ui.app import UIState, create_app
 
-from .ui_parts import PICTURE, SHOUTS, WORDS, shouter
+from .ui_parts import PICTURE, SHOUTS, WORDS
 
 BASE = "http://127.0.0.1:5001"
 TOKEN = "correct-horse-battery-staple"
 CAMERA, SOUND, LEVEL = Topic("camera", "Image"), Topic("sound", "Audio"), Topic("level", "Float64")
-
-
-@pytest.fixture
-def running() -> Iterator[Launcher]:
-    launcher = Launcher("memory")
-    launcher.add_pkg(components=[shouter()])
-    with launcher:
-        yield launcher
 
 
 def _client(launcher: Launcher, **settings: Any) -> TestClient:

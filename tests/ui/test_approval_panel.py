@@ -27,15 +27,21 @@ def _pending(http: httpx.Client, url: str) -> list[dict]:
     return reply.json()["pending"]
 
 
+def _held(launcher, http: httpx.Client, target: str) -> tuple[HeldCall, dict]:
+    """Call ``arm.launch(target)`` and wait until the panel lists it; the call and its entry."""
+    held = HeldCall(launcher, target)
+    assert wait_for(lambda: bool(_pending(http, launcher.ui.url)), 5.0)
+    [call] = _pending(http, launcher.ui.url)
+    return held, call
+
+
 def test_a_held_call_is_listed_then_approved_once(tmp_path):
     configure_audit_log(tmp_path / "audit.jsonl")
     try:
         with arm_with_ui() as (launcher, component), _http() as http:
             url = launcher.ui.url
             assert _pending(http, url) == []
-            held = HeldCall(launcher, "the moon")
-            assert wait_for(lambda: bool(_pending(http, url)), 5.0)
-            [call] = _pending(http, url)
+            held, call = _held(launcher, http, "the moon")
             assert (call["component"], call["action"], call["caller"], call["holder"]) == ("arm", "launch", "cli",
                                                                                          "arm")
             assert call["arguments"] == {"target": "the moon"} and 0 < call["expires_in_s"] <= 5.0
@@ -58,9 +64,7 @@ def test_a_held_call_is_listed_then_approved_once(tmp_path):
 def test_deny_refuses_and_bad_requests_are_answered_clearly():
     with arm_with_ui() as (launcher, component), _http() as http:
         url = launcher.ui.url
-        held = HeldCall(launcher, "mars")
-        assert wait_for(lambda: bool(_pending(http, url)), 5.0)
-        [call] = _pending(http, url)
+        held, call = _held(launcher, http, "mars")
         for body in ({"approve": "yes"}, {}, {"approve": 1}):
             bad = http.post(url + f"api/approvals/{call['id']}", json=body)
             assert bad.status_code == 422 and "'approve' must be true or false" in bad.json()["error"]
@@ -79,9 +83,7 @@ def test_deny_refuses_and_bad_requests_are_answered_clearly():
 def test_a_call_nobody_decides_leaves_the_list_when_it_times_out():
     with arm_with_ui() as (launcher, component), _http() as http:
         url = launcher.ui.url
-        held = HeldCall(launcher, "venus")
-        assert wait_for(lambda: bool(_pending(http, url)), 5.0)
-        [call] = _pending(http, url)
+        held, call = _held(launcher, http, "venus")
         held.join()  # the Arm's launch waits 5 s
         assert held.error is not None and "not approved within" in held.error
         assert _pending(http, url) == []
