@@ -68,6 +68,12 @@ def _answer(value: Any) -> tuple[str, dict[str, Any]]:
     return str(action), dict(content) if isinstance(content, dict) else {}
 
 
+def _said(value: Any) -> str:
+    """What the answer said, for the audit log (``decline``, ``cancel``, ``approve: false``...)."""
+    action, content = _answer(value)
+    return f"approve: {json.dumps(content.get('approve'))[:20]}" if action == "accept" else action[:20]
+
+
 def _approves(value: Any) -> bool:
     """Only an accepted answer whose ``approve`` is exactly true approves."""
     action, content = _answer(value)
@@ -162,7 +168,7 @@ class ApprovalAsker:
             with anyio.move_on_after(held.remaining()):  # no answer in time: the component refuses the call
                 answer = await ctx.session.elicit_form(question.message, question.requested_schema,
                                                        related_request_id=ctx.request_id)
-                await self._settle(held, _approves(answer), who, _answer(answer)[0])
+                await self._settle(held, _approves(answer), who, _said(answer))
         except Exception as exc:  # the client answered with an error: refused
             await self._settle(held, False, who, f"error: {type(exc).__name__}: {exc}"[:300])
         except BaseException:  # the MCP call was cancelled: the held call is refused with it
@@ -189,7 +195,7 @@ class ApprovalAsker:
         if answer is None:
             await self._settle(held, False, self._who(ctx), "no answer")
         else:
-            await self._settle(held, _approves(answer), self._who(ctx), _answer(answer)[0])
+            await self._settle(held, _approves(answer), self._who(ctx), _said(answer))
         return await self._finish(held)
 
     # -- the held call ----------------------------------------------------------------------
