@@ -8,6 +8,7 @@ all of them in a ``finally``, whatever happened.
 
 from __future__ import annotations
 
+import argparse
 import importlib.util
 import json
 import os
@@ -281,3 +282,37 @@ def wait_until(predicate: Callable[[], bool], timeout: float, interval: float = 
             return True
         time.sleep(interval)
     return predicate()
+
+
+def run_memory_child(suite: str, settings: dict[str, Any], children: Children, progress: Callable[[str], None], *,
+                     reps: int, warmup: int, what: str) -> tuple[list[dict[str, Any]], list[dict[str, str]]]:
+    """Run ``python -m benchmarks.<suite> --reps N --warmup M`` as the suite's child (memory transport).
+
+    N and M come from ``settings`` (``<suite>_reps`` / ``<suite>_warmup``), else ``reps`` / ``warmup``;
+    each record's p50 is reported as ``what``. Returns (records, skipped).
+    """
+    records: list[dict[str, Any]] = []
+    skipped: list[dict[str, str]] = []
+    try:
+        child = children.start(suite, ["-m", f"benchmarks.{suite}", "--reps", str(settings.get(f"{suite}_reps", reps)),
+                                       "--warmup", str(settings.get(f"{suite}_warmup", warmup))], child_env())
+        records += list(child.records(timeout=600))
+        children.stop(child)
+        for r in records:
+            progress(f"{suite:<10} {'memory':<6} {r['mode']:<9} {r['latency_ms']['p50']:8.2f} ms {what}")
+    except ChildFailed as exc:
+        progress(f"{suite}: FAILED: {str(exc).splitlines()[0]}")
+        skipped.append({"suite": suite, "transport": "memory", "mode": "framework", "reason": str(exc)[-1500:]})
+    return records, skipped
+
+
+def child_main(argv: list[str] | None, description: str | None, run: Callable[[int, int], None], *, name: str,
+               reps: int, warmup: int) -> int:
+    """A suite child's command line (``--reps``, ``--warmup``): runs ``run(reps, warmup)``."""
+    parser = argparse.ArgumentParser(description=description, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--reps", type=int, default=reps)
+    parser.add_argument("--warmup", type=int, default=warmup)
+    args = parser.parse_args(argv)
+    run(args.reps, args.warmup)
+    log(f"{name} done")
+    return 0

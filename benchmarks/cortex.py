@@ -16,14 +16,13 @@ building the confirmation prompt, the client's call path, parsing the decision, 
 
 from __future__ import annotations
 
-import argparse
 import statistics
 import sys
 import time
 from collections.abc import Callable, MutableMapping
 from typing import Any
 
-from .common import ChildFailed, Children, child_env, emit, log
+from .common import Children, child_main, emit, run_memory_child
 
 
 def run_child(reps: int, warmup: int) -> None:
@@ -110,30 +109,12 @@ def run_child(reps: int, warmup: int) -> None:
 def run_suite(settings: dict[str, Any], children: Children,
               progress: Callable[[str], None]) -> tuple[list[dict[str, Any]], list[dict[str, str]]]:
     """The cortex child; (records, skipped)."""
-    records: list[dict[str, Any]] = []
-    skipped: list[dict[str, str]] = []
-    try:
-        child = children.start("cortex", ["-m", "benchmarks.cortex", "--reps", str(settings.get("cortex_reps", 50)),
-                                          "--warmup", str(settings.get("cortex_warmup", 5))], child_env())
-        records += list(child.records(timeout=600))
-        children.stop(child)
-        for r in records:
-            progress(f"{'cortex':<10} {'memory':<6} {r['mode']:<9} {r['latency_ms']['p50']:8.2f} ms plan -> first "
-                     "dispatch")
-    except ChildFailed as exc:
-        progress(f"cortex: FAILED: {str(exc).splitlines()[0]}")
-        skipped.append({"suite": "cortex", "transport": "memory", "mode": "framework", "reason": str(exc)[-1500:]})
-    return records, skipped
+    return run_memory_child("cortex", settings, children, progress, reps=50, warmup=5,
+                            what="plan -> first dispatch")
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--reps", type=int, default=50)
-    parser.add_argument("--warmup", type=int, default=5)
-    args = parser.parse_args(argv)
-    run_child(args.reps, args.warmup)
-    log("cortex done")
-    return 0
+    return child_main(argv, __doc__, run_child, name="cortex", reps=50, warmup=5)
 
 
 if __name__ == "__main__":

@@ -11,7 +11,6 @@ record, then the same ``execute_method``). Reported as ms per call, p50 / p99.
 
 from __future__ import annotations
 
-import argparse
 import statistics
 import sys
 import tempfile
@@ -20,7 +19,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from .common import ChildFailed, Children, child_env, emit, log
+from .common import Children, child_main, emit, run_memory_child
 
 
 def run_child(reps: int, warmup: int) -> None:
@@ -83,34 +82,16 @@ def run_child(reps: int, warmup: int) -> None:
 def run_suite(settings: dict[str, Any], children: Children,
               progress: Callable[[str], None]) -> tuple[list[dict[str, Any]], list[dict[str, str]]]:
     """The mcp child; (records, skipped)."""
-    records: list[dict[str, Any]] = []
-    skipped: list[dict[str, str]] = []
     try:
         import mcp  # noqa: F401, PLC0415
     except ImportError:
         return [], [{"suite": "mcp", "transport": "memory", "mode": "framework",
                      "reason": "the mcp extra is not installed (pip install 'agents-core[mcp]')"}]
-    try:
-        child = children.start("mcp", ["-m", "benchmarks.mcp", "--reps", str(settings.get("mcp_reps", 200)),
-                                       "--warmup", str(settings.get("mcp_warmup", 20))], child_env())
-        records += list(child.records(timeout=600))
-        children.stop(child)
-        for r in records:
-            progress(f"{'mcp':<10} {'memory':<6} {r['mode']:<9} {r['latency_ms']['p50']:8.2f} ms per action call")
-    except ChildFailed as exc:
-        progress(f"mcp: FAILED: {str(exc).splitlines()[0]}")
-        skipped.append({"suite": "mcp", "transport": "memory", "mode": "framework", "reason": str(exc)[-1500:]})
-    return records, skipped
+    return run_memory_child("mcp", settings, children, progress, reps=200, warmup=20, what="per action call")
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--reps", type=int, default=200)
-    parser.add_argument("--warmup", type=int, default=20)
-    args = parser.parse_args(argv)
-    run_child(args.reps, args.warmup)
-    log("mcp done")
-    return 0
+    return child_main(argv, __doc__, run_child, name="mcp", reps=200, warmup=20)
 
 
 if __name__ == "__main__":

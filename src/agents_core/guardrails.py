@@ -164,6 +164,15 @@ def _short(value: Any) -> str:
     return text if len(text) <= _AUDIT_VALUE_CHARS else text[:_AUDIT_VALUE_CHARS] + "..."
 
 
+def _shown(value: Any) -> Any:
+    """``value`` as JSON data when it is short and plain; otherwise its (cut) JSON text."""
+    text = _short(value)
+    try:
+        return json.loads(text, parse_constant=str)  # NaN / Infinity shown as text: they are not JSON
+    except ValueError:
+        return text
+
+
 class _RateWindow:
     """Call times of one (component, action) in a sliding window."""
 
@@ -204,7 +213,7 @@ class PendingCall:
     def to_json(self) -> dict[str, Any]:
         """What listing pending calls shows."""
         return {"id": self.id, "component": self.component, "action": self.action,
-                "arguments": {k: _short(v) for k, v in self.arguments.items()}, "caller": self.caller,
+                "arguments": {k: _shown(v) for k, v in self.arguments.items()}, "caller": self.caller,
                 "waiting_s": round(time.monotonic() - self.requested, 1),
                 "expires_in_s": round(max(0.0, self.deadline - time.monotonic()), 1)}
 
@@ -238,12 +247,12 @@ class ApprovalBroker:
 
     def decide(self, call_id: str, approve: bool, by: str = "") -> bool:
         """Approve or deny the waiting call ``call_id``; False when no such call waits (decided or expired)."""
-        with self._lock:
+        with self._lock:  # decided under the lock: a call that timed out can no longer be approved
             pending = self._pending.pop(str(call_id), None)
-        if pending is None:
-            return False
-        pending.approved, pending.decided_by = bool(approve), str(by)[:200]
-        pending.decided.set()
+            if pending is None:
+                return False
+            pending.approved, pending.decided_by = bool(approve), str(by)[:200]
+            pending.decided.set()
         return True
 
     def wait(self, component: str, action: str, arguments: dict[str, Any], timeout: float) -> PendingCall:
@@ -263,7 +272,9 @@ class ApprovalBroker:
                 listener(pending)
         pending.decided.wait(timeout)
         with self._lock:
-            self._pending.pop(call_id, None)
+            # Still listed: nobody decided in time (a decision after this is refused by ``decide``).
+            if self._pending.pop(call_id, None) is not None:
+                pending.approved = False
         return pending
 
 
@@ -378,6 +389,8 @@ def _bound_arguments(func: Callable[..., Any], args: tuple[Any, ...], kwargs: di
 #: Set for a call already admitted (rate counted, approval granted) by :func:`admit_call` before dispatch.
 _admitted: contextvars.ContextVar[tuple[int, str] | None] = contextvars.ContextVar("agents_core_admitted",
                                                                                    default=None)
+#: Who approved the admitted call (for its audit record on the worker).
+_approved_by: contextvars.ContextVar[str] = contextvars.ContextVar("agents_core_approved_by", default="")
 
 
 def _names(func: Callable[..., Any], owner: Any) -> tuple[str, str, str]:
@@ -390,13 +403,15 @@ def _admit(guard: ActionGuard, owner: Any, component: str, action: str, where: s
            record: dict[str, Any], timeout: float | None = None) -> None:
     guard.check_arguments(where, arguments)
     if _admitted.get() == (id(owner), action):
+        if _approved_by.get():
+            record["approved_by"] = _approved_by.get()
         return  # rate and approval were settled before the call was dispatched
     if guard.rate_limit is not None and not _RATES.admit((id(owner), action), *guard.rate_limit):
         calls, seconds = guard.rate_limit
         raise GuardrailRefused(f"{where}: more than {calls} calls in {seconds:g} s; the action did not run")
     if guard.approval:
         wait = guard.approval_timeout if timeout is None else max(0.0, min(guard.approval_timeout, timeout))
-        pending = _BROKER.wait(component, action, record["arguments"], wait)
+        pending = _BROKER.wait(component, action, arguments, wait)
         record["approval_id"] = pending.id
         if not pending.decided.is_set():
             raise GuardrailRefused(f"{where}: not approved within {wait:g} s; the action did not run")
@@ -418,13 +433,16 @@ class Admission:
     caller: str
     call_id: str | None
     admitted: tuple[int, str] | None
+    approved_by: str = ""
 
     def run(self, func: Callable[..., Any], *args: Any, **kwargs: Any) -> Any:
         """``func(*args, **kwargs)`` with this admission's caller (and admission) set for the call only."""
         tokens = (current_caller.set(self.caller), _call_id.set(self.call_id), _admitted.set(self.admitted))
+        by_token = _approved_by.set(self.approved_by)
         try:
             return func(*args, **kwargs)
         finally:
+            _approved_by.reset(by_token)
             _admitted.reset(tokens[2])
             _call_id.reset(tokens[1])
             current_caller.reset(tokens[0])
@@ -439,6 +457,7 @@ def admit_call(func: Callable[..., Any], owner: Any, args: Sequence[Any], kwargs
     on the worker (with the caller and the admission). Raises :class:`GuardrailRefused`.
     """
     admitted: tuple[int, str] | None = None
+    approved_by = ""
     guard = getattr(func, "_agents_action_guard", None)
     if isinstance(guard, ActionGuard) and guard.active:
         target = getattr(func, "__wrapped__", func)
@@ -451,7 +470,8 @@ def admit_call(func: Callable[..., Any], owner: Any, args: Sequence[Any], kwargs
             _AUDIT.write({**record, "decision": "refused", "outcome": str(exc)})
             raise
         admitted = (id(owner), action)
-    return Admission(current_caller.get(), _call_id.get(), admitted)
+        approved_by = str(record.get("approved_by", ""))
+    return Admission(current_caller.get(), _call_id.get(), admitted, approved_by)
 
 
 def run_guarded(func: Callable[..., Any], guard: ActionGuard | None, args: tuple[Any, ...],

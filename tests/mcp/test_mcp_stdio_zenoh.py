@@ -91,3 +91,34 @@ def test_stdio_lists_calls_refuses_and_an_approval_from_agentsctl_runs_it(zenoh_
         ("arm__move", "allowed"), ("arm__move", "refused"), ("arm__launch", "allowed"), ("arm__count", "allowed")]
     assert all(r["caller"] == "mcp" and r["time"] > 0 for r in records)
     assert "outside" in records[1]["outcome"]
+
+
+def test_stdio_elicitation_approves_a_call_held_in_another_process(zenoh_recipe, tmp_path):
+    """The client's own user decides (elicitation): the call is held by the recipe's process, and
+    ``agentsctl mcp`` settles it through that component's approvals service over Zenoh."""
+    import mcp_types as types  # noqa: PLC0415
+
+    audit = tmp_path / "audit.jsonl"
+    command = _agentsctl("mcp", "--transport", "zenoh", "--connect", zenoh_recipe, "--audit-log", str(audit))
+    params = StdioServerParameters(command=command[0], args=command[1:], cwd=str(ROOT), env=dict(os.environ))
+    asked: list[str] = []
+
+    async def answer(context, question):
+        asked.append(question.message)
+        return types.ElicitResult(action="accept", content={"approve": "bin" in question.message})
+
+    async def go():
+        async with Client(params, read_timeout_seconds=60, elicitation_callback=answer,
+                          client_info=types.Implementation(name="desk", version="1")) as client:
+            yes = await client.call_tool("arm__launch", {"target": "the bin"})
+            no = await client.call_tool("arm__launch", {"target": "the moon"})
+            return yes, no
+
+    yes, no = anyio.run(go)
+    assert len(asked) == 2
+    assert not yes.is_error and "launched at the bin" in yes.content[0].text
+    assert no.is_error and "denied by mcp elicitation (desk)" in no.content[0].text
+    records = [json.loads(line) for line in audit.read_text().splitlines()]
+    assert [(r["decision"], r["approval_decision"], r["decided_by"]) for r in records] == [
+        ("allowed", "approved", "mcp elicitation (desk)"),
+        ("refused", "denied (approve: false)", "mcp elicitation (desk)")]

@@ -5,9 +5,6 @@ A real uvicorn server on 127.0.0.1, real HTTP requests."""
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-from typing import Any
-
 import httpx
 import pytest
 
@@ -15,32 +12,17 @@ pytest.importorskip("uvicorn", reason="the ui extra is not installed (pip instal
 
 from agents_core import Launcher
 from agents_core.errors import ConfigError
-from agents_core.ui import LocalRecipe, UISettings
-from agents_core.ui.server import UIServer
+from agents_core.ui import UISettings
 from agents_core.ui.sessions import MAX_FAILURES
 
-from ..ui.ui_parts import SHOUTS, WORDS, shouter
+from ..ui.login_parts import TOKEN, token_server
 
 pytestmark = pytest.mark.timeout(60)
-TOKEN = "correct-horse-battery-staple"
-
-
-@pytest.fixture
-def running() -> Iterator[Launcher]:
-    launcher = Launcher("memory")
-    launcher.add_pkg(components=[shouter()])
-    with launcher:
-        yield launcher
-
-
-def _server(launcher: Launcher, **settings: Any) -> UIServer:
-    return UIServer(LocalRecipe(launcher.components), launcher.transport, inputs=[WORDS], outputs=[SHOUTS],
-                    settings=UISettings(port=0, token=TOKEN, **settings)).start()
 
 
 @pytest.mark.parametrize("token_json", ['"\\ud800"', '"abc\\udfffdef-long-enough"', '"\\ud83d\\ude00x"'])
 def test_a_lone_surrogate_token_is_a_clean_401(running: Launcher, token_json: str) -> None:
-    ui = _server(running)
+    ui = token_server(running)
     try:
         reply = httpx.post(f"{ui.url}api/login", content=f'{{"token": {token_json}}}'.encode(),
                            headers={"content-type": "application/json"}, timeout=10)
@@ -56,7 +38,7 @@ def test_a_lone_surrogate_token_is_a_clean_401(running: Launcher, token_json: st
 
 
 def test_x_forwarded_for_does_not_dodge_the_throttle(running: Launcher) -> None:
-    ui = _server(running)
+    ui = token_server(running)
     try:
         for i in range(MAX_FAILURES + 3):
             reply = httpx.post(f"{ui.url}api/login", json={"token": "guess" * 4},
@@ -68,7 +50,7 @@ def test_x_forwarded_for_does_not_dodge_the_throttle(running: Launcher) -> None:
 
 
 def test_x_forwarded_for_cannot_lock_another_address_out(running: Launcher) -> None:
-    ui = _server(running)
+    ui = token_server(running)
     victim = "203.0.113.7"
     try:
         for _ in range(MAX_FAILURES):
@@ -81,7 +63,7 @@ def test_x_forwarded_for_cannot_lock_another_address_out(running: Launcher) -> N
 
 
 def test_a_configured_proxy_is_believed(running: Launcher) -> None:
-    ui = _server(running, trusted_proxies=["127.0.0.1"])
+    ui = token_server(running, trusted_proxies=["127.0.0.1"])
     try:
         for i in range(MAX_FAILURES + 2):
             reply = httpx.post(f"{ui.url}api/login", json={"token": "guess" * 4},

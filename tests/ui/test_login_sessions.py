@@ -6,9 +6,7 @@ from __future__ import annotations
 import ssl
 import subprocess
 import time
-from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
 
 import httpx
 import pytest
@@ -17,31 +15,15 @@ pytest.importorskip("uvicorn", reason="the ui extra is not installed (pip instal
 
 from agents_core import Launcher
 from agents_core.errors import ConfigError
-from agents_core.ui import LocalRecipe, UISettings
+from agents_core.ui import UISettings
 from agents_core.ui.app import COOKIE_NAME
-from agents_core.ui.server import UIServer
 from agents_core.ui.sessions import MAX_FAILURES
 
-from .ui_parts import SHOUTS, WORDS, shouter
-
-TOKEN = "correct-horse-battery-staple"
-
-
-@pytest.fixture
-def running() -> Iterator[Launcher]:
-    launcher = Launcher("memory")
-    launcher.add_pkg(components=[shouter()])
-    with launcher:
-        yield launcher
-
-
-def _server(launcher: Launcher, **settings: Any) -> UIServer:
-    return UIServer(LocalRecipe(launcher.components), launcher.transport, inputs=[WORDS], outputs=[SHOUTS],
-                    settings=UISettings(port=0, token=TOKEN, **settings)).start()
+from .login_parts import TOKEN, token_server
 
 
 def test_the_cookie_is_an_opaque_expiring_session_not_the_token(running: Launcher) -> None:
-    ui = _server(running)
+    ui = token_server(running)
     try:
         with httpx.Client(base_url=ui.url, timeout=10) as client:
             assert client.get("api/interfaces").status_code == 401
@@ -64,7 +46,7 @@ def test_the_cookie_is_an_opaque_expiring_session_not_the_token(running: Launche
 
 
 def test_a_session_expires(running: Launcher) -> None:
-    ui = _server(running, session_seconds=1.0)
+    ui = token_server(running, session_seconds=1.0)
     try:
         with httpx.Client(base_url=ui.url, timeout=10) as client:
             assert client.post("api/login", json={"token": TOKEN}).status_code == 200
@@ -78,7 +60,7 @@ def test_a_session_expires(running: Launcher) -> None:
 
 
 def test_wrong_tokens_are_throttled_per_address(running: Launcher) -> None:
-    ui = _server(running)
+    ui = token_server(running)
     try:
         for _ in range(MAX_FAILURES):
             assert httpx.post(f"{ui.url}api/login", json={"token": "guess" * 4}, timeout=10).status_code == 401
@@ -92,7 +74,7 @@ def test_wrong_tokens_are_throttled_per_address(running: Launcher) -> None:
 
 
 def test_wrong_bearer_tokens_count_too(running: Launcher) -> None:
-    ui = _server(running)
+    ui = token_server(running)
     try:
         for _ in range(MAX_FAILURES):
             reply = httpx.get(f"{ui.url}api/health", headers={"authorization": "Bearer nope-nope-nope-nope"},
@@ -123,7 +105,7 @@ def test_tls_serves_https_with_a_secure_cookie(running: Launcher, tmp_path: Path
     if shutil.which("openssl") is None:
         pytest.skip("openssl is not installed (it makes the test certificate)")
     cert, key = _certificate(tmp_path)
-    ui = _server(running, tls_certfile=cert, tls_keyfile=key)
+    ui = token_server(running, tls_certfile=cert, tls_keyfile=key)
     try:
         assert ui.url.startswith("https://127.0.0.1:")
         trusted = ssl.create_default_context(cafile=cert)

@@ -7,18 +7,17 @@ ROS 2) in its own process
 
 from __future__ import annotations
 
-import argparse
-import signal
 import sys
-import threading
 from typing import Any
 
 import numpy as np
 
-from agents_core import Launcher, Topic
+from agents_core import Topic
 from agents_core.actions import component_action
 from agents_core.components import Component
 from agents_core.ros import Image, String
+
+from ..serve_recipe import serve
 
 WORDS = Topic("words", "String")
 SHOUTS = Topic("shouts", "String")
@@ -64,21 +63,7 @@ def shouter(name: str = "shouter") -> Shouter:
 
 
 def main() -> int:
-    parser = argparse.ArgumentParser()
-    parser.add_argument("--transport", default="zenoh", choices=["zenoh", "ros2"])
-    parser.add_argument("--listen", help="the Zenoh endpoint (tcp/127.0.0.1:PORT)")
-    args = parser.parse_args()
-    options = ({"mode": "peer", "listen": [args.listen], "connect": [], "multicast_scouting": False}
-               if args.transport == "zenoh" else {})
-    launcher = Launcher(args.transport, transport_options=options)
-    launcher.add_pkg(components=[shouter()])
-    stop = threading.Event()
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(sig, lambda *_: stop.set())
-    with launcher:
-        print("READY", flush=True)
-        stop.wait(300)  # bounded: the test stops it long before
-    return 0
+    return serve(lambda: [shouter()])
 
 
 if __name__ == "__main__":

@@ -128,7 +128,7 @@ class McpRemoteTool:
             entry = properties.get(argument) if isinstance(properties, dict) else None
             if isinstance(entry, dict):
                 entry["minimum"], entry["maximum"] = low, high
-        self.description = {"type": "function", "function": {
+        self.description: dict[str, Any] = {"type": "function", "function": {
             "name": self.__name__, "description": description[:2000], "parameters": parameters}}
 
         def invoke(self: McpRemoteTool, **arguments: Any) -> Any:

@@ -159,6 +159,9 @@ class McpBridge:
             from ..topics import Topic  # noqa: PLC0415
 
             self._audit_publisher = transport.create_publisher(Topic(audit_topic, "String"))
+        from .elicit import ApprovalAsker  # noqa: PLC0415
+
+        self._asker = ApprovalAsker(self)
         self.server = self._build(name)
 
     # -- the MCP server ---------------------------------------------------------------------
@@ -179,6 +182,8 @@ class McpBridge:
                 tool = await anyio.to_thread.run_sync(self.catalog.find, params.name)
                 if tool.goal_type is not None:
                     return await self._run_goal(ctx, tool, params.arguments)
+                if self.approval_wait(tool) and self._asker.can_ask(ctx, params):
+                    return await self._asker.call(ctx, tool, params)  # the client asks its user
                 result = await anyio.to_thread.run_sync(self.call, params.name, params.arguments)
             except AgentsError as exc:
                 return types.CallToolResult(content=[types.TextContent(type="text", text=_text(str(exc)))],
@@ -289,23 +294,28 @@ class McpBridge:
 
     # -- what the handlers do (blocking: they run on worker threads) --------------------------
 
-    def call(self, name: str, arguments: dict[str, Any] | None) -> Any:
-        """Run the tool ``name``; AgentsError when it is unknown, refused or fails (each call audited)."""
+    def call(self, name: str, arguments: dict[str, Any] | None, *, call_id: str | None = None,
+             approval: dict[str, Any] | None = None) -> Any:
+        """Run the tool ``name``; AgentsError when it is unknown, refused or fails (each call audited).
+
+        ``call_id``: the approval id of the held call (an elicitation decides it); ``approval``:
+        how it was decided (filled in while the call waits; added to the audit record).
+        """
         from ..guardrails import GuardrailRefused  # noqa: PLC0415
 
         record: dict[str, Any] = {"caller": "mcp", "tool": str(name)[:200],
                                   "arguments": _text(arguments)[:2000] if arguments is not None else None}
         try:
-            result = self._call(name, arguments)
+            result = self._call(name, arguments, call_id)
         except (GuardrailRefused, ConfigError) as exc:
-            self._write_audit({**record, "decision": "refused", "outcome": str(exc)[:500]})
+            self._write_audit({**record, **(approval or {}), "decision": "refused", "outcome": str(exc)[:500]})
             raise
         except AgentsError as exc:
             refused = "did not run" in str(exc) or "denied" in str(exc)
-            self._write_audit({**record, "decision": "refused" if refused else "allowed",
+            self._write_audit({**record, **(approval or {}), "decision": "refused" if refused else "allowed",
                                "outcome": f"error: {exc}"[:500]})
             raise
-        self._write_audit({**record, "decision": "allowed", "outcome": "ok"})
+        self._write_audit({**record, **(approval or {}), "decision": "allowed", "outcome": "ok"})
         return result
 
     def _write_audit(self, record: dict[str, Any]) -> None:
@@ -316,7 +326,13 @@ class McpBridge:
             except AgentsError:
                 logger.warning("audit record not published on the audit topic")
 
-    def _call(self, name: str, arguments: dict[str, Any] | None) -> Any:
+    def approval_wait(self, tool: McpTool) -> float:
+        """The longest a call of ``tool`` waits for its approval (0: it needs none)."""
+        if not tool.guardrails.get("approval"):
+            return 0.0
+        return min(self.approval_timeout, float(tool.guardrails.get("approval_timeout", self.approval_timeout)))
+
+    def _call(self, name: str, arguments: dict[str, Any] | None, call_id: str | None = None) -> Any:
         tool = self.catalog.find(name)
         state = self.catalog.state(tool.component)
         if state != "active":
@@ -324,12 +340,10 @@ class McpBridge:
             raise ConfigError(f"tool {name!r}: component {tool.component!r} is {state}, not active; not run")
         if arguments is not None and not isinstance(arguments, dict):
             raise ConfigError(f"tool {name!r}: arguments must be an object")
-        needs_approval = bool(tool.guardrails.get("approval"))
-        wait = min(self.approval_timeout, float(tool.guardrails.get("approval_timeout", self.approval_timeout))) \
-            if needs_approval else 0.0
+        wait = self.approval_wait(tool)
         return self.catalog.call(tool, arguments, timeout=self.tool_timeout + wait,
-                                 call_id=uuid.uuid4().hex[:12] if needs_approval else None,
-                                 approval_timeout=wait if needs_approval else None)
+                                 call_id=(call_id or uuid.uuid4().hex[:12]) if wait else None,
+                                 approval_timeout=wait if wait else None)
 
     def read(self, uri: str) -> tuple[str, str | bytes]:
         """A resource's (mime type, text or bytes)."""

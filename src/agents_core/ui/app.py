@@ -45,6 +45,7 @@ from starlette.websockets import WebSocket, WebSocketDisconnect
 from ..errors import AgentsError, RemoteError, RequestTimeoutError, ServiceUnavailableError
 from ..status import TRANSITIONS
 from ..topics import Topic
+from .approvals import approval_routes
 from .body_guard import BodyGuard
 from .hub import OutputHub
 from .inputs import InputRejected, input_widget, read_bounded_body, value_for_topic
@@ -289,7 +290,8 @@ def _routes(state: UIState) -> list[Any]:  # noqa: PLR0915  (one closure per end
         args, kwargs = document.get("args", []), document.get("kwargs", {})
         if not isinstance(args, list) or not isinstance(kwargs, dict):
             return _error(422, "'args' must be a list and 'kwargs' an object")
-        payload = {"method": method, "args": args, "kwargs": kwargs, "timeout": settings.request_timeout}
+        payload = {"method": method, "args": args, "kwargs": kwargs, "timeout": settings.request_timeout,
+                   "caller": "ui"}
         try:
             reply = await run_in_threadpool(state.transport.request, f"{name}/execute_method", payload,
                                             timeout=settings.request_timeout + 1.0)
@@ -334,6 +336,7 @@ def _routes(state: UIState) -> list[Any]:  # noqa: PLR0915  (one closure per end
         Route("/api/login", _guarded(state, login, needs_token=False), methods=["POST"]),
         Route("/api/logout", _guarded(state, logout, needs_token=False), methods=["POST"]),
         WebSocketRoute("/api/outputs", _outputs_socket(state)),
+        *approval_routes(state, lambda endpoint: _guarded(state, endpoint), _json_body, _address),
         Mount("/static", StaticFiles(directory=STATIC), name="static"),
     ]
 

@@ -97,6 +97,7 @@ class Cortex(ModelComponent):
             raise WiringError(f"component {self.component_name!r}: config.enable_rag needs a db_client")
         self._tools = ToolBox()
         self._tools.add(self._inspect_tool([]))
+        self._mcp_boxes: list[Any] = []  # connections to config.mcp_servers, open while configured
         for action in actions or []:
             self._add_action(action)
         self._described: dict[str, dict[str, Any]] = {}
@@ -222,6 +223,10 @@ class Cortex(ModelComponent):
     def _research(self, tool: Tool, arguments: dict[str, Any]) -> str:
         if tool.kind == "inspect":
             return self.inspect_component(str(arguments.get("component", "")))
+        if tool.kind == "mcp":
+            from .mcp_tools import call_mcp_tool  # noqa: PLC0415
+
+            return call_mcp_tool(tool, arguments)
         assert self._dispatcher is not None and tool.component is not None
         return self._dispatcher.call_component(tool.component, tool.target, arguments)
 
@@ -274,6 +279,21 @@ class Cortex(ModelComponent):
         threading.Thread(target=send, name=f"{self.component_name}-task-text", daemon=True).start()
 
     # -- lifecycle ----------------------------------------------------------------------------------
+
+    def custom_on_configure(self) -> None:
+        super().custom_on_configure()
+        from .mcp_tools import connect_mcp_servers, disconnect_mcp_servers  # noqa: PLC0415
+
+        disconnect_mcp_servers(self._mcp_boxes, self._tools)  # an earlier configure's
+        self._mcp_boxes = connect_mcp_servers(self.config.mcp_servers, self._tools, self.config.planning_tools,
+                                              self._logger)
+
+    def custom_on_shutdown(self) -> None:
+        from .mcp_tools import disconnect_mcp_servers  # noqa: PLC0415
+
+        boxes, self._mcp_boxes = self._mcp_boxes, []
+        disconnect_mcp_servers(boxes, self._tools)
+        super().custom_on_shutdown()
 
     def custom_on_activate(self) -> None:
         super().custom_on_activate()

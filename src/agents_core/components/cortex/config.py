@@ -54,6 +54,9 @@ class CortexConfig(LLMConfig):
         default); past it the task is aborted, its goals canceled, and the next task accepted.
     :param max_confirmation_rounds: how many times in a row the confirmation model may answer
         CONTINUE for one step (20 by default); one more is an ABORT of the task.
+    :param mcp_servers: (from :class:`LLMConfig`) MCP servers whose tools the planner is offered
+        as ``<server>__<tool>`` plan steps (research tools when named in ``planning_tools``), under
+        their guardrails (``allow``, ``limits``, ``approval``, ``rate_limit``); connected at configure.
     :param recipe_components: set by the Launcher (the names of the recipe's components); leave it
         None and use ``allowed_components``.
 

@@ -70,6 +70,10 @@ class Dispatcher:
                 return self._call_component(tool, arguments)
             if tool.kind == "goal":
                 return self._send_goal(tool, arguments)
+            if tool.kind == "mcp":
+                from .mcp_tools import call_mcp_tool  # noqa: PLC0415
+
+                return _text(call_mcp_tool(tool, arguments))
         except StepFailed:
             raise
         except Exception as exc:

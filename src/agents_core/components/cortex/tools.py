@@ -8,7 +8,9 @@ A :class:`Tool` is one thing the model may name in a tool call:
   ``"<component>.<method>"``, called through the component's ``execute_method`` service;
 - ``"goal"``: a goal to an action-server component, named ``"<component>.send_goal"``, its
   parameters the fields of the action type's goal;
-- ``"inspect"``: the built-in ``inspect_component`` research tool.
+- ``"inspect"``: the built-in ``inspect_component`` research tool;
+- ``"mcp"``: a tool of an MCP server of ``CortexConfig.mcp_servers`` (``action`` is its
+  :class:`~agents_core.mcp.client.McpRemoteTool`), named ``"<server>__<tool>"``.
 
 Arguments a model writes are checked against the tool's JSON schema (:func:`schema_errors`, the
 subset tool descriptions use: ``type``, ``properties``, ``required``, ``additionalProperties``,
@@ -153,6 +155,10 @@ class ToolBox:
             return False
         self._tools[tool.name] = tool
         return True
+
+    def remove_where(self, condition: Any) -> None:
+        """Remove every tool for which ``condition(tool)`` is true."""
+        self._tools = {n: t for n, t in self._tools.items() if not condition(t)}
 
     def get(self, name: str) -> Tool | None:
         """The tool called ``name``, or None."""
