@@ -19,7 +19,6 @@ from agents_core.clients import OllamaClient
 from agents_core.components import LLM
 from agents_core.models import OllamaModel
 from agents_core.supported_types import String
-
 from tests.components.recipe_main import serve, transport_options
 
 QUESTION = Topic(name="otel/question", msg_type="String")

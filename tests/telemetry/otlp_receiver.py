@@ -23,7 +23,7 @@ from opentelemetry.proto.collector.trace.v1.trace_service_pb2 import (
     ExportTraceServiceResponse,
 )
 
-__all__ = ["MAX_BODY", "OtlpReceiver", "ReceivedSpan"]
+__all__ = ["MAX_BODY", "OtlpGrpcReceiver", "OtlpReceiver", "ReceivedSpan"]
 
 MAX_BODY = 16 * 1024 * 1024
 
@@ -160,3 +160,48 @@ class OtlpReceiver:
         """(service, metric message) of each export of metric ``name``."""
         with self._lock:
             return [(s, m) for s, n, m in self._metrics if n == name]
+
+
+class OtlpGrpcReceiver(OtlpReceiver):
+    """The same over OTLP/gRPC: a real ``grpc`` server on 127.0.0.1 with the collector's trace and metrics services."""
+
+    def __init__(self) -> None:
+        import concurrent.futures  # noqa: PLC0415
+
+        import grpc  # noqa: PLC0415
+        from opentelemetry.proto.collector.metrics.v1 import metrics_service_pb2_grpc  # noqa: PLC0415
+        from opentelemetry.proto.collector.trace.v1 import trace_service_pb2_grpc  # noqa: PLC0415
+
+        self._lock = threading.Lock()
+        self._spans = []
+        self._metrics = []
+        self.requests = 0
+        receiver = self
+
+        class Traces(trace_service_pb2_grpc.TraceServiceServicer):  # type: ignore[misc]
+            def Export(self, request: Any, context: Any) -> Any:
+                receiver.add_traces(request)
+                return ExportTraceServiceResponse()
+
+        class Metrics(metrics_service_pb2_grpc.MetricsServiceServicer):  # type: ignore[misc]
+            def Export(self, request: Any, context: Any) -> Any:
+                receiver.add_metrics(request)
+                return ExportMetricsServiceResponse()
+
+        self._pool = concurrent.futures.ThreadPoolExecutor(max_workers=2)
+        self._grpc = grpc.server(self._pool)
+        trace_service_pb2_grpc.add_TraceServiceServicer_to_server(Traces(), self._grpc)
+        metrics_service_pb2_grpc.add_MetricsServiceServicer_to_server(Metrics(), self._grpc)
+        self._port = self._grpc.add_insecure_port("127.0.0.1:0")
+
+    @property
+    def endpoint(self) -> str:
+        return f"http://127.0.0.1:{self._port}"
+
+    def __enter__(self) -> OtlpGrpcReceiver:
+        self._grpc.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._grpc.stop(grace=None).wait(5)
+        self._pool.shutdown(wait=True)

@@ -13,12 +13,11 @@ import collections
 import json
 import os
 import time
-from typing import TYPE_CHECKING, Any
+from collections.abc import Mapping
+from typing import Any, Protocol
 
 from ..telemetry.process import CpuMeter, process_figures
-
-if TYPE_CHECKING:
-    from .component_runtime import ComponentRuntime
+from .worker import WorkerStatistics
 
 __all__ = ["STATS_FIELDS", "StepFigures", "percentile"]
 
@@ -28,6 +27,16 @@ STATS_FIELDS = ("steps", "rate_hz", "p50_ms", "p99_ms", "model_ms", "drops", "re
 WINDOW = 512
 #: The step rate is computed over at least this long (faster reports reuse the last rate).
 MIN_RATE_WINDOW_S = 0.5
+
+
+class _Counted(Protocol):
+    """What the figures read from a component's runtime."""
+
+    def worker_statistics(self) -> WorkerStatistics: ...
+
+    def input_statistics(self) -> Mapping[str, Any]: ...
+
+    def model_latency_ms(self) -> float | None: ...
 
 
 def percentile(sorted_values: list[float], q: float) -> float:
@@ -44,13 +53,12 @@ class StepFigures:
     def __init__(self) -> None:
         self.durations: collections.deque[float] = collections.deque(maxlen=WINDOW)
         self.add = self.durations.append
-        self.steps = 0
         self.activations = 0
         self._rate = 0.0
         self._last = (time.monotonic(), 0)
         self._cpu = CpuMeter()
 
-    def document(self, runtime: ComponentRuntime) -> dict[str, Any]:
+    def document(self, runtime: _Counted) -> dict[str, Any]:
         """The figures now, as the ``stats`` document (see the module docstring)."""
         now = time.monotonic()
         steps = runtime.worker_statistics().executed
@@ -66,6 +74,6 @@ class StepFigures:
                 "drops": drops, "restarts": max(0, self.activations - 1), "cpu": round(self._cpu.share(process), 3),
                 "rss_mb": round(process.rss_bytes / 2**20, 1), "pid": os.getpid()}
 
-    def text(self, runtime: ComponentRuntime) -> str:
+    def text(self, runtime: _Counted) -> str:
         """:meth:`document` as compact JSON."""
         return json.dumps(self.document(runtime), separators=(",", ":"))

@@ -87,8 +87,7 @@ class CorePublisher:
         self._validate = topic.validator()  # its TypeValidationError names the topic
         self._count_lock = transport._counters.lock
         self._totals = transport._counters.live(topic.name)
-        # Status publications are not traced (a span a second per component, outside any trace).
-        self._traced = topic.msg_type is not ComponentStatus
+        self._traced = topic.msg_type is not ComponentStatus  # statuses: no span a second outside any trace
 
     @property
     def sender(self) -> DriverPublisher:
@@ -104,8 +103,7 @@ class CorePublisher:
         with self._count_lock:
             self._totals.published += 1
         try:
-            tel = _telemetry.hooks
-            if tel is None or not self._traced:
+            if (tel := _telemetry.hooks) is None or not self._traced:
                 self._sender.send(value)
             else:  # current while the driver sends: it carries the span's context with the value
                 with tel.publish(self.topic.name):
