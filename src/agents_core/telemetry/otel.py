@@ -1,4 +1,4 @@
-"""The OpenTelemetry hooks: spans and metrics of one process (imported only when telemetry is on).
+"""The OpenTelemetry hooks of one process: spans and metrics, exported over OTLP (imported only when on).
 
 Spans (one trace from a message to the messages it caused, across processes):
 
@@ -9,42 +9,49 @@ Spans (one trace from a message to the messages it caused, across processes):
 - ``publish <topic>`` (PRODUCER): a value sent; its context goes with the message;
 - ``model <name>`` (CLIENT): one model call with ``gen_ai.*`` attributes (model, client, tokens
   in and out where the client reports them, time to first token for a stream);
-- ``tool <name>``, ``action <name>``, ``goal <action>``: tool calls, component actions, goals.
+- ``tool <name>``, ``action <name>``, ``goal <action>``: tool calls, actions, goals.
 
-Metrics: ``agents.step.duration`` (histogram, s, per component), ``agents.model.duration`` and
+They are recorded by :mod:`agents_core.telemetry.spans` (a few µs each) and exported in batches
+from a thread of this module (``OTEL_BSP_SCHEDULE_DELAY``, ``OTEL_BSP_MAX_EXPORT_BATCH_SIZE``,
+``OTEL_BSP_MAX_QUEUE_SIZE``) through the OTLP exporter of the chosen protocol.
+
+Metrics (the SDK's ``MeterProvider``, exported every ``OTEL_METRIC_EXPORT_INTERVAL``):
+``agents.step.duration`` (histogram, s, per component), ``agents.model.duration`` and
 ``agents.model.time_to_first_token`` (histograms, s, per model), ``agents.topic.published`` /
-``.delivered`` / ``.dropped`` (counters per topic, read from the transports' statistics when
-exported), ``agents.component.queue_depth`` (steps waiting per component), ``agents.component.steps``,
-``process.cpu.time`` and ``process.memory.usage`` (this process). Reading them costs nothing per
-message: they are observed from counters the runtime keeps anyway, at each export.
+``.delivered`` / ``.dropped`` (per topic) and ``agents.component.steps`` /
+``agents.component.queue_depth`` (per component), read from the counters the runtime keeps anyway,
+``agents.telemetry.spans_dropped``, ``process.cpu.time`` and ``process.memory.usage``. A step's
+duration costs a deque append on the step's thread; the histogram gets them at each collection.
 """
 
 from __future__ import annotations
 
+import collections
+import contextlib
 import os
+import threading
 import time
 from collections.abc import Iterable, Iterator, Mapping
 from typing import Any
 
-from opentelemetry import context as otel_context
-from opentelemetry import trace
 from opentelemetry.metrics import CallbackOptions, Observation
 from opentelemetry.sdk.metrics import MeterProvider
 from opentelemetry.sdk.metrics.export import PeriodicExportingMetricReader
 from opentelemetry.sdk.resources import Resource
-from opentelemetry.sdk.trace import TracerProvider
-from opentelemetry.sdk.trace.export import BatchSpanProcessor
-from opentelemetry.trace import SpanKind
-from opentelemetry.trace.propagation.tracecontext import TraceContextTextMapPropagator
+from opentelemetry.sdk.trace import ReadableSpan
+from opentelemetry.sdk.util.instrumentation import InstrumentationScope
+from opentelemetry.trace import SpanContext, SpanKind, Status, StatusCode, TraceFlags
 
 from . import switch
 from .process import process_figures
 from .settings import TelemetrySettings
+from .spans import CLIENT, CONSUMER, PRODUCER, FinishedSpan, SpanRecorder, parse_traceparent, sampling_ratio
 
 __all__ = ["OtelHooks"]
 
-_CONSUMER, _PRODUCER, _CLIENT = SpanKind.CONSUMER, SpanKind.PRODUCER, SpanKind.CLIENT
-_INVALID = trace.INVALID_SPAN_CONTEXT
+_KINDS = {k.value: k for k in SpanKind}
+_SAMPLED = TraceFlags(TraceFlags.SAMPLED)
+_SCOPE = InstrumentationScope("agents_core")
 
 
 def _exporters(settings: TelemetrySettings) -> tuple[Any, Any]:
@@ -68,24 +75,11 @@ def _exporters(settings: TelemetrySettings) -> tuple[Any, Any]:
     return HttpSpanExporter(), HttpMetricExporter()
 
 
-class _Timed:
-    """A current span that also records its duration in a histogram."""
-
-    __slots__ = ("_attributes", "_cm", "_histogram", "_start")
-
-    def __init__(self, cm: Any, histogram: Any, attributes: Mapping[str, Any]) -> None:
-        self._cm = cm
-        self._histogram = histogram
-        self._attributes = attributes
-        self._start = 0.0
-
-    def __enter__(self) -> Any:
-        self._start = time.perf_counter()
-        return self._cm.__enter__()
-
-    def __exit__(self, *exc: Any) -> Any:
-        self._histogram.record(time.perf_counter() - self._start, self._attributes)
-        return self._cm.__exit__(*exc)
+def _env_int(name: str, default: int) -> int:
+    try:
+        return max(1, int(os.environ.get(name, default)))
+    except ValueError:
+        return default
 
 
 class _ModelCall:
@@ -94,24 +88,22 @@ class _ModelCall:
     def __init__(self, hooks: OtelHooks, model: str, client: str) -> None:
         self._hooks = hooks
         self._attributes = {"gen_ai.request.model": model, "gen_ai.system": client}
-        self._span: Any = None
+        self._span = hooks.recorder.span(f"model {model}", CLIENT, dict(self._attributes))
         self._start = 0.0
         self._streaming = False
 
     def __enter__(self) -> _ModelCall:
         self._start = time.perf_counter()
-        self._span = self._hooks.tracer.start_span(f"model {self._attributes['gen_ai.request.model']}",
-                                                   kind=_CLIENT, attributes=self._attributes)
+        self._span.__enter__()
         return self
 
     def record(self, result: Any, usage: Mapping[str, Any] | None = None) -> Any:
         """Add what ``result`` (and the client's ``usage``) tell; returns the result, its stream wrapped."""
-        span = self._span
         tokens_in, tokens_out = _tokens(result, usage)
         if tokens_in is not None:
-            span.set_attribute("gen_ai.usage.input_tokens", tokens_in)
+            self._span.set_attribute("gen_ai.usage.input_tokens", tokens_in)
         if tokens_out is not None:
-            span.set_attribute("gen_ai.usage.output_tokens", tokens_out)
+            self._span.set_attribute("gen_ai.usage.output_tokens", tokens_out)
         output = result.get("output") if isinstance(result, Mapping) else None
         if output is not None and not isinstance(output, str | bytes) and isinstance(output, Iterator):
             self._streaming = True
@@ -119,12 +111,10 @@ class _ModelCall:
         return result
 
     def _timed_stream(self, chunks: Iterator[Any]) -> Iterator[Any]:
-        first = True
         count = 0
         try:
             for chunk in chunks:
-                if first:
-                    first = False
+                if count == 0:
                     ttft = time.perf_counter() - self._start
                     self._span.set_attribute("gen_ai.response.time_to_first_token", ttft)
                     self._hooks.ttft.record(ttft, self._attributes)
@@ -132,18 +122,16 @@ class _ModelCall:
                 yield chunk
         finally:
             self._span.set_attribute("gen_ai.response.chunks", count)
-            self._end()
+            self._end(None)
 
-    def _end(self) -> None:
+    def _end(self, exc: BaseException | None) -> None:
         self._hooks.model_duration.record(time.perf_counter() - self._start, self._attributes)
-        self._span.end()
+        self._span.__exit__(type(exc) if exc is not None else None, exc, None)
 
     def __exit__(self, kind: Any, exc: Any, tb: Any) -> None:
-        if exc is not None:
-            self._span.record_exception(exc)
-            self._span.set_status(trace.Status(trace.StatusCode.ERROR, f"{type(exc).__name__}: {exc}"))
+        # A stream's span ends with the stream (its consumer's step), a call's here.
         if exc is not None or not self._streaming:
-            self._end()
+            self._end(exc)
 
 
 def _tokens(result: Any, usage: Mapping[str, Any] | None) -> tuple[int | None, int | None]:
@@ -162,6 +150,26 @@ def _tokens(result: Any, usage: Mapping[str, Any] | None) -> tuple[int | None, i
     return tokens_in, tokens_out
 
 
+class _Step:
+    """A step's span; its duration goes to the step histogram's queue."""
+
+    __slots__ = ("_durations", "_name", "_span", "_start")
+
+    def __init__(self, span: Any, durations: collections.deque[tuple[str, float]], name: str) -> None:
+        self._span = span
+        self._durations = durations
+        self._name = name
+        self._start = 0.0
+
+    def __enter__(self) -> Any:
+        self._start = time.perf_counter()
+        return self._span.__enter__()
+
+    def __exit__(self, *exc: Any) -> None:
+        self._durations.append((self._name, time.perf_counter() - self._start))
+        self._span.__exit__(*exc)
+
+
 class OtelHooks:
     """Spans and metrics of this process, exported over OTLP (see the module docstring)."""
 
@@ -171,80 +179,103 @@ class OtelHooks:
             attributes["agents.component"] = component
         if settings.service_name or not os.environ.get("OTEL_SERVICE_NAME"):
             attributes["service.name"] = settings.service_name or service_name
-        resource = Resource.create(attributes)
-        span_exporter, metric_exporter = _exporters(settings)
-        self._tracer_provider = TracerProvider(resource=resource)
-        self._tracer_provider.add_span_processor(BatchSpanProcessor(span_exporter))
+        self._resource = Resource.create(attributes)
+        self._span_exporter, metric_exporter = _exporters(settings)
+        self.recorder = SpanRecorder(sampling_ratio(settings.sample_ratio), _env_int("OTEL_BSP_MAX_QUEUE_SIZE", 8192))
+        self.recorder.batch_size = _env_int("OTEL_BSP_MAX_EXPORT_BATCH_SIZE", 512)
+        self._delay_s = _env_int("OTEL_BSP_SCHEDULE_DELAY", 5000) / 1000.0
+        self._stop = threading.Event()
+        self._export_lock = threading.Lock()
+        self._thread = threading.Thread(target=self._export_loop, name="agents-telemetry", daemon=True)
+        self._thread.start()
         interval = settings.metrics_interval_s
         reader = PeriodicExportingMetricReader(
             metric_exporter, export_interval_millis=None if interval is None else interval * 1000.0)
-        self._meter_provider = MeterProvider(resource=resource, metric_readers=[reader])
-        self.tracer = self._tracer_provider.get_tracer("agents_core")
+        self._meter_provider = MeterProvider(resource=self._resource, metric_readers=[reader])
         meter = self._meter_provider.get_meter("agents_core")
+        self._step_durations: collections.deque[tuple[str, float]] = collections.deque(maxlen=100_000)
         self.step_duration = meter.create_histogram("agents.step.duration", unit="s",
                                                     description="time of one execution step")
         self.model_duration = meter.create_histogram("agents.model.duration", unit="s",
                                                      description="time of one model call")
         self.ttft = meter.create_histogram("agents.model.time_to_first_token", unit="s",
                                            description="time to the first chunk of a streamed answer")
-        for name, read in (("published", "published"), ("delivered", "delivered"), ("dropped", "dropped")):
-            meter.create_observable_counter(f"agents.topic.{name}", callbacks=[self._topic_reader(read)],
+        for name in ("published", "delivered", "dropped"):
+            meter.create_observable_counter(f"agents.topic.{name}", callbacks=[self._topic_reader(name)],
                                             description=f"values {name} per topic")
         meter.create_observable_gauge("agents.component.queue_depth", callbacks=[self._queue_depths],
                                       description="steps waiting (and running) per component")
         meter.create_observable_counter("agents.component.steps", callbacks=[self._steps],
                                         description="steps run per component")
+        meter.create_observable_counter("agents.telemetry.spans_dropped", callbacks=[self._spans_dropped],
+                                        description="spans dropped because the export queue was full")
         meter.create_observable_counter("process.cpu.time", unit="s", callbacks=[self._cpu],
                                         description="CPU time of this process")
         meter.create_observable_gauge("process.memory.usage", unit="By", callbacks=[self._rss],
                                       description="resident memory of this process")
-        self._propagator = TraceContextTextMapPropagator()
-        self._step_attributes: dict[str, dict[str, str]] = {}
 
     # -- the hooks (agents_core.telemetry.switch.Hooks) ----------------------------------------
 
     def enter_remote(self, traceparent: str | None) -> object:
-        if not traceparent:
-            return None
-        return otel_context.attach(self._propagator.extract({"traceparent": traceparent}))
+        context = parse_traceparent(traceparent)
+        return None if context is None else self.recorder.enter(context)
 
     def leave(self, token: object) -> None:
         if token is not None:
-            otel_context.detach(token)  # type: ignore[arg-type]  # the token enter_remote made
+            self.recorder.leave(token)  # type: ignore[arg-type]  # the token enter_remote made
 
     def receive(self, topic: str) -> Any:
-        return self.tracer.start_as_current_span(f"receive {topic}", kind=_CONSUMER,
-                                                 attributes={"messaging.destination.name": topic})
+        return self.recorder.span(f"receive {topic}", CONSUMER, {"messaging.destination.name": topic})
 
     def capture(self) -> object:
-        return otel_context.get_current()
+        return self.recorder.current.get()
 
     def step(self, component: str, context: object) -> Any:
-        attributes = self._step_attributes.get(component)
-        if attributes is None:
-            attributes = self._step_attributes[component] = {"agents.component": component}
-        cm = self.tracer.start_as_current_span(f"step {component}", context=context,  # type: ignore[arg-type]
-                                               attributes=attributes)
-        return _Timed(cm, self.step_duration, attributes)
+        span = self.recorder.span(f"step {component}", attributes={"agents.component": component},
+                                  parent=context)  # type: ignore[arg-type]  # what capture() returned
+        return _Step(span, self._step_durations, component)
 
     def publish(self, topic: str) -> Any:
-        return self.tracer.start_as_current_span(f"publish {topic}", kind=_PRODUCER,
-                                                 attributes={"messaging.destination.name": topic})
+        return self.recorder.span(f"publish {topic}", PRODUCER, {"messaging.destination.name": topic})
 
     def traceparent(self) -> str | None:
-        ctx = trace.get_current_span().get_span_context()
-        if not ctx.is_valid:
-            return None
-        return f"00-{ctx.trace_id:032x}-{ctx.span_id:016x}-{int(ctx.trace_flags):02x}"
+        return self.recorder.traceparent()
 
     def model_call(self, model: str, client: str) -> _ModelCall:
         return _ModelCall(self, model, client)
 
     def call(self, kind: str, name: str, attributes: Mapping[str, Any] | None = None) -> Any:
-        return self.tracer.start_as_current_span(f"{kind} {name}", attributes={f"agents.{kind}": name,
-                                                                               **(attributes or {})})
+        return self.recorder.span(f"{kind} {name}", attributes={f"agents.{kind}": name, **(attributes or {})})
 
-    # -- metrics read at export ------------------------------------------------------------------
+    # -- spans out ---------------------------------------------------------------------------------
+
+    def _readable(self, span: FinishedSpan) -> ReadableSpan:
+        parent = None
+        if span.parent_id:
+            parent = SpanContext(span.trace_id, span.parent_id, is_remote=span.remote_parent, trace_flags=_SAMPLED)
+        status = Status(StatusCode.ERROR, span.error) if span.error is not None else Status(StatusCode.UNSET)
+        return ReadableSpan(name=span.name, context=SpanContext(span.trace_id, span.span_id, is_remote=False,
+                                                                trace_flags=_SAMPLED),
+                            parent=parent, resource=self._resource, attributes=span.attributes,
+                            kind=_KINDS.get(span.kind, SpanKind.INTERNAL), start_time=span.start_ns,
+                            end_time=span.end_ns, status=status, instrumentation_scope=_SCOPE)
+
+    def _export_some(self) -> int:
+        with self._export_lock:
+            batch = self.recorder.drain(self.recorder.batch_size)
+            if batch:
+                with contextlib.suppress(Exception):  # an exporter that fails logs it; the spans are lost
+                    self._span_exporter.export([self._readable(s) for s in batch])
+            return len(batch)
+
+    def _export_loop(self) -> None:
+        while not self._stop.is_set():
+            self.recorder.ready.wait(self._delay_s)
+            self.recorder.ready.clear()
+            while self._export_some() >= self.recorder.batch_size and not self._stop.is_set():
+                pass
+
+    # -- metrics read at collection ---------------------------------------------------------------
 
     def _topic_reader(self, field_name: str) -> Any:
         def read(_options: CallbackOptions) -> Iterable[Observation]:
@@ -260,8 +291,17 @@ class OtelHooks:
                 for r in switch.live_runtimes()]
 
     def _steps(self, _options: CallbackOptions) -> Iterable[Observation]:
+        # The step durations queued since the last collection go into the histogram now.
+        durations = self._step_durations
+        attributes: dict[str, dict[str, str]] = {}
+        while durations:
+            name, seconds = durations.popleft()
+            self.step_duration.record(seconds, attributes.setdefault(name, {"agents.component": name}))
         return [Observation(r.worker_statistics().executed, {"agents.component": r.name})
                 for r in switch.live_runtimes()]
+
+    def _spans_dropped(self, _options: CallbackOptions) -> Iterable[Observation]:
+        return [Observation(self.recorder.dropped)]
 
     def _cpu(self, _options: CallbackOptions) -> Iterable[Observation]:
         return [Observation(process_figures().cpu_seconds)]
@@ -273,11 +313,16 @@ class OtelHooks:
 
     def flush(self, timeout_s: float = 2.0) -> None:
         """Export what is buffered now (bounded)."""
-        millis = int(timeout_s * 1000)
-        self._tracer_provider.force_flush(millis)
-        self._meter_provider.force_flush(millis)
+        deadline = time.monotonic() + timeout_s
+        while self.recorder.pending() and time.monotonic() < deadline:
+            self._export_some()
+        self._meter_provider.force_flush(int(timeout_s * 1000))
 
     def shutdown(self) -> None:
         """Export what is left and stop the exporters' threads."""
-        self._tracer_provider.shutdown()
+        self._stop.set()
+        self.recorder.ready.set()
+        self._thread.join(timeout=2.0)
+        self.flush(2.0)
+        self._span_exporter.shutdown()
         self._meter_provider.shutdown(timeout_millis=2000)

@@ -40,6 +40,12 @@ def _interval(_instance: Any, _attribute: Any, value: float | None) -> None:
         raise ConfigError(f"telemetry metrics_interval_s must be a number of seconds in [0.05, 3600], got {value!r}")
 
 
+def _ratio(_instance: Any, _attribute: Any, value: float | None) -> None:
+    if value is not None and not (isinstance(value, int | float) and not isinstance(value, bool)
+                                  and 0.0 <= value <= 1.0):
+        raise ConfigError(f"telemetry sample_ratio must be a number in [0, 1], got {value!r}")
+
+
 @define(frozen=True)
 class TelemetrySettings:
     """Where and how a recipe's processes export traces and metrics (None: the standard variables say).
@@ -50,12 +56,15 @@ class TelemetrySettings:
     :param service_name: the ``service.name`` of every process (default: the component's name in a
         component process, ``agents`` in the launcher's).
     :param metrics_interval_s: how often metrics are exported (the SDK's default is 60 s).
+    :param sample_ratio: the share of new traces recorded, 0..1 (None: ``OTEL_TRACES_SAMPLER``, by
+        default all); a trace keeps the decision of the process where it started.
     """
 
     endpoint: str | None = None
     protocol: str | None = field(default=None, validator=_protocol)
     service_name: str | None = None
     metrics_interval_s: float | None = field(default=None, validator=_interval)
+    sample_ratio: float | None = field(default=None, validator=_ratio)
 
     def to_dict(self) -> dict[str, Any]:
         """The fields as plain data (what a component process's spec carries)."""
@@ -93,10 +102,10 @@ def telemetry_settings(value: Any) -> TelemetrySettings | None:
     if isinstance(value, str):
         return TelemetrySettings(endpoint=value)
     if isinstance(value, Mapping):
-        unknown = sorted(set(value) - {"endpoint", "protocol", "service_name", "metrics_interval_s"})
+        unknown = sorted(set(value) - {"endpoint", "protocol", "service_name", "metrics_interval_s", "sample_ratio"})
         if unknown:
             raise ConfigError(f"telemetry: unknown field(s) {unknown}; the fields are endpoint, protocol, "
-                              "service_name, metrics_interval_s")
+                              "service_name, metrics_interval_s, sample_ratio")
         return TelemetrySettings(**value)
     raise ConfigError(f"telemetry must be None, a bool, an endpoint URL, a mapping or TelemetrySettings, "
                       f"got {type(value).__name__}")
