@@ -4,9 +4,11 @@ The same framework relay and pinger as the ``hop`` suite (:mod:`benchmarks.hop`)
 that differ only in their environment: ``OTEL_EXPORTER_OTLP_ENDPOINT`` set to a receiver in this
 process (an HTTP server on 127.0.0.1 that reads each export and answers 200), or unset. With it,
 every relayed message is a receive, a step and a publish span, its context carried in the Zenoh
-attachment, exported in batches (the SDK's defaults). In the report the ``raw`` column is
-telemetry **off** and ``framework`` is **on**, so the ratio is on ÷ off (target ≤ 1.05 for the
-64-byte hop). Rounds alternate which mode goes first.
+attachment, exported in batches (the SDK's defaults). Three modes: off, on (every trace recorded)
+and sampled (``OTEL_TRACES_SAMPLER=parentbased_traceidratio``, 1 %). In the report the ``raw``
+column is telemetry **off**; ``framework`` is **on** (``telemetry_hop``, ``telemetry_throughput``)
+or **sampled** (``telemetry_sampled_*``), so each ratio is that mode ÷ off (the issue's target:
+≤ 1.05 for the hop). Rounds reverse the order of the modes every other time.
 """
 
 from __future__ import annotations
@@ -19,7 +21,11 @@ from typing import Any
 from . import hop
 from .common import Children
 
-__all__ = ["OtlpSink", "run_suite"]
+__all__ = ["MODES", "SAMPLED_RATIO", "OtlpSink", "run_suite"]
+
+#: off: no endpoint; on: every trace recorded (the default sampler); sampled: 1 trace in 100 recorded.
+MODES = ("off", "on", "sampled")
+SAMPLED_RATIO = 0.01
 
 
 class _Handler(BaseHTTPRequestHandler):
@@ -88,27 +94,37 @@ def run_suite(transports: list[str], settings: dict[str, Any], children: Childre
     rounds = int(settings.get("rounds", 1))
     with OtlpSink() as sink:
         on_env = {"OTEL_EXPORTER_OTLP_ENDPOINT": sink.endpoint, "OTEL_SERVICE_NAME": "bench"}
-        off_env = {"OTEL_EXPORTER_OTLP_ENDPOINT": "", "OTEL_EXPORTER_OTLP_TRACES_ENDPOINT": ""}
+        environments = {"off": {"OTEL_EXPORTER_OTLP_ENDPOINT": "", "OTEL_EXPORTER_OTLP_TRACES_ENDPOINT": ""},
+                        "on": on_env,
+                        "sampled": {**on_env, "OTEL_TRACES_SAMPLER": "parentbased_traceidratio",
+                                    "OTEL_TRACES_SAMPLER_ARG": str(SAMPLED_RATIO)}}
         for transport in transports:
             for round_no in range(rounds):
-                for on in (False, True) if round_no % 2 == 0 else (True, False):
-                    label = "on" if on else "off"
+                for label in MODES if round_no % 2 == 0 else MODES[::-1]:
                     got: list[dict[str, Any]] = []
                     failure = hop._run_pair(transport, "framework", round_no, settings, children, ros_domain,
                                             lambda line, label=label: progress(f"telemetry {label}: {line}"), got,
-                                            extra_env=on_env if on else off_env)
+                                            extra_env=environments[label])
                     if failure is not None:
                         progress(f"telemetry {transport} {label}: FAILED: {failure.splitlines()[0]}")
                         skipped.append({"suite": "telemetry", "transport": transport, "mode": label,
                                         "reason": failure[-1500:]})
                         continue
                     for record in got:
-                        record.update(suite=f"telemetry_{record['suite']}", mode="framework" if on else "raw",
-                                      telemetry=label)
-                        records.append(record)
+                        records.extend(_relabelled(record, label))
         exports, size = sink.counts()
         progress(f"telemetry: the receiver got {exports} OTLP exports, {size / 1e6:.2f} MB")
     return records, skipped
+
+
+def _relabelled(record: dict[str, Any], label: str) -> list[dict[str, Any]]:
+    """The record as the report reads it: off is the ``raw`` of both comparisons, on / sampled their ``framework``."""
+    base = record["suite"]
+    if label == "off":
+        return [{**record, "suite": f"telemetry_{base}", "mode": "raw", "telemetry": label},
+                {**record, "suite": f"telemetry_sampled_{base}", "mode": "raw", "telemetry": label}]
+    suite = f"telemetry_{base}" if label == "on" else f"telemetry_sampled_{base}"
+    return [{**record, "suite": suite, "mode": "framework", "telemetry": label}]
 
 
 def _otel_installed() -> bool:

@@ -127,3 +127,49 @@ def test_off_by_default_nothing_of_opentelemetry_is_imported() -> None:
                           check=False)
     assert done.returncode == 0, done.stderr
     assert done.stdout.strip().splitlines()[-1] == "[]"
+
+
+def test_spans_link_parent_to_child_and_a_remote_parent_is_marked() -> None:
+    from agents_core.telemetry.spans import SpanRecorder, parse_traceparent
+
+    recorder = SpanRecorder(1.0)
+    token = recorder.enter(parse_traceparent(TRACEPARENT))  # type: ignore[arg-type]
+    with recorder.span("receive"), recorder.span("step"):
+        carried = recorder.traceparent()
+    recorder.leave(token)
+    assert recorder.traceparent() is None
+    step, receive = recorder.drain(10)
+    assert receive.parent_id == 0xB7AD6B7169203331 and receive.remote_parent
+    assert step.parent_id == receive.span_id and not step.remote_parent
+    assert step.trace_id == receive.trace_id == 0x0AF7651916CD43DD8448EB211C80319C
+    assert carried == f"00-{step.trace_id:032x}-{step.span_id:016x}-01"
+
+
+def test_a_trace_not_sampled_records_nothing_and_says_so_downstream() -> None:
+    from agents_core.telemetry.spans import SpanRecorder, parse_traceparent, sampling_ratio
+
+    recorder = SpanRecorder(0.0)
+    with recorder.span("receive"), recorder.span("step"):
+        carried = recorder.traceparent()
+    assert recorder.drain(10) == [] and carried is not None and carried.endswith("-00")
+    downstream = SpanRecorder(1.0)  # records everything it starts, but follows the parent's "no"
+    token = downstream.enter(parse_traceparent(carried))  # type: ignore[arg-type]
+    with downstream.span("receive"):
+        assert downstream.traceparent() == carried
+    downstream.leave(token)
+    assert downstream.drain(10) == []
+    assert parse_traceparent("00-" + "0" * 32 + "-b7ad6b7169203331-01") is None
+    assert parse_traceparent(TRACEPARENT.upper()) is None
+    assert sampling_ratio(0.25) == 0.25 and sampling_ratio(7) == 1.0
+
+
+def test_the_sampler_variables(monkeypatch: pytest.MonkeyPatch) -> None:
+    from agents_core.telemetry.spans import sampling_ratio
+
+    monkeypatch.setenv("OTEL_TRACES_SAMPLER", "parentbased_traceidratio")
+    monkeypatch.setenv("OTEL_TRACES_SAMPLER_ARG", "0.1")
+    assert sampling_ratio() == 0.1
+    monkeypatch.setenv("OTEL_TRACES_SAMPLER", "always_off")
+    assert sampling_ratio() == 0.0
+    monkeypatch.delenv("OTEL_TRACES_SAMPLER")
+    assert sampling_ratio() == 1.0

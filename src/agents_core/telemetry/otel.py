@@ -184,6 +184,7 @@ class OtelHooks:
         self.recorder = SpanRecorder(sampling_ratio(settings.sample_ratio), _env_int("OTEL_BSP_MAX_QUEUE_SIZE", 8192))
         self.recorder.batch_size = _env_int("OTEL_BSP_MAX_EXPORT_BATCH_SIZE", 512)
         self._delay_s = _env_int("OTEL_BSP_SCHEDULE_DELAY", 5000) / 1000.0
+        self._named: dict[tuple[str, str], tuple[str, dict[str, Any]]] = {}
         self._stop = threading.Event()
         self._export_lock = threading.Lock()
         self._thread = threading.Thread(target=self._export_loop, name="agents-telemetry", daemon=True)
@@ -224,19 +225,29 @@ class OtelHooks:
         if token is not None:
             self.recorder.leave(token)  # type: ignore[arg-type]  # the token enter_remote made
 
+    def _names(self, verb: str, what: str, attribute: str = "messaging.destination.name") -> tuple[str, dict[str, Any]]:
+        """A span's name and attributes, made once per topic or component (shared: never changed)."""
+        key = (verb, what)
+        named = self._named.get(key)
+        if named is None:
+            named = self._named[key] = (f"{verb} {what}", {attribute: what})
+        return named
+
     def receive(self, topic: str) -> Any:
-        return self.recorder.span(f"receive {topic}", CONSUMER, {"messaging.destination.name": topic})
+        name, attributes = self._names("receive", topic)
+        return self.recorder.span(name, CONSUMER, attributes)
 
     def capture(self) -> object:
         return self.recorder.current.get()
 
     def step(self, component: str, context: object) -> Any:
-        span = self.recorder.span(f"step {component}", attributes={"agents.component": component},
-                                  parent=context)  # type: ignore[arg-type]  # what capture() returned
+        name, attributes = self._names("step", component, "agents.component")
+        span = self.recorder.span(name, attributes=attributes, parent=context)  # type: ignore[arg-type]
         return _Step(span, self._step_durations, component)
 
     def publish(self, topic: str) -> Any:
-        return self.recorder.span(f"publish {topic}", PRODUCER, {"messaging.destination.name": topic})
+        name, attributes = self._names("publish", topic)
+        return self.recorder.span(name, PRODUCER, attributes)
 
     def traceparent(self) -> str | None:
         return self.recorder.traceparent()

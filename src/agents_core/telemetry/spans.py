@@ -40,8 +40,9 @@ _getrandbits = random.getrandbits
 _time_ns = time.time_ns
 _HEX = frozenset("0123456789abcdef")
 
-#: (trace id, span id, sampled, from another process): the current span's context, None outside any trace.
-Context = tuple[int, int, bool, bool]
+#: (trace id, span id, sampled, from another process, its traceparent or None): the current span's
+#: context, None outside any trace. A trace that is not sampled keeps the header it came with.
+Context = tuple[int, int, bool, bool, str | None]
 
 
 def parse_traceparent(header: str | None) -> Context | None:
@@ -49,10 +50,11 @@ def parse_traceparent(header: str | None) -> Context | None:
     if not header or len(header) != 55 or header[:3] != "00-" or header[35] != "-" or header[52] != "-" \
             or not _HEX.issuperset(header[3:35] + header[36:52] + header[53:]):
         return None
-    trace_id, span_id = int(header[3:35], 16), int(header[36:52], 16)
-    if not trace_id or not span_id:
+    if header[3:35] == "0" * 32 or header[36:52] == "0" * 16:
         return None
-    return trace_id, span_id, bool(int(header[53:], 16) & 1), True
+    if not int(header[53:], 16) & 1:  # not sampled: nothing is recorded under it, the header goes on as it is
+        return 0, 0, False, True, header
+    return int(header[3:35], 16), int(header[36:52], 16), True, True, None
 
 
 def sampling_ratio(ratio: float | None = None) -> float:
@@ -113,14 +115,14 @@ class _Span:
             sampled = recorder.ratio >= 1.0 or (trace_id & 0xFFFFFFFFFFFFFFFF) < recorder.bound
             parent_id, remote = 0, False
         else:
-            trace_id, parent_id, sampled, remote = parent
-            if not sampled:  # the context stays the parent's: nothing to record, nothing new to carry
-                return self
+            trace_id, parent_id, sampled, remote, _ = parent
         span_id = _getrandbits(64) or 1
         if sampled:
             self._span = FinishedSpan(self._name, self._kind, trace_id, span_id, parent_id, remote, _time_ns(),
                                       self._attributes)
-        self._token = recorder.current.set((trace_id, span_id, sampled, False))
+            self._token = recorder.current.set((trace_id, span_id, True, False, None))
+        else:  # a new trace that is not recorded: its context still goes on (flags 00)
+            self._token = recorder.current.set((0, 0, False, False, f"00-{trace_id:032x}-{span_id:016x}-00"))
         return self
 
     def set_attribute(self, key: str, value: Any) -> None:
@@ -139,6 +141,24 @@ class _Span:
             self._recorder.current.reset(self._token)
 
 
+class _NoSpan:
+    """A span under a parent that is not sampled: nothing to record, the context stays the parent's."""
+
+    __slots__ = ()
+
+    def __enter__(self) -> _NoSpan:
+        return self
+
+    def set_attribute(self, key: str, value: Any) -> None:
+        """Nothing (not recorded)."""
+
+    def __exit__(self, kind: Any, exc: Any, tb: Any) -> None:
+        return None
+
+
+_NO_SPAN = _NoSpan()
+
+
 class SpanRecorder:
     """Makes the spans of one process and keeps the finished, sampled ones for the exporter."""
 
@@ -154,9 +174,14 @@ class SpanRecorder:
         self.batch_size = 512
 
     def span(self, name: str, kind: int = INTERNAL, attributes: dict[str, Any] | None = None,
-             parent: Context | bool | None = True) -> _Span:
-        """A span (a context manager); ``parent``: True for the current span, a context, or None for a new trace."""
+             parent: Context | bool | None = True) -> _Span | _NoSpan:
+        """A span (a context manager); ``parent``: True for the current span, a context, or None for a new trace.
+
+        ``attributes`` may be shared between spans: only a model call's span adds to its own copy.
+        """
         context = self.current.get() if parent is True else parent
+        if context and not context[2]:
+            return _NO_SPAN
         return _Span(self, name, kind, attributes if attributes is not None else {}, context or None)
 
     def enter(self, context: Context) -> contextvars.Token[Context | None]:
@@ -172,7 +197,7 @@ class SpanRecorder:
         context = self.current.get()
         if context is None:
             return None
-        return f"00-{context[0]:032x}-{context[1]:016x}-{'01' if context[2] else '00'}"
+        return context[4] or f"00-{context[0]:032x}-{context[1]:016x}-01"
 
     def finish(self, span: FinishedSpan) -> None:
         """Keep an ended span for the exporter (the oldest dropped, counted, when the queue is full)."""
@@ -181,7 +206,7 @@ class SpanRecorder:
                 self._finished.popleft()
                 self.dropped += 1
             self._finished.append(span)
-            if len(self._finished) >= self.batch_size:
+            if len(self._finished) == self.batch_size:  # a full batch: the exporter need not wait its delay
                 self.ready.set()
 
     def drain(self, limit: int) -> list[FinishedSpan]:
