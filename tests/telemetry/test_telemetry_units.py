@@ -20,6 +20,7 @@ from agents_core.errors import ConfigError
 from agents_core.runtime.figures import percentile
 from agents_core.telemetry.carrier import MAX_ATTACHMENT, append_traceparent, traceparent_of
 from agents_core.telemetry.settings import TelemetrySettings, settings_from_env, telemetry_settings
+from agents_core.telemetry.spans import SpanRecorder, parse_traceparent, sampling_ratio
 
 TRACEPARENT = "00-0af7651916cd43dd8448eb211c80319c-b7ad6b7169203331-01"
 
@@ -130,8 +131,6 @@ def test_off_by_default_nothing_of_opentelemetry_is_imported() -> None:
 
 
 def test_spans_link_parent_to_child_and_a_remote_parent_is_marked() -> None:
-    from agents_core.telemetry.spans import SpanRecorder, parse_traceparent
-
     recorder = SpanRecorder(1.0)
     token = recorder.enter(parse_traceparent(TRACEPARENT))  # type: ignore[arg-type]
     with recorder.span("receive"), recorder.span("step"):
@@ -146,8 +145,6 @@ def test_spans_link_parent_to_child_and_a_remote_parent_is_marked() -> None:
 
 
 def test_a_trace_not_sampled_records_nothing_and_says_so_downstream() -> None:
-    from agents_core.telemetry.spans import SpanRecorder, parse_traceparent, sampling_ratio
-
     recorder = SpanRecorder(0.0)
     with recorder.span("receive"), recorder.span("step"):
         carried = recorder.traceparent()
@@ -164,8 +161,6 @@ def test_a_trace_not_sampled_records_nothing_and_says_so_downstream() -> None:
 
 
 def test_the_sampler_variables(monkeypatch: pytest.MonkeyPatch) -> None:
-    from agents_core.telemetry.spans import sampling_ratio
-
     monkeypatch.setenv("OTEL_TRACES_SAMPLER", "parentbased_traceidratio")
     monkeypatch.setenv("OTEL_TRACES_SAMPLER_ARG", "0.1")
     assert sampling_ratio() == 0.1
