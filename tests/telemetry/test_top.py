@@ -96,7 +96,9 @@ def test_top_in_a_terminal(tmp_path: Path) -> None:
             os.write(master, b"r")  # sort by rate
             assert _read_until(master, lambda t: "sorted by rate_hz" in t, 5, out)
             os.write(master, b"q")
-            assert proc.wait(timeout=10) == 0
+            # Read on while it stops: a terminal whose output is not read blocks the writer.
+            _read_until(master, lambda _: proc.poll() is not None, 10, out)
+            assert proc.wait(timeout=5) == 0
         finally:
             if proc.poll() is None:
                 proc.kill()

@@ -67,7 +67,7 @@ def _keys() -> Iterator[Any]:
 
     fd = sys.stdin.fileno()
     saved = termios.tcgetattr(fd)
-    tty.setcbreak(fd)
+    tty.setcbreak(fd, termios.TCSANOW)  # keys typed ahead (a q during start-up) are kept
     try:
         yield fd
     finally:
