@@ -77,7 +77,7 @@ def tests(session: nox.Session) -> None:
     """
     # voice-gpl (espeak-ng, GPL-3.0) only in this test environment, never in the core install.
     _install_with_local_models(session, "dev,zenoh,rmw-zenoh,ros2,local,voice,voice-gpl,roboml,vla,servers,cli,ui,"
-                                        "memory,record,foxglove,dataset,mcp,sim")
+                                        "memory,record,foxglove,dataset,mcp,sim,otel")
     session.install("pamoja-ros2")  # an independent rmw_zenoh key / hash implementation: a test oracle
     _install_ros2_interfaces(session)
     _install_browser(session)
@@ -293,7 +293,7 @@ def bench(session: nox.Session) -> None:
     """Benchmarks: the framework against the raw middleware in one run (``-- --quick`` for CI; benchmarks/README.md)."""
     # servers: the map suite writes into a local Chroma server; ui: the UI suite measures what a user of the
     # ui extra gets (simplejpeg's JPEG path, not only Pillow's); sim: the world suite (Reacher-v5 in MuJoCo).
-    _install_with_local_models(session, "zenoh,ros2,local,voice,voice-gpl,vla,servers,memory,record,ui,mcp,sim")
+    _install_with_local_models(session, "zenoh,ros2,local,voice,voice-gpl,vla,servers,memory,record,ui,mcp,sim,otel")
     session.install("matplotlib")
     _install_ros2_interfaces(session)
     session.run("python", "-m", "benchmarks.run", *session.posargs)

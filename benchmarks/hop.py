@@ -175,10 +175,14 @@ def run_suite(transports: list[str], settings: dict[str, Any], children: Childre
 
 
 def _run_pair(transport: str, mode: str, round_no: int, settings: dict[str, Any], children: Children,
-              ros_domain: int, progress: Callable[[str], None], records: list[dict[str, Any]]) -> str | None:
-    """One relay and one pinger; records appended as they come; the failure's text, or None."""
+              ros_domain: int, progress: Callable[[str], None], records: list[dict[str, Any]],
+              extra_env: dict[str, str] | None = None) -> str | None:
+    """One relay and one pinger; records appended as they come; the failure's text, or None.
+
+    ``extra_env``: variables set for both children (the telemetry suite's OTEL_* ones).
+    """
     counts = ",".join(str(settings[k]) for k in ("string_warmup", "string_count", "image_warmup", "image_count"))
-    env = child_env(ros_domain if transport == "ros2" else None)
+    env = {**child_env(ros_domain if transport == "ros2" else None), **(extra_env or {})}
     argv = ["-m", "benchmarks.hop", "--transport", transport, "--mode", mode, "--counts", counts,
             "--throughput-seconds", str(settings["throughput_seconds"]),
             "--max-seconds", str(settings["latency_max_seconds"])]

@@ -17,6 +17,11 @@ from .common import REPO
 METRICS: dict[str, list[tuple[str, str, str, str]]] = {
     "hop": [("rtt_median", "us", "lower", "rtt.median_us"), ("rtt_p99", "us", "lower", "rtt.p99_us")],
     "throughput": [("msgs_per_s", "msg/s", "higher", "msgs_per_s"), ("mb_per_s", "MB/s", "higher", "mb_per_s")],
+    # benchmarks.telemetry: the framework hop with telemetry on ("framework") against off ("raw").
+    "telemetry_hop": [("rtt_median", "us", "lower", "rtt.median_us"), ("rtt_p99", "us", "lower", "rtt.p99_us")],
+    "telemetry_throughput": [("msgs_per_s", "msg/s", "higher", "msgs_per_s")],
+    "telemetry_sampled_hop": [("rtt_median", "us", "lower", "rtt.median_us"), ("rtt_p99", "us", "lower", "rtt.p99_us")],
+    "telemetry_sampled_throughput": [("msgs_per_s", "msg/s", "higher", "msgs_per_s")],
     "startup": [("start_to_active", "ms", "lower", "median_ms"),
                 ("threads_3_inputs", "threads", "lower", "threads_3_inputs")],
     "model": [("ttft", "ms", "lower", "ttft_ms"), ("tokens_per_s", "tokens/s", "higher", "tokens_per_s")],

@@ -29,6 +29,7 @@ from . import memory as memory_suite
 from . import recording as recording_suite
 from . import rmw_zenoh as rmw_zenoh_suite
 from . import sim as sim_suite
+from . import telemetry as telemetry_suite
 from .common import IMAGE_SHAPE, REPO, STRING_BYTES, Children, available
 from .throughput import WINDOW
 
@@ -54,7 +55,7 @@ SETTINGS: dict[str, dict[str, Any]] = {
 }
 
 SUITES = ("hop", "startup", "model", "imports", "vision", "voice", "map", "processes", "ui", "goals", "vla",
-          "cortex", "cli", "memory", "recording", "sim", "e2e", "mcp", "rmw_zenoh")
+          "cortex", "cli", "memory", "recording", "sim", "e2e", "mcp", "rmw_zenoh", "telemetry")
 
 
 def transport_unavailable(name: str) -> str | None:
@@ -108,6 +109,7 @@ def run_suites(transports: list[str], suites: list[str], settings: dict[str, Any
     # Each suite with the transport it needs in the selection (None: it picks its own), and how to run it.
     runners: list[tuple[str, str | None, Any]] = [
         ("hop", None, lambda: hop.run_suite(t, settings, c, d, p)),
+        ("telemetry", None, lambda: telemetry_suite.run_suite(t, settings, c, d, p)),
         ("startup", None, lambda: startup.run_suite(t, settings, c, d, p)),
         ("model", None, lambda: model.run_suite(settings, c, p)),
         ("imports", None, lambda: imports.run_suite(settings, p)),

@@ -34,7 +34,8 @@ ALLOWED_CYCLES = {("agents_core.conditions", "agents_core.topics")}
 #: façade importing only ``_lazy`` at run time) is in the base.
 LAYERS: tuple[tuple[str, frozenset[str]], ...] = (
     ("base", frozenset({"", "_version", "_lazy", "_numpy", "errors", "install_hint", "registry", "bounded_json",
-                        "checked_attrs", "base_validators", "console", "utils", "concurrency", "status"})),
+                        "checked_attrs", "base_validators", "console", "utils", "concurrency", "status",
+                        "telemetry"})),
     ("vocabulary", frozenset({"types", "supported_types", "messages", "config", "_component_configs", "topics",
                               "conditions", "events", "actions", "callbacks", "component_method", "setup_calls",
                               "models", "vectordbs", "action_schema", "guardrails", "event_transfer"})),

@@ -18,8 +18,9 @@ from typing import Any
 
 import pytest
 
-#: Third-party packages of the model stack: none may load before a model component or client is used.
-HEAVY = ("httpx", "jinja2", "yaml", "llama_cpp", "emem", "hnswlib")
+#: Third-party packages of the model stack (and OpenTelemetry, off by default): none may load before a model
+#: component or client is used.
+HEAVY = ("httpx", "jinja2", "yaml", "llama_cpp", "emem", "hnswlib", "opentelemetry")
 
 #: Modules that are model components or hold them: never on the light path.
 MODEL_COMPONENT_MODULES = ("agents_core.components.model_component", "agents_core.components.llm",

@@ -52,6 +52,7 @@ LINES: dict[str, tuple[str, object]] = {
     "pip install -e '.[ui]'": ("run", None),
     "pip install -e '.[record]'": ("run", None),
     "pip install -e '.[foxglove]'": ("run", None),
+    "pip install -e '.[otel]'": ("run", None),
     "pip install -e '.[dataset]'": ("run", None),
     "pip install -e '.[zenoh,cli,mcp]'": ("run", None),
 }

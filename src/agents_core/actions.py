@@ -22,6 +22,7 @@ from .action_schema import describe_action
 from .conditions import FieldRef
 from .errors import ConfigError
 from .guardrails import DEFAULT_APPROVAL_TIMEOUT, ActionGuard, run_guarded
+from .telemetry import switch as _telemetry
 
 __all__ = ["Action", "Fallback", "component_action", "component_fallback"]
 
@@ -80,7 +81,11 @@ class Action:
 
     def __call__(self, values: Mapping[str, Any] | None = None) -> Any:
         args, kwargs = self.resolve(values)
-        return self.method(*args, **kwargs)
+        tel = _telemetry.hooks
+        if tel is None:
+            return self.method(*args, **kwargs)
+        with tel.call("action", self.name):
+            return self.method(*args, **kwargs)
 
     def __repr__(self) -> str:
         return f"Action({self.name}, args={self.args!r}, kwargs={self.kwargs!r})"

@@ -10,6 +10,8 @@ from typing import Any
 import zenoh
 
 from agents_core.errors import TransportClosedError, TransportError
+from agents_core.telemetry import switch as _telemetry
+from agents_core.telemetry.carrier import append_traceparent, traceparent_of
 from agents_core.topics import Topic
 from agents_core.transport.driver import Sink
 
@@ -82,9 +84,12 @@ class ZenohPublisher:
             payload = self._encode(value, self._buffer)
             seq = self._seq
             self._seq = seq + 1
+            attachment = _PACK_ATTACHMENT(0x82, _SEQ_KEY, 0xCF, seq, _STAMP_KEY, 0xCF, time.time_ns())
+            tel = _telemetry.hooks
+            if tel is not None and (traceparent := tel.traceparent()) is not None:
+                attachment = append_traceparent(attachment, traceparent)  # the W3C context of the publish span
             try:
-                self._put(payload, attachment=_PACK_ATTACHMENT(0x82, _SEQ_KEY, 0xCF, seq, _STAMP_KEY, 0xCF,
-                                                               time.time_ns()))
+                self._put(payload, attachment=attachment)
             except zenoh.ZError as exc:
                 self._context.check_open(f"publish on {self.topic.name!r}")
                 raise TransportError(f"publishing on {self.topic.name!r} failed: {exc}") from exc
@@ -146,7 +151,16 @@ class ZenohSubscription:
         except Exception as exc:
             self._delivery.reject(exc)
             return
-        self._delivery.offer(value)
+        tel = _telemetry.hooks
+        if tel is None:
+            self._delivery.offer(value)
+            return
+        attachment = sample.attachment  # the sender's trace context, if it sent one
+        token = tel.enter_remote(traceparent_of(attachment.to_bytes() if attachment is not None else None))
+        try:
+            self._delivery.offer(value)
+        finally:
+            tel.leave(token)
 
     def _check_encoding(self, encoding: str) -> None:
         base, _, schema = encoding.partition(";")

@@ -6,9 +6,9 @@
 
 - topics to key expressions ``<namespace>/<topic>``: a publisher puts msgpack payloads
   (:mod:`agents_zenoh.codecs`) with encoding ``application/msgpack;<TypeName>`` and an
-  attachment ``{"seq": n, "stamp_ns": t}``; a subscriber decodes each sample on Zenoh's thread
-  and hands it to the core's sink (a bounded delivery thread for user callbacks, the
-  component's worker for component inputs). A sample that does not decode is counted
+  attachment ``{"seq": n, "stamp_ns": t}`` (with telemetry on, also ``"traceparent"``); a subscriber
+  decodes each sample on Zenoh's thread and hands it to the core's sink (a bounded delivery thread
+  for user callbacks, the component's worker for component inputs). A sample that does not decode is counted
   (``statistics().decode_errors``), logged once per topic with the reason, and skipped;
 - services to queryables on ``<namespace>/<service>`` (msgpack or JSON maps in and out;
   a handler's exception goes back as an error reply and is raised as

@@ -15,7 +15,7 @@ from ..console import QUIET_ENV_VAR
 from ..errors import AgentsError, ConfigError
 from ..install_hint import install_hint
 from ..transport.registry import TRANSPORT_ENV_VAR, available_transports
-from . import components, episodes, eval_run, recipe, recording, topics  # noqa: F401 - eval_run registers `eval run`
+from . import components, episodes, eval_run, recipe, recording, top, topics  # noqa: F401 - eval_run registers `eval run`
 from . import mcp as mcp_cli
 from .connection import attachable_transports, fail, one_line_errors
 from .evals import eval_app
@@ -42,6 +42,7 @@ app.command("foxglove")(foxglove)
 app.command("mcp")(mcp_cli.mcp)
 app.command("approve")(mcp_cli.approve)
 app.command("deny")(mcp_cli.deny)
+app.command("top")(top.top)
 
 
 @app.command("run", context_settings={"allow_extra_args": True, "ignore_unknown_options": True})

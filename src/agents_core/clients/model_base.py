@@ -27,6 +27,7 @@ from typing import Any, ClassVar, TypeVar
 
 from ..errors import ClientConnectionError, ConfigError, InferenceConnectionError, InferenceError, ProtocolError
 from ..models import Model, model_types
+from ..telemetry import switch as _telemetry
 from .client_base import BaseClient
 from .deadline import CallWatch, check_seconds
 from .payloads import ChunkStream
@@ -208,7 +209,19 @@ class ModelClient(BaseClient):
         self.initialized = True
 
     def inference(self, inference_input: dict[str, Any]) -> MutableMapping[str, Any]:
-        """Run one inference; raises a typed error on failure or on a result without ``output``."""
+        """Run one inference; raises a typed error on failure or on a result without ``output``.
+
+        With telemetry on, the call is a ``model <name>`` span (:mod:`agents_core.telemetry.otel`).
+        """
+        tel = _telemetry.hooks
+        if tel is None:
+            return self._timed_inference(inference_input)
+        with tel.model_call(str(self.model_name), type(self).__name__) as call:
+            result = self._timed_inference(inference_input)
+            usage = getattr(self, "last_usage", None) or getattr(self, "last_stats", None)
+            return call.record(result, usage if isinstance(usage, dict) else None)  # type: ignore[no-any-return]
+
+    def _timed_inference(self, inference_input: dict[str, Any]) -> MutableMapping[str, Any]:
         start = time.monotonic()
         try:
             result = self._guard("inference", lambda: self._inference(inference_input))

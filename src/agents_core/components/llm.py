@@ -31,6 +31,7 @@ from ..messages import DetectionsMsg, StreamingStringMsg
 from ..setup_calls import setup_method
 from ..status import LifecycleState
 from ..supported_types import Detections, StreamingString, String, SupportedType
+from ..telemetry import switch as _telemetry
 from ..topics import Topic
 from .component_base import AllowedTypes, TriggerType
 from .model_component import ModelComponent
@@ -305,6 +306,14 @@ class LLM(ModelComponent):
         tool = self._tools.get(name)
         if tool is None:
             return None, f"error: there is no tool named {name!r}"
+        tel = _telemetry.hooks
+        if tel is None:
+            return self._call_tool(tool, call)
+        with tel.call("tool", name):
+            return self._call_tool(tool, call)
+
+    def _call_tool(self, tool: _Tool, call: Mapping[str, Any]) -> tuple[_Tool | None, Any]:
+        name = call["function"]["name"]
         try:
             if isinstance(tool.func, ComponentMethod):  # another process's action (multiprocessing=True)
                 return tool, tool.func.call(self.runtime.transport, call["function"]["arguments"])

@@ -43,6 +43,7 @@ import time
 from collections.abc import Callable
 from typing import IO, TYPE_CHECKING, Any, NoReturn
 
+from .. import telemetry
 from ..errors import AgentsError
 from .child_health import start_health_reports
 from .descendants import end_descendants, guard_process
@@ -301,6 +302,9 @@ def run(spec_line: bytes, reporter: _Reporter, stdin: _PipeLines, parent_pid: in
         return 1  # the launcher died before PR_SET_PDEATHSIG was set
     logging.basicConfig(level=logging.INFO, stream=sys.stderr,
                         format=f"[{spec.component_name} %(process)d] %(levelname)s %(name)s: %(message)s")
+    # The launcher's telemetry settings, else the standard variables (OTEL_EXPORTER_OTLP_ENDPOINT).
+    settings = telemetry.TelemetrySettings(**spec.telemetry) if spec.telemetry else telemetry.settings_from_env()
+    telemetry.configure(settings, spec.component_name, spec.component_name)
     commands: queue.SimpleQueue[str] = queue.SimpleQueue()
     for sig in (signal.SIGTERM, signal.SIGINT):
         signal.signal(sig, lambda *_: commands.put("signal"))
@@ -335,6 +339,7 @@ def run(spec_line: bytes, reporter: _Reporter, stdin: _PipeLines, parent_pid: in
             component.shutdown()
         finally:
             transport.close()
+            telemetry.shutdown()  # what is buffered is exported before the process ends
     reporter.send(state="finalized")
     return 0
 

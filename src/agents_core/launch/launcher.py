@@ -24,6 +24,7 @@ import threading
 from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
+from .. import telemetry as _telemetry
 from ..actions import Action
 from ..components.component_base import Component
 from ..console import say
@@ -75,13 +76,14 @@ class Launcher:
     :param process_start: with ``multiprocessing=True``, ``"fork"`` (component processes forked by
         a pre-imported server, :mod:`agents_core.launch.fork_server`; the default on Linux) or
         ``"spawn"`` (a fresh interpreter each); None reads ``AGENTS_PROCESS_START``.
+    :param telemetry: OpenTelemetry traces and metrics (:mod:`agents_core.telemetry`); None: ``OTEL_*`` variables.
     """
 
     def __init__(self, transport: str | Transport | None = None, *,
                  transport_options: Mapping[str, Any] | None = None,
                  config_file: str | os.PathLike[str] | None = None, quiet: bool | None = None,
-                 process_start: str | None = None) -> None:
-        self._quiet = quiet
+                 process_start: str | None = None, telemetry: Any = None) -> None:
+        self._quiet, self._telemetry = quiet, _telemetry.telemetry_settings(telemetry)  # on at start
         settings, self._component_sections = launch_settings(transport, transport_options, config_file, process_start)
         #: What this launcher runs, as data (:mod:`agents_core.launch.recipe`).
         self.recipe = Recipe(settings=settings)
@@ -108,9 +110,7 @@ class Launcher:
         """The recipe's event -> actions wiring."""
         return self.recipe.events_actions
 
-    @property
-    def _transport_spec(self) -> Any:
-        return self.recipe.settings.transport
+    _transport_spec = property(lambda self: self.recipe.settings.transport)
 
     def add_pkg(self, components: Sequence[Component],
                 events_actions: Mapping[Event, Action | Sequence[Action]] | None = None,
@@ -238,6 +238,7 @@ class Launcher:
                               f"({', '.join(cross_process_transports()) or 'none installed'}); "
                               f"{transport.name!r} lives in one process")
         self._started = True
+        _telemetry.configure(self._telemetry)  # before the run: its component specs carry the settings
         report = LaunchReport(self._quiet)
         report.transport(transport)
         failing: list[tuple[str | None, str]] = [(None, "start")]
@@ -343,8 +344,7 @@ class Launcher:
         """Make :meth:`bringup` return (thread-safe)."""
         self._stop_requested.set()
 
-    def __enter__(self) -> Launcher:
-        return self.start()
+    __enter__ = start
 
     def __exit__(self, *exc: object) -> None:
         self.stop()

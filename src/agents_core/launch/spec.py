@@ -105,6 +105,8 @@ class ComponentSpec:
     attributes: dict[str, Any] = attrs.field(factory=dict)
     #: The launcher's import path, put in front of the child's (a recipe's sibling modules).
     sys_path: list[str] = attrs.field(factory=list)
+    #: The launcher's telemetry settings (:class:`~agents_core.telemetry.TelemetrySettings` fields), None: off there.
+    telemetry: dict[str, Any] | None = None
     version: int = SPEC_VERSION
 
     @classmethod
@@ -142,7 +144,7 @@ class ComponentSpec:
                    setup_calls=[_encode_setup_call(where, call) for call in entry.setup_calls],
                    attributes={k: encode_value(v, f"{where}: attribute {k!r} (set after construction)")
                                for k, v in entry.attributes.items()},
-                   sys_path=_import_path())
+                   sys_path=_import_path(), telemetry=_telemetry_fields())
         spec.find_recipe(where)
         return spec
 
@@ -269,3 +271,10 @@ def check_rebuild(component: Component, spec: ComponentSpec) -> None:
                               "__init__, or run it with multiprocessing=False")
     if spec.attributes or spec.kwargs:
         spec.find_recipe(where)
+
+
+def _telemetry_fields() -> dict[str, Any] | None:
+    from ..telemetry import active_settings  # noqa: PLC0415  (light: nothing of OpenTelemetry)
+
+    settings = active_settings()
+    return None if settings is None else settings.to_dict()

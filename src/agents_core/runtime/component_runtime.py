@@ -40,8 +40,10 @@ from ..errors import (
 from ..events import Event
 from ..setup_calls import freeze_record
 from ..status import HealthStatus, LifecycleState
+from ..telemetry import switch as _telemetry
 from ..topics import FixedInput
 from ..transport.requests import check_timeout, request_deadline
+from .figures import StepFigures
 from .health import Health
 from .lifecycle import LifecycleMachine
 from .run_type import ComponentRunType
@@ -116,8 +118,15 @@ class ComponentRuntime:
         self._overtaken_steps = 0
         # Set by hurry() (a second Ctrl-C): stop waiting for a running step.
         self._hurry = threading.Event()
+        #: Step durations and counters behind the status's ``stats`` (``agentsctl top``).
+        self.figures = StepFigures()
 
     # -- what it is now -----------------------------------------------------------------------
+
+    @property
+    def name(self) -> str:
+        """The component's name."""
+        return self._name
 
     @property
     def is_bound(self) -> bool:
@@ -184,6 +193,7 @@ class ComponentRuntime:
             # on its worker (run_on_worker), so a local caller may run the handler itself.
             self._served.append(transport.create_service(f"{self._name}/{service}", self._services.handler(service),
                                                          owner=self._name, inline=True))
+        _telemetry.runtimes.add(self)
         self.report_status()
 
     def submit_action(self, func: Callable[[], Any]) -> Future[Any]:
@@ -202,7 +212,8 @@ class ComponentRuntime:
         if presence is None:
             return
         try:
-            presence.update(self.lifecycle.state, self.health.status, self.health.message)
+            presence.update(self.lifecycle.state, self.health.status, self.health.message,
+                            stats=self.figures.text(self))
         except TransportError as exc:
             self._logger.debug("status not published: %s", exc)
 
@@ -242,6 +253,11 @@ class ComponentRuntime:
             if self.state == LifecycleState.ACTIVE:
                 self._component.deactivate()
 
+    def model_latency_ms(self) -> float | None:
+        """The last model call's latency in ms (a model component's client), None without one."""
+        seconds = getattr(getattr(self._component, "model_client", None), "last_inference_seconds", None)
+        return round(seconds * 1e3, 2) if isinstance(seconds, int | float) else None
+
     def _on_transition_failed(self, name: str, exc: Exception) -> None:
         self.health.set(HealthStatus.COMPONENT_FAILURE, f"{name} failed: {exc}")
 
@@ -271,6 +287,7 @@ class ComponentRuntime:
         c = self._component
         transport = self.transport
         self._accepting_steps = True
+        self.figures.activations += 1
         topics = {t.name: t for t in (*c.inputs, *c.outputs)}
         for name, pub in c.publishers_dict.items():
             pub.attach(transport.create_publisher(topics[name], owner=self._name))
@@ -379,7 +396,12 @@ class ComponentRuntime:
             return
         # A partial, not a lambda: this runs on the transport's thread for every input value, and
         # the worker then calls _run_step without an extra Python frame.
-        worker.submit_step(functools.partial(self._run_step, kwargs, snapshot, self._epoch))
+        tel = _telemetry.hooks
+        if tel is None:
+            worker.submit_step(functools.partial(self._run_step, kwargs, snapshot, self._epoch))
+        else:  # the trace context of the value that triggered the step goes with it to the worker
+            worker.submit_step(functools.partial(self._run_traced_step, tel, tel.capture(), kwargs, snapshot,
+                                                 self._epoch))
 
     def in_overtaken_step(self) -> bool:
         """True on the worker thread, in a step that a deactivate has overtaken."""
@@ -391,6 +413,13 @@ class ComponentRuntime:
         self._discarded_outputs += 1
         self._logger.debug("discarded an output on %r: the component was deactivated during the step", topic_name)
 
+    def _run_traced_step(self, tel: _telemetry.Hooks, context: object, kwargs: dict[str, Any],
+                         snapshot: tuple[str, Any] | None, epoch: int) -> None:
+        if self.lifecycle.state != _ACTIVE or epoch != self._epoch:
+            return
+        with tel.step(self._name, context):
+            self._run_step(kwargs, snapshot, epoch)
+
     def _run_step(self, kwargs: dict[str, Any], snapshot: tuple[str, Any] | None, epoch: int) -> None:
         if self.lifecycle.state != _ACTIVE or epoch != self._epoch:
             return
@@ -400,6 +429,7 @@ class ComponentRuntime:
             cb = c.trig_callbacks[snapshot[0]]
             cb._begin_step(snapshot[1])
         self._step_epoch = epoch
+        started = time.perf_counter()
         try:
             c._execution_step(**kwargs)
         except Exception as exc:
@@ -420,6 +450,7 @@ class ComponentRuntime:
                 return
             self.health.step_succeeded()
         finally:
+            self.figures.add(time.perf_counter() - started)
             self._step_epoch = None
             if cb is not None:
                 cb._end_step()

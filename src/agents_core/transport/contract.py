@@ -98,8 +98,11 @@ class ComponentPresence(Protocol):
 
     name: str
 
-    def update(self, state: LifecycleState, health: HealthStatus, message: str = "") -> None:
-        """Show the component's current lifecycle state and health, and publish it on ``<name>/status``."""
+    def update(self, state: LifecycleState, health: HealthStatus, message: str = "", stats: str = "") -> None:
+        """Show the component's current lifecycle state and health, and publish it on ``<name>/status``.
+
+        ``stats``: the runtime's figures as compact JSON (:mod:`agents_core.runtime.figures`).
+        """
         ...
 
     def close(self) -> None:

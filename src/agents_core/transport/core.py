@@ -37,6 +37,7 @@ from ..errors import TransportClosedError, WiringError
 from ..messages import ComponentStatusMsg
 from ..status import HealthStatus, LifecycleState
 from ..supported_types import ComponentStatus
+from ..telemetry import switch as _telemetry
 from ..topics import QoSConfig, Topic, validate_topic_name
 from .delivery import BoundedDelivery, InlineDelivery, SubscriptionStatistics, TopicCounters, TopicStatistics
 from .driver import (
@@ -86,6 +87,7 @@ class CorePublisher:
         self._validate = topic.validator()  # its TypeValidationError names the topic
         self._count_lock = transport._counters.lock
         self._totals = transport._counters.live(topic.name)
+        self._traced = topic.msg_type is not ComponentStatus  # statuses: no span a second outside any trace
 
     @property
     def sender(self) -> DriverPublisher:
@@ -101,7 +103,11 @@ class CorePublisher:
         with self._count_lock:
             self._totals.published += 1
         try:
-            self._sender.send(value)
+            if (tel := _telemetry.hooks) is None or not self._traced:
+                self._sender.send(value)
+            else:  # current while the driver sends: it carries the span's context with the value
+                with tel.publish(self.topic.name):
+                    self._sender.send(value)
         except BaseException:
             with self._count_lock:
                 self._totals.published -= 1
@@ -194,8 +200,8 @@ class CorePresence:
         """The publisher of the component's status topic."""
         self._status = status
 
-    def update(self, state: LifecycleState, health: HealthStatus, message: str = "") -> None:
-        """Show the component's state to observers and publish it on ``<name>/status``."""
+    def update(self, state: LifecycleState, health: HealthStatus, message: str = "", stats: str = "") -> None:
+        """Show the component's state to observers and publish it on ``<name>/status`` (with ``stats``)."""
         with self._lock:
             if self._closed:
                 return
@@ -204,7 +210,7 @@ class CorePresence:
             presence.update(state, health, message)
         if status is not None:
             msg = ComponentStatusMsg(component=self.name, lifecycle_state=state.value, health=health.name,
-                                     message=message)
+                                     message=message, stats=stats)
             try:
                 status.publish(msg)
             except TransportClosedError as exc:

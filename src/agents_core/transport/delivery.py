@@ -26,6 +26,7 @@ from typing import Any
 from attrs import define
 
 from ..concurrency import CloseOnce, DrainQueue
+from ..telemetry import switch as _telemetry
 from ..topics import Topic
 
 __all__ = ["BoundedDelivery", "InlineDelivery", "SubscriptionStatistics", "TopicCounters", "TopicStatistics",
@@ -219,7 +220,12 @@ class InlineDelivery(_Counted):
             self._stats.delivered += 1
             self._totals.delivered += 1
         try:
-            self._callback(value)
+            tel = _telemetry.hooks
+            if tel is None:
+                self._callback(value)
+            else:  # a receive span, current while the callback queues the step it triggers
+                with tel.receive(self.topic.name):
+                    self._callback(value)
         except Exception:
             with self._count_lock:
                 self._stats.delivered -= 1

@@ -34,6 +34,7 @@ from attrs import define
 
 from ..concurrency import CloseOnce
 from ..errors import ComponentError, TypeValidationError
+from ..telemetry import switch as _telemetry
 from .goal_threads import ReusedThreads
 from .goals import ActionType, GoalClient, GoalHandle, GoalStatus
 
@@ -258,6 +259,14 @@ class CoreActionServer:
             driver.status(handle.goal_id, GoalStatus.CANCELING)
 
     def _run(self, handle: GoalHandle) -> None:
+        tel = _telemetry.hooks
+        if tel is None:
+            self._run_goal(handle)
+            return
+        with tel.call("goal", self.name, {"agents.goal_id": handle.goal_id}):
+            self._run_goal(handle)
+
+    def _run_goal(self, handle: GoalHandle) -> None:
         driver = self._driver()
         if driver is not None and not handle.cancel_requested:
             driver.status(handle.goal_id, GoalStatus.EXECUTING)

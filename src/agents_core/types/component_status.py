@@ -25,6 +25,9 @@ class ComponentStatusMsg(Message):
     lifecycle_state: str = field(default="unconfigured", validator=is_str)
     health: str = field(default="HEALTHY", validator=is_str, metadata=wire("str (HEALTHY, ALGORITHM_FAILURE, ...)"))
     message: str = field(default="", validator=is_str)
+    #: The runtime's figures as compact JSON (``agentsctl top``; :mod:`agents_core.runtime.figures`);
+    #: empty when not reported (a ROS 2 status carries none).
+    stats: str = field(default="", validator=is_str, metadata=wire("str (JSON: steps, rate_hz, p50_ms, ...)"))
     header: Header = header_field()
 
 

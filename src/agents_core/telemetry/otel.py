@@ -1,0 +1,339 @@
+"""The OpenTelemetry hooks of one process: spans and metrics, exported over OTLP (imported only when on).
+
+Spans (one trace from a message to the messages it caused, across processes):
+
+- ``receive <topic>`` (CONSUMER): a value reaching a component's input; its parent is the
+  ``publish`` span of the sender, carried with the message (:mod:`agents_core.telemetry.carrier`);
+- ``step <component>``: one execution step, a child of the receive that triggered it (a timed
+  step starts a trace of its own);
+- ``publish <topic>`` (PRODUCER): a value sent; its context goes with the message;
+- ``model <name>`` (CLIENT): one model call with ``gen_ai.*`` attributes (model, client, tokens
+  in and out where the client reports them, time to first token for a stream);
+- ``tool <name>``, ``action <name>``, ``goal <action>``: tool calls, actions, goals.
+
+They are recorded by :mod:`agents_core.telemetry.spans` (a few µs each) and exported in batches
+from a thread of this module (``OTEL_BSP_SCHEDULE_DELAY``, ``OTEL_BSP_MAX_EXPORT_BATCH_SIZE``,
+``OTEL_BSP_MAX_QUEUE_SIZE``) through the OTLP exporter of the chosen protocol.
+
+Metrics (the SDK's ``MeterProvider``, exported every ``OTEL_METRIC_EXPORT_INTERVAL``):
+``agents.step.duration`` (histogram, s, per component), ``agents.model.duration`` and
+``agents.model.time_to_first_token`` (histograms, s, per model), ``agents.topic.published`` /
+``.delivered`` / ``.dropped`` (per topic) and ``agents.component.steps`` /
+``agents.component.queue_depth`` (per component), read from the counters the runtime keeps anyway,
+``agents.telemetry.spans_dropped``, ``process.cpu.time`` and ``process.memory.usage``. A step's
+duration costs a deque append on the step's thread; the histogram gets them at each collection.
+"""
+
+from __future__ import annotations
+
+import collections
+import contextlib
+import os
+import threading
+import time
+from collections.abc import Iterable, Iterator, Mapping
+from typing import Any
+
+from opentelemetry.metrics import CallbackOptions, Observation
+from opentelemetry.sdk.metrics import MeterProvider
+from opentelemetry.sdk.metrics.export import PeriodicExportingMetricReader
+from opentelemetry.sdk.resources import Resource
+from opentelemetry.sdk.trace import ReadableSpan
+from opentelemetry.sdk.util.instrumentation import InstrumentationScope
+from opentelemetry.trace import SpanContext, SpanKind, Status, StatusCode, TraceFlags
+
+from . import switch
+from .process import process_figures
+from .settings import TelemetrySettings
+from .spans import CLIENT, CONSUMER, PRODUCER, FinishedSpan, SpanRecorder, parse_traceparent, sampling_ratio
+
+__all__ = ["OtelHooks"]
+
+_KINDS = {k.value: k for k in SpanKind}
+_SAMPLED = TraceFlags(TraceFlags.SAMPLED)
+_SCOPE = InstrumentationScope("agents_core")
+
+
+def _exporters(settings: TelemetrySettings) -> tuple[Any, Any]:
+    protocol = settings.resolved_protocol()
+    endpoint = settings.endpoint
+    if protocol == "grpc":
+        from opentelemetry.exporter.otlp.proto.grpc.metric_exporter import OTLPMetricExporter  # noqa: PLC0415
+        from opentelemetry.exporter.otlp.proto.grpc.trace_exporter import OTLPSpanExporter  # noqa: PLC0415
+        if endpoint:
+            return OTLPSpanExporter(endpoint=endpoint), OTLPMetricExporter(endpoint=endpoint)
+        return OTLPSpanExporter(), OTLPMetricExporter()
+    from opentelemetry.exporter.otlp.proto.http.metric_exporter import (  # noqa: PLC0415
+        OTLPMetricExporter as HttpMetricExporter,
+    )
+    from opentelemetry.exporter.otlp.proto.http.trace_exporter import (  # noqa: PLC0415
+        OTLPSpanExporter as HttpSpanExporter,
+    )
+    if endpoint:
+        base = endpoint.rstrip("/")
+        return HttpSpanExporter(endpoint=f"{base}/v1/traces"), HttpMetricExporter(endpoint=f"{base}/v1/metrics")
+    return HttpSpanExporter(), HttpMetricExporter()
+
+
+def _env_int(name: str, default: int) -> int:
+    try:
+        return max(1, int(os.environ.get(name, default)))
+    except ValueError:
+        return default
+
+
+class _ModelCall:
+    """The span of one model call; :meth:`record` reads the result (tokens, a stream's first token)."""
+
+    def __init__(self, hooks: OtelHooks, model: str, client: str) -> None:
+        self._hooks = hooks
+        self._attributes = {"gen_ai.request.model": model, "gen_ai.system": client}
+        self._span = hooks.recorder.span(f"model {model}", CLIENT, dict(self._attributes))
+        self._start = 0.0
+        self._streaming = False
+
+    def __enter__(self) -> _ModelCall:
+        self._start = time.perf_counter()
+        self._span.__enter__()
+        return self
+
+    def record(self, result: Any, usage: Mapping[str, Any] | None = None) -> Any:
+        """Add what ``result`` (and the client's ``usage``) tell; returns the result, its stream wrapped."""
+        tokens_in, tokens_out = _tokens(result, usage)
+        if tokens_in is not None:
+            self._span.set_attribute("gen_ai.usage.input_tokens", tokens_in)
+        if tokens_out is not None:
+            self._span.set_attribute("gen_ai.usage.output_tokens", tokens_out)
+        output = result.get("output") if isinstance(result, Mapping) else None
+        if output is not None and not isinstance(output, str | bytes) and isinstance(output, Iterator):
+            self._streaming = True
+            result["output"] = self._timed_stream(output)
+        return result
+
+    def _timed_stream(self, chunks: Iterator[Any]) -> Iterator[Any]:
+        count = 0
+        try:
+            for chunk in chunks:
+                if count == 0:
+                    ttft = time.perf_counter() - self._start
+                    self._span.set_attribute("gen_ai.response.time_to_first_token", ttft)
+                    self._hooks.ttft.record(ttft, self._attributes)
+                count += 1
+                yield chunk
+        finally:
+            self._span.set_attribute("gen_ai.response.chunks", count)
+            self._end(None)
+
+    def _end(self, exc: BaseException | None) -> None:
+        self._hooks.model_duration.record(time.perf_counter() - self._start, self._attributes)
+        self._span.__exit__(type(exc) if exc is not None else None, exc, None)
+
+    def __exit__(self, kind: Any, exc: Any, tb: Any) -> None:
+        # A stream's span ends with the stream (its consumer's step), a call's here.
+        if exc is not None or not self._streaming:
+            self._end(exc)
+
+
+def _tokens(result: Any, usage: Mapping[str, Any] | None) -> tuple[int | None, int | None]:
+    """Input and output token counts from an Ollama-like result or an OpenAI-like ``usage``."""
+    sources: list[Mapping[str, Any]] = [m for m in (usage, result) if isinstance(m, Mapping)]
+    if isinstance(result, Mapping) and isinstance(result.get("usage"), Mapping):
+        sources.append(result["usage"])
+    tokens_in = tokens_out = None
+    for source in sources:
+        for key in ("prompt_tokens", "input_tokens", "prompt_eval_count"):
+            if isinstance(source.get(key), int):
+                tokens_in = source[key]
+        for key in ("completion_tokens", "output_tokens", "eval_count"):
+            if isinstance(source.get(key), int):
+                tokens_out = source[key]
+    return tokens_in, tokens_out
+
+
+class _Step:
+    """A step's span; its duration goes to the step histogram's queue."""
+
+    __slots__ = ("_durations", "_name", "_span", "_start")
+
+    def __init__(self, span: Any, durations: collections.deque[tuple[str, float]], name: str) -> None:
+        self._span = span
+        self._durations = durations
+        self._name = name
+        self._start = 0.0
+
+    def __enter__(self) -> Any:
+        self._start = time.perf_counter()
+        return self._span.__enter__()
+
+    def __exit__(self, *exc: Any) -> None:
+        self._durations.append((self._name, time.perf_counter() - self._start))
+        self._span.__exit__(*exc)
+
+
+class OtelHooks:
+    """Spans and metrics of this process, exported over OTLP (see the module docstring)."""
+
+    def __init__(self, settings: TelemetrySettings, service_name: str, component: str | None = None) -> None:
+        attributes: dict[str, Any] = {"process.pid": os.getpid()}
+        if component:
+            attributes["agents.component"] = component
+        if settings.service_name or not os.environ.get("OTEL_SERVICE_NAME"):
+            attributes["service.name"] = settings.service_name or service_name
+        self._resource = Resource.create(attributes)
+        self._span_exporter, metric_exporter = _exporters(settings)
+        self.recorder = SpanRecorder(sampling_ratio(settings.sample_ratio), _env_int("OTEL_BSP_MAX_QUEUE_SIZE", 8192))
+        self.recorder.batch_size = _env_int("OTEL_BSP_MAX_EXPORT_BATCH_SIZE", 512)
+        self._delay_s = _env_int("OTEL_BSP_SCHEDULE_DELAY", 5000) / 1000.0
+        self._named: dict[tuple[str, str], tuple[str, dict[str, Any]]] = {}
+        self._stop = threading.Event()
+        self._export_lock = threading.Lock()
+        self._thread = threading.Thread(target=self._export_loop, name="agents-telemetry", daemon=True)
+        self._thread.start()
+        interval = settings.metrics_interval_s
+        reader = PeriodicExportingMetricReader(
+            metric_exporter, export_interval_millis=None if interval is None else interval * 1000.0)
+        self._meter_provider = MeterProvider(resource=self._resource, metric_readers=[reader])
+        meter = self._meter_provider.get_meter("agents_core")
+        self._step_durations: collections.deque[tuple[str, float]] = collections.deque(maxlen=100_000)
+        self.step_duration = meter.create_histogram("agents.step.duration", unit="s",
+                                                    description="time of one execution step")
+        self.model_duration = meter.create_histogram("agents.model.duration", unit="s",
+                                                     description="time of one model call")
+        self.ttft = meter.create_histogram("agents.model.time_to_first_token", unit="s",
+                                           description="time to the first chunk of a streamed answer")
+        for name in ("published", "delivered", "dropped"):
+            meter.create_observable_counter(f"agents.topic.{name}", callbacks=[self._topic_reader(name)],
+                                            description=f"values {name} per topic")
+        meter.create_observable_gauge("agents.component.queue_depth", callbacks=[self._queue_depths],
+                                      description="steps waiting (and running) per component")
+        meter.create_observable_counter("agents.component.steps", callbacks=[self._steps],
+                                        description="steps run per component")
+        meter.create_observable_counter("agents.telemetry.spans_dropped", callbacks=[self._spans_dropped],
+                                        description="spans dropped because the export queue was full")
+        meter.create_observable_counter("process.cpu.time", unit="s", callbacks=[self._cpu],
+                                        description="CPU time of this process")
+        meter.create_observable_gauge("process.memory.usage", unit="By", callbacks=[self._rss],
+                                      description="resident memory of this process")
+
+    # -- the hooks (agents_core.telemetry.switch.Hooks) ----------------------------------------
+
+    def enter_remote(self, traceparent: str | None) -> object:
+        context = parse_traceparent(traceparent)
+        return None if context is None else self.recorder.enter(context)
+
+    def leave(self, token: object) -> None:
+        if token is not None:
+            self.recorder.leave(token)  # type: ignore[arg-type]  # the token enter_remote made
+
+    def _names(self, verb: str, what: str, attribute: str = "messaging.destination.name") -> tuple[str, dict[str, Any]]:
+        """A span's name and attributes, made once per topic or component (shared: never changed)."""
+        key = (verb, what)
+        named = self._named.get(key)
+        if named is None:
+            named = self._named[key] = (f"{verb} {what}", {attribute: what})
+        return named
+
+    def receive(self, topic: str) -> Any:
+        name, attributes = self._names("receive", topic)
+        return self.recorder.span(name, CONSUMER, attributes)
+
+    def capture(self) -> object:
+        return self.recorder.current.get()
+
+    def step(self, component: str, context: object) -> Any:
+        name, attributes = self._names("step", component, "agents.component")
+        span = self.recorder.span(name, attributes=attributes, parent=context)  # type: ignore[arg-type]
+        return _Step(span, self._step_durations, component)
+
+    def publish(self, topic: str) -> Any:
+        name, attributes = self._names("publish", topic)
+        return self.recorder.span(name, PRODUCER, attributes)
+
+    def traceparent(self) -> str | None:
+        return self.recorder.traceparent()
+
+    def model_call(self, model: str, client: str) -> _ModelCall:
+        return _ModelCall(self, model, client)
+
+    def call(self, kind: str, name: str, attributes: Mapping[str, Any] | None = None) -> Any:
+        return self.recorder.span(f"{kind} {name}", attributes={f"agents.{kind}": name, **(attributes or {})})
+
+    # -- spans out ---------------------------------------------------------------------------------
+
+    def _readable(self, span: FinishedSpan) -> ReadableSpan:
+        parent = None
+        if span.parent_id:
+            parent = SpanContext(span.trace_id, span.parent_id, is_remote=span.remote_parent, trace_flags=_SAMPLED)
+        status = Status(StatusCode.ERROR, span.error) if span.error is not None else Status(StatusCode.UNSET)
+        return ReadableSpan(name=span.name, context=SpanContext(span.trace_id, span.span_id, is_remote=False,
+                                                                trace_flags=_SAMPLED),
+                            parent=parent, resource=self._resource, attributes=span.attributes,
+                            kind=_KINDS.get(span.kind, SpanKind.INTERNAL), start_time=span.start_ns,
+                            end_time=span.end_ns, status=status, instrumentation_scope=_SCOPE)
+
+    def _export_some(self) -> int:
+        with self._export_lock:
+            batch = self.recorder.drain(self.recorder.batch_size)
+            if batch:
+                with contextlib.suppress(Exception):  # an exporter that fails logs it; the spans are lost
+                    self._span_exporter.export([self._readable(s) for s in batch])
+            return len(batch)
+
+    def _export_loop(self) -> None:
+        while not self._stop.is_set():
+            self.recorder.ready.wait(self._delay_s)
+            self.recorder.ready.clear()
+            while self._export_some() >= self.recorder.batch_size and not self._stop.is_set():
+                pass
+
+    # -- metrics read at collection ---------------------------------------------------------------
+
+    def _topic_reader(self, field_name: str) -> Any:
+        def read(_options: CallbackOptions) -> Iterable[Observation]:
+            totals: dict[str, int] = {}
+            for transport in {id(r.transport): r.transport for r in switch.live_runtimes() if r.is_bound}.values():
+                for topic, stats in transport.statistics().items():
+                    totals[topic] = totals.get(topic, 0) + getattr(stats, field_name)
+            return [Observation(n, {"messaging.destination.name": t}) for t, n in totals.items()]
+        return read
+
+    def _queue_depths(self, _options: CallbackOptions) -> Iterable[Observation]:
+        return [Observation(r.worker_statistics().pending, {"agents.component": r.name})
+                for r in switch.live_runtimes()]
+
+    def _steps(self, _options: CallbackOptions) -> Iterable[Observation]:
+        # The step durations queued since the last collection go into the histogram now.
+        durations = self._step_durations
+        attributes: dict[str, dict[str, str]] = {}
+        while durations:
+            name, seconds = durations.popleft()
+            self.step_duration.record(seconds, attributes.setdefault(name, {"agents.component": name}))
+        return [Observation(r.worker_statistics().executed, {"agents.component": r.name})
+                for r in switch.live_runtimes()]
+
+    def _spans_dropped(self, _options: CallbackOptions) -> Iterable[Observation]:
+        return [Observation(self.recorder.dropped)]
+
+    def _cpu(self, _options: CallbackOptions) -> Iterable[Observation]:
+        return [Observation(process_figures().cpu_seconds)]
+
+    def _rss(self, _options: CallbackOptions) -> Iterable[Observation]:
+        return [Observation(process_figures().rss_bytes)]
+
+    # -- the end ---------------------------------------------------------------------------------
+
+    def flush(self, timeout_s: float = 2.0) -> None:
+        """Export what is buffered now (bounded)."""
+        deadline = time.monotonic() + timeout_s
+        while self.recorder.pending() and time.monotonic() < deadline:
+            self._export_some()
+        self._meter_provider.force_flush(int(timeout_s * 1000))
+
+    def shutdown(self) -> None:
+        """Export what is left and stop the exporters' threads."""
+        self._stop.set()
+        self.recorder.ready.set()
+        self._thread.join(timeout=2.0)
+        self.flush(2.0)
+        self._span_exporter.shutdown()
+        self._meter_provider.shutdown(timeout_millis=2000)

@@ -1,0 +1,105 @@
+"""Telemetry in one process: ``Launcher(telemetry=...)`` on the memory transport, over http/protobuf and grpc.
+
+On memory the context goes with the value itself: the subscriber's receive runs inside the
+publisher's publish span (delivery is synchronous for component inputs), so a chain of two
+components is one trace. Each test turns telemetry off again (:func:`agents_core.telemetry.shutdown`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from typing import Any
+
+import pytest
+
+pytest.importorskip("opentelemetry.sdk")
+pytest.importorskip("opentelemetry.exporter.otlp.proto.http")
+
+from agents_core import Component, Launcher, Topic, telemetry
+from agents_core.actions import Action
+from agents_core.errors import ConfigError
+from agents_core.supported_types import String
+from agents_core.testing.helpers import wait_for
+
+from .otlp_receiver import OtlpGrpcReceiver, OtlpReceiver, ReceivedSpan
+
+IN, MID, OUT = Topic(name="t/in", msg_type="String"), Topic(name="t/mid", msg_type="String"), \
+    Topic(name="t/out", msg_type="String")
+
+
+class Upper(Component):
+    """Upper-cases each text; ``note()`` is an action."""
+
+    def __init__(self, source: Topic, target: Topic, component_name: str, **kwargs: Any) -> None:
+        self.allowed_inputs = {"Required": [String]}
+        self.allowed_outputs = {"Required": [String]}
+        super().__init__(inputs=[source], outputs=[target], trigger=source, component_name=component_name, **kwargs)
+        self.notes = 0
+
+    def _execution_step(self, **kwargs: Any) -> None:
+        text = self.trig_callbacks[self.inputs[0].name].get_output()
+        self.publishers_dict[self.outputs[0].name].publish(text.upper())
+
+    def note(self) -> None:
+        self.notes += 1
+
+
+@pytest.fixture(autouse=True)
+def _telemetry_off_after() -> Iterator[None]:
+    yield
+    telemetry.shutdown()
+    assert not telemetry.enabled()
+
+
+def _run_chain(endpoint: str, protocol: str) -> None:
+    a, b = Upper(IN, MID, "upper_a"), Upper(MID, OUT, "upper_b")
+    launcher = Launcher(transport="memory", telemetry={"endpoint": endpoint, "protocol": protocol,
+                                                       "service_name": "chain"})
+    launcher.add_pkg(components=[a, b])
+    got: list[str] = []
+    with launcher:
+        assert telemetry.enabled()
+        launcher.transport.create_subscription(OUT, lambda v: got.append(str(v)))
+        launcher.transport.create_publisher(IN).publish("hi")
+        assert wait_for(lambda: got == ["HI"], timeout=5)
+        Action(b.note)()
+        telemetry.flush()
+
+
+def _chain_is_one_trace(spans: list[ReceivedSpan]) -> bool:
+    finals = [s for s in spans if s.name == "publish t/out"]
+    if not finals:
+        return False
+    trace = {s.span_id: s for s in spans if s.trace_id == finals[0].trace_id}
+    names = [finals[0].name]
+    span = finals[0]
+    while span.parent_id and span.parent_id in trace:
+        span = trace[span.parent_id]
+        names.append(span.name)
+    return names[::-1] == ["publish t/in", "receive t/in", "step upper_a", "publish t/mid", "receive t/mid",
+                           "step upper_b", "publish t/out"]
+
+
+@pytest.mark.parametrize("receiver_class, protocol", [(OtlpReceiver, "http/protobuf"),
+                                                      (OtlpGrpcReceiver, "grpc")])
+def test_a_memory_chain_is_one_trace(receiver_class: type[OtlpReceiver], protocol: str) -> None:
+    if protocol == "grpc":
+        pytest.importorskip("opentelemetry.exporter.otlp.proto.grpc")
+    with receiver_class() as receiver:
+        _run_chain(receiver.endpoint, protocol)
+        assert wait_for(lambda: _chain_is_one_trace(receiver.spans()), timeout=10, interval=0.1), \
+            sorted((s.name, s.span_id, s.parent_id) for s in receiver.spans())
+        assert {s.service for s in receiver.spans()} == {"chain"}
+        actions = [s for s in receiver.spans() if s.name == "action note"]
+        assert actions and actions[0].attributes["agents.action"] == "note"
+        telemetry.shutdown()  # the last metrics go out at shutdown
+        assert wait_for(lambda: "agents.step.duration" in receiver.metric_names(), timeout=10, interval=0.1)
+
+
+def test_bad_settings_are_refused_naming_the_field() -> None:
+    with pytest.raises(ConfigError, match="protocol 'udp'"):
+        Launcher(transport="memory", telemetry={"protocol": "udp"})
+    with pytest.raises(ConfigError, match=r"unknown field\(s\) \['endpont'\]"):
+        Launcher(transport="memory", telemetry={"endpont": "http://127.0.0.1:4318"})
+    with pytest.raises(ConfigError, match="telemetry must be"):
+        Launcher(transport="memory", telemetry=4318)
