@@ -105,6 +105,8 @@ class ComponentSpec:
     attributes: dict[str, Any] = attrs.field(factory=dict)
     #: The launcher's import path, put in front of the child's (a recipe's sibling modules).
     sys_path: list[str] = attrs.field(factory=list)
+    #: The recipe's namespace: the child sees its transport through it (:mod:`agents_core.transport.namespace`).
+    namespace: str = ""
     version: int = SPEC_VERSION
 
     @classmethod
