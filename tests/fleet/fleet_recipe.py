@@ -64,16 +64,17 @@ def operator(received: str, robots: list[str]) -> None:
     lock = threading.Lock()
     out = Path(received).open("a")  # noqa: SIM115  # closed below
 
-    def tally(robot_name: str, value: Any) -> None:
-        seq, sent = str(value).split()
-        with lock:
-            out.write(f"{robot_name} {seq} {sent} {time.time():.6f}\n")
-            out.flush()
+    def tally(robot_name: str) -> Any:
+        def count(value: Any) -> None:
+            seq, sent = str(value).split()
+            with lock:
+                out.write(f"{robot_name} {seq} {sent} {time.time():.6f}\n")
+                out.flush()
+        return count
 
     try:
         for name in robots:
-            transport.create_subscription(Topic(f"{name}/seq", "String"),
-                                          lambda v, name=name: tally(name, v))
+            transport.create_subscription(Topic(f"{name}/seq", "String"), tally(name))
         print("READY", flush=True)
         while True:
             time.sleep(0.2)
