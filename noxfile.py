@@ -95,6 +95,18 @@ def tests_ros2(session: nox.Session) -> None:
 
 
 @nox.session
+def fleet(session: nox.Session) -> None:
+    """The fleet tests alone: two robots under two namespaces, an operator and a router on network namespaces, the
+    router killed and restarted; and two routers in a mesh (tests/fleet, also part of ``tests``).
+
+    The network-namespace test needs root and iproute2 (``ip netns``); elsewhere it skips, saying why.
+    """
+    if not _installed(session, "dev,zenoh,cli", []):
+        session.install("-e", ".[dev,zenoh,cli]")
+    session.run("pytest", "tests/fleet", "-m", "fleet or zenoh", *session.posargs)
+
+
+@nox.session
 def sim_aloha(session: nox.Session) -> None:
     """The ALOHA transfer-cube scripted expert over 5 episodes (~2 min each on 2 cores; not in the default sessions).
 

@@ -63,6 +63,11 @@ METRICS: dict[str, list[tuple[str, str, str, str]]] = {
     "e2e": [("loop", "ms", "lower", "loop_ms")],
     # Reacher-v5 with the scripted expert in lock-step: GymWorld + the expert component (run_evaluation) vs the
     # same expert stepping the environment directly; steps inside episodes, and whole evaluations.
+    # N robot processes (namespaced recipes) through one Zenoh router vs raw zenoh clients doing the same: time from
+    # spawning them to an observer seeing all N components, each robot's delivered rate (of 100 Hz), router CPU.
+    "fleet": [("discover_all", "s", "lower", "discover_s"),
+              ("rate_per_robot", "msg/s", "higher", "msgs_per_s_per_robot"),
+              ("router_cpu", "cores", "lower", "router_cpu")],
     "sim": [("steps_per_s", "steps/s", "higher", "steps_per_s"), ("episodes_per_s", "episodes/s", "higher",
                                                                    "episodes_per_s")],
 }

@@ -23,6 +23,7 @@ from types import FrameType
 from typing import Any
 
 from . import cli_hz, cortex, e2e, goals, hop, imports, model, processes, report, startup, ui, vision, vla, voice
+from . import fleet as fleet_suite
 from . import map as map_suite  # the module name is the suite name; "map" alone would hide the builtin
 from . import mcp as mcp_suite
 from . import memory as memory_suite
@@ -43,7 +44,8 @@ SETTINGS: dict[str, dict[str, Any]] = {
               "processes_reps": 2, "processes_respawns": 3, "ui_count": 100, "ui_warmup": 10,
               "goal_count": 20, "goal_feedbacks": 10, "vla_reps": 30, "vla_warmup": 5,
               "cli_rates": (100.0,), "cli_window": 2.0, "e2e_reps": 1, "e2e_max_tokens": 16,
-              "e2e_transports": ("memory",), "mcp_reps": 50, "mcp_warmup": 10, "sim_episodes": 5},
+              "e2e_transports": ("memory",), "mcp_reps": 50, "mcp_warmup": 10, "sim_episodes": 5,
+              "fleet_sizes": (1, 5), "fleet_window": 2.0},
     "full": {"string_warmup": 200, "string_count": 2000, "image_warmup": 30, "image_count": 300,
              "throughput_seconds": 5.0, "latency_max_seconds": 120.0, "startup_reps": 5,
              "model_reps": 8, "model_max_tokens": 64, "model_threads": 1, "rounds": 3, "import_reps": 15,
@@ -51,11 +53,12 @@ SETTINGS: dict[str, dict[str, Any]] = {
              "map_reps": 3, "processes_reps": 5, "processes_respawns": 10, "ui_count": 1000, "ui_warmup": 50,
              "goal_count": 200, "goal_feedbacks": 10, "vla_reps": 200, "vla_warmup": 10,
              "cli_rates": (10.0, 100.0, 1000.0), "cli_window": 3.0, "e2e_reps": 5, "e2e_max_tokens": 24,
-             "e2e_transports": ("memory", "zenoh"), "mcp_reps": 300, "mcp_warmup": 30, "sim_episodes": 20},
+             "e2e_transports": ("memory", "zenoh"), "mcp_reps": 300, "mcp_warmup": 30, "sim_episodes": 20,
+             "fleet_sizes": (1, 5, 20), "fleet_window": 5.0},
 }
 
 SUITES = ("hop", "startup", "model", "imports", "vision", "voice", "map", "processes", "ui", "goals", "vla",
-          "cortex", "cli", "memory", "recording", "sim", "e2e", "mcp", "rmw_zenoh", "telemetry")
+          "cortex", "cli", "memory", "recording", "sim", "e2e", "mcp", "rmw_zenoh", "telemetry", "fleet")
 
 
 def transport_unavailable(name: str) -> str | None:
@@ -124,6 +127,7 @@ def run_suites(transports: list[str], suites: list[str], settings: dict[str, Any
         ("mcp", None, lambda: mcp_suite.run_suite(settings, c, p)),
         ("cli", "zenoh", lambda: cli_hz.run_suite(settings, p)),
         ("rmw_zenoh", "zenoh", lambda: rmw_zenoh_suite.run_suite(settings, c, d, p)),
+        ("fleet", "zenoh", lambda: fleet_suite.run_suite(settings, c, p)),
         ("memory", "memory", lambda: memory_suite.run_suite(settings, p)),
         ("recording", "memory", lambda: recording_suite.run_suite(settings, p)),
         ("sim", None, lambda: sim_suite.run_suite(settings, t, c, d, p)),

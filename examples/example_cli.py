@@ -4,6 +4,7 @@ Every example takes::
 
     --transport memory|zenoh|ros2   (default: AGENTS_TRANSPORT, else memory)
     --listen / --connect ENDPOINT    (Zenoh endpoints; default: the loopback rendezvous)
+    --namespace NAME                 (run under a robot's namespace, e.g. robot1; default: AGENTS_NAMESPACE)
     --seconds N                      (stop after N seconds)
     --once                           (stop after the example's first complete result)
 
@@ -36,6 +37,8 @@ def parser(doc: str | None) -> argparse.ArgumentParser:
                    help="default: AGENTS_TRANSPORT, else memory")
     p.add_argument("--listen", action="append", default=None, metavar="ENDPOINT", help="zenoh: listen here")
     p.add_argument("--connect", action="append", default=None, metavar="ENDPOINT", help="zenoh: connect here")
+    p.add_argument("--namespace", default=None, metavar="NAME",
+                   help="run under this namespace, e.g. robot1 (default: AGENTS_NAMESPACE, else none)")
     p.add_argument("--seconds", type=float, default=None, help="stop after this many seconds")
     p.add_argument("--once", action="store_true", help="stop after the first complete result")
     return p
@@ -46,7 +49,7 @@ def make_launcher(args: argparse.Namespace) -> Launcher:
     options: dict[str, object] = {}
     if args.transport == "zenoh" and (args.listen or args.connect):
         options = {"listen": args.listen or [], "connect": args.connect or []}
-    return Launcher(transport=args.transport, transport_options=options)
+    return Launcher(transport=args.transport, transport_options=options, namespace=getattr(args, "namespace", None))
 
 
 def run(launcher: Launcher, args: argparse.Namespace, *, on_ready: Callable[[Launcher], None] | None = None,

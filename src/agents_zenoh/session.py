@@ -18,6 +18,9 @@ __all__ = ["effective_mode", "open_session", "zenoh_config"]
 
 logger = logging.getLogger(__name__)
 
+#: How a session retries an endpoint it lost (``connect/retry`` in Zenoh's config).
+RECONNECT_RETRY = {"period_init_ms": 250, "period_max_ms": 1000, "period_increase_factor": 2}
+
 
 def effective_mode(config: ZenohConfig) -> str:
     """The session mode after applying the config file (peer when neither says)."""
@@ -52,6 +55,10 @@ def zenoh_config(config: ZenohConfig, *, listen: list[str] | None = None,
         cfg.insert_json5("connect/endpoints", json.dumps(connect))
     # Always set, even over a config file: Zenoh's own default is on, and it reaches the LAN.
     cfg.insert_json5("scouting/multicast/enabled", json.dumps(config.multicast_scouting))
+    # A lost router (or peer) is retried every 0.25 s, doubling to at most 1 s (Zenoh's own default grows to 4 s):
+    # a fleet is back within about a second of its router's restart. A config file or zenoh_options may say otherwise.
+    if config.config_file is None or json.loads(cfg.get_json("connect/retry")) is None:
+        cfg.insert_json5("connect/retry", json.dumps(RECONNECT_RETRY))
     # Needed by transient_local topics (Zenoh's advanced publisher caches timestamped samples).
     cfg.insert_json5("timestamping/enabled", "true")
     for key, value in config.zenoh_options.items():

@@ -55,6 +55,9 @@ def run(ctx: typer.Context,
             "--connect", "-c", help="Zenoh endpoint(s) to connect to, e.g. a router; makes the recipe a client "
                                     "unless --mode says otherwise")] = None,
         mode: Annotated[str | None, typer.Option("--mode", help="Zenoh session mode: peer, client or router")] = None,
+        namespace: Annotated[str | None, typer.Option(
+            "--namespace", "-N", help="run the recipe under this namespace, e.g. robot1 (sets AGENTS_NAMESPACE "
+                                      "for Launcher())")] = None,
         quiet: Annotated[bool, typer.Option(
             "--quiet", "-q", help="no status lines on stderr (sets AGENTS_QUIET=1)")] = False,
         debug: Annotated[bool, typer.Option(
@@ -76,6 +79,13 @@ def run(ctx: typer.Context,
         if mode not in ("peer", "client", "router"):
             raise fail(f"unknown Zenoh mode {mode!r}; use peer, client or router")
         os.environ[ZENOH_MODE_ENV_VAR] = mode
+    if namespace is not None:
+        from ..transport.namespace import NAMESPACE_ENV_VAR, validate_namespace  # noqa: PLC0415
+
+        try:
+            os.environ[NAMESPACE_ENV_VAR] = validate_namespace(namespace, "--namespace")
+        except ConfigError as exc:
+            raise fail(str(exc)) from None
     if quiet:
         os.environ[QUIET_ENV_VAR] = "1"
     if debug:
@@ -113,9 +123,15 @@ def ui(ctx: typer.Context) -> None:
 def router(listen: Annotated[list[str], typer.Option("--listen", "-l", help="endpoint to listen on, e.g. "
                                                      "tcp/0.0.0.0:7447 (repeatable)")],
            connect: Annotated[list[str] | None,
-                              typer.Option("--connect", "-c", help="other routers to link to")] = None,
-           json_out: Annotated[bool, typer.Option("--json", help="print the ready line as JSON")] = False) -> None:
-    """Run a Zenoh router (for recipes on several machines) until Ctrl-C or SIGTERM."""
+                              typer.Option("--connect", "-c", help="another router to join, forming a mesh, e.g. "
+                                                                   "tcp/10.0.0.2:7447 (repeatable)")] = None,
+           json_out: Annotated[bool, typer.Option("--json", help="print the ready and peers lines as JSON")] = False,
+           ) -> None:
+    """Run a Zenoh router (for recipes on several machines) until Ctrl-C or SIGTERM.
+
+    With --connect it joins other routers (a mesh: clients of any router reach the others'); it prints
+    what it is linked to (routers, peers, clients) each time that changes.
+    """
     try:
         from agents_zenoh.router import serve_router  # noqa: PLC0415 - needs the zenoh extra
     except ImportError as exc:
@@ -129,5 +145,12 @@ def router(listen: Annotated[list[str], typer.Option("--listen", "-l", help="end
             say(f"Zenoh router {zid} listening on {', '.join(listen)}")
         sys.stdout.flush()
 
-    serve_router(list(listen), list(connect or []), on_ready=ready)
+    def peers(linked: list[dict[str, object]]) -> None:
+        if json_out:
+            print_json({"peers": linked})
+        else:
+            say("peers: " + (", ".join(f"{p['kind']} {p['zid']}" for p in linked) or "none"))
+        sys.stdout.flush()
+
+    serve_router(list(listen), list(connect or []), on_ready=ready, on_peers=peers)
 

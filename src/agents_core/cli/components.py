@@ -11,9 +11,9 @@ from ..action_schema import parameters_text
 from ..errors import AgentsError, ConfigError, ServiceUnavailableError
 from ..topics import validate_topic_name
 from ..transport.graph import describe_component
-from .connection import discovery_timeout, one_line_errors, open_transport
+from .connection import discovery_timeout, in_namespace, one_line_errors, open_transport, under_namespace
 from .output import print_json, print_table, print_value, say
-from .topics import ConnectOpt, DiscoveryOpt, JsonOpt, TransportOpt
+from .topics import ConnectOpt, DiscoveryOpt, JsonOpt, NamespaceOpt, TransportOpt
 from .values import ArgumentError, parse_call_argument, parse_json_argument, summarize
 
 __all__ = ["app", "call"]
@@ -25,18 +25,18 @@ TRANSITIONS = ("configure", "activate", "deactivate", "cleanup", "shutdown")
 TimeoutOpt = Annotated[float, typer.Option("--timeout", help="seconds to wait for the reply", min=0.01)]
 
 
-def _component_name(name: str) -> str:
-    return validate_topic_name(name.lstrip("/"), "component")
+def _component_name(name: str, namespace: str | None = None) -> str:
+    return validate_topic_name(in_namespace(namespace, name), "component")
 
 
 @app.command("list")
 @one_line_errors
 def list_components(transport: TransportOpt = None, connect: ConnectOpt = None, json_out: JsonOpt = False,
-                    timeout: DiscoveryOpt = None) -> None:
+                    timeout: DiscoveryOpt = None, namespace: NamespaceOpt = None) -> None:
     """Every live agents_core component with its lifecycle state and health."""
     rows: list[dict[str, Any]] = []
     with open_transport(transport, connect) as t:
-        for name in t.discover(timeout=discovery_timeout(t, timeout)).components:
+        for name in under_namespace(namespace, list(t.discover(timeout=discovery_timeout(t, timeout)).components)):
             status = _state_of(t, name)
             rows.append({"name": name, "state": status.lifecycle_state if status else "unknown",
                          "health": status.health if status else "unknown"})
@@ -61,9 +61,10 @@ def _state_of(transport: Any, name: str) -> Any:
 @app.command("status")
 @one_line_errors
 def status(name: Annotated[str, typer.Argument(help="component name")], transport: TransportOpt = None,
-           connect: ConnectOpt = None, json_out: JsonOpt = False, timeout: TimeoutOpt = 5.0) -> None:
+           connect: ConnectOpt = None, json_out: JsonOpt = False, timeout: TimeoutOpt = 5.0,
+           namespace: NamespaceOpt = None) -> None:
     """What a component is: type, run type, state, health, inputs, outputs and actions."""
-    name = _component_name(name)
+    name = _component_name(name, namespace)
     with open_transport(transport, connect) as t:
         try:
             described = describe_component(t, name, timeout=timeout)
@@ -103,9 +104,9 @@ def _action_text(description: Any) -> str:
 def transition(name: Annotated[str, typer.Argument(help="component name")],
                which: Annotated[str, typer.Argument(help=f"one of {', '.join(TRANSITIONS)}")],
                transport: TransportOpt = None, connect: ConnectOpt = None, json_out: JsonOpt = False,
-               timeout: TimeoutOpt = 10.0) -> None:
+               timeout: TimeoutOpt = 10.0, namespace: NamespaceOpt = None) -> None:
     """Ask a component to run a lifecycle transition (e.g. activate)."""
-    name = _component_name(name)
+    name = _component_name(name, namespace)
     if which not in TRANSITIONS:
         raise ConfigError(f"unknown transition {which!r}; use one of {', '.join(TRANSITIONS)}")
     with open_transport(transport, connect) as t:
@@ -130,13 +131,13 @@ def call(name: Annotated[str, typer.Argument(help="component name")],
                          typer.Argument(help="positional arguments (JSON literals or strings)")] = None,
          transport: TransportOpt = None, connect: ConnectOpt = None, json_out: JsonOpt = False,
          kwargs: Annotated[str | None, typer.Option("--kwargs", help="keyword arguments as a JSON object")] = None,
-         timeout: TimeoutOpt = 30.0) -> None:
+         timeout: TimeoutOpt = 30.0, namespace: NamespaceOpt = None) -> None:
     """Run one of a component's @component_action methods and print the result.
 
     It is sent to the component's execute_method service as {"method": METHOD, "args": [ARGS...],
-    "kwargs": {...}, "timeout": SECONDS}.
+    "kwargs": {...}, "timeout": SECONDS}. A robot's component: robot1/arm, or arm --namespace robot1.
     """
-    name = _component_name(name)
+    name = _component_name(name, namespace)
     keyword: Any = {}
     if kwargs is not None:
         try:

@@ -23,8 +23,8 @@ from ..transport.registry import (
 from .output import safe_text
 from .values import ArgumentError
 
-__all__ = ["DEFAULT_TRANSPORT", "USAGE_ERROR", "attachable_transports", "discovery_timeout", "fail",
-           "observer_options", "one_line_errors", "open_transport", "transport_default"]
+__all__ = ["DEFAULT_TRANSPORT", "USAGE_ERROR", "attachable_transports", "discovery_timeout", "fail", "in_namespace",
+           "observer_options", "one_line_errors", "open_transport", "transport_default", "under_namespace"]
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -69,6 +69,22 @@ def one_line_errors(func: F) -> F:
             raise fail("a value is nested too deeply to handle") from None
 
     return wrapper  # type: ignore[return-value]
+
+
+def in_namespace(namespace: str | None, name: str) -> str:
+    """``name`` as given on the command line, resolved in ``--namespace`` as ROS 2 resolves it (``arm`` ->
+    ``robot1/arm``; ``/map`` -> ``map``, shared); without one, the name with any leading ``/`` dropped."""
+    from ..transport.namespace import resolve_name, validate_namespace  # noqa: PLC0415
+
+    return resolve_name(validate_namespace(namespace, "--namespace"), name) if namespace else name.lstrip("/")
+
+
+def under_namespace(namespace: str | None, names: list[str]) -> list[str]:
+    """The ``names`` under ``--namespace`` (all of them without one)."""
+    from ..transport.namespace import validate_namespace  # noqa: PLC0415
+
+    prefix = validate_namespace(namespace, "--namespace")
+    return [n for n in names if not prefix or n.startswith(prefix + "/")]
 
 
 def discovery_timeout(transport: Transport, given: float | None) -> float:

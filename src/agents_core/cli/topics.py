@@ -17,7 +17,7 @@ from ..topics import Topic, validate_topic_name
 from ..transport.core import DriverTransport
 from ..transport.requests import MAX_TIMEOUT_S
 from ..types.base import SupportedType, get_type
-from .connection import discovery_timeout, one_line_errors, open_transport
+from .connection import discovery_timeout, in_namespace, one_line_errors, open_transport, under_namespace
 from .output import print_json, print_table, print_value, say
 from .values import parse_value, summarize
 
@@ -32,10 +32,13 @@ ConnectOpt = Annotated[list[str] | None, typer.Option(
 JsonOpt = Annotated[bool, typer.Option("--json", help="print JSON instead of tables")]
 DiscoveryOpt = Annotated[float | None, typer.Option(
     "--discovery-timeout", help="seconds to wait for discovery (default: 1, on ROS 2: 4)", min=0.01)]
+NamespaceOpt = Annotated[str | None, typer.Option(
+    "--namespace", "-N", help="resolve names in this namespace (a robot's, e.g. robot1: 'arm' is robot1/arm, "
+                              "'/map' stays map); lists show only what is under it")]
 
 
-def _topic_name(name: str) -> str:
-    return validate_topic_name(name.lstrip("/"), "topic")
+def _topic_name(name: str, namespace: str | None = None) -> str:
+    return validate_topic_name(in_namespace(namespace, name), "topic")
 
 
 def _resolve_type(transport: DriverTransport, name: str, type_name: str | None,
@@ -56,15 +59,16 @@ def _resolve_type(transport: DriverTransport, name: str, type_name: str | None,
 @app.command("list")
 @one_line_errors
 def list_topics(transport: TransportOpt = None, connect: ConnectOpt = None, json_out: JsonOpt = False,
-                timeout: DiscoveryOpt = None) -> None:
+                timeout: DiscoveryOpt = None, namespace: NamespaceOpt = None) -> None:
     """Every topic with its type and how many publishers and subscribers it has."""
     with open_transport(transport, connect) as t:
         graph = t.discover(timeout=discovery_timeout(t, timeout))
+    shown = [i for i in graph.topics if i.name in under_namespace(namespace, [i.name])]
     if json_out:
-        print_json([info.to_dict() for info in graph.topics])
+        print_json([info.to_dict() for info in shown])
         return
     print_table("topics", ["topic", "type", "publishers", "subscribers"],
-                [(i.name, i.msg_type, i.publishers, i.subscribers) for i in graph.topics])
+                [(i.name, i.msg_type, i.publishers, i.subscribers) for i in shown])
 
 
 @app.command("echo")
@@ -74,9 +78,9 @@ def echo(name: Annotated[str, typer.Argument(help="topic name")], transport: Tra
          count: Annotated[int, typer.Option("--count", "-n", help="stop after N messages (0: no limit)", min=0)] = 0,
          timeout: Annotated[float, typer.Option("--timeout", help="stop after this many seconds", min=0.01)] = 10.0,
          type_name: Annotated[str | None, typer.Option("--type", help="message type (default: discovered)")] = None,
-         discovery_wait: DiscoveryOpt = None) -> None:
+         discovery_wait: DiscoveryOpt = None, namespace: NamespaceOpt = None) -> None:
     """Print the messages of a topic (arrays and images as shape and dtype, never raw bytes)."""
-    name = _topic_name(name)
+    name = _topic_name(name, namespace)
     received: queue.Queue[Any] = queue.Queue(maxsize=1000)
     deadline = time.monotonic() + timeout
     shown = 0
@@ -112,9 +116,9 @@ def pub(name: Annotated[str, typer.Argument(help="topic name")],
         rate: Annotated[float, typer.Option("--rate", "-r", help="messages per second", min=0.001)] = 10.0,
         wait: Annotated[float, typer.Option("--wait", help="seconds to wait for a subscriber first", min=0.0,
                                             max=MAX_TIMEOUT_S)] = 5.0,
-        ) -> None:
+        namespace: NamespaceOpt = None) -> None:
     """Publish a value on a topic."""
-    name = _topic_name(name)
+    name = _topic_name(name, namespace)
     msg_type = get_type(type_name)
     message = parse_value(msg_type, value)
     with open_transport(transport, connect) as t:
@@ -201,9 +205,9 @@ def hz(name: Annotated[str, typer.Argument(help="topic name")], transport: Trans
        window: Annotated[float, typer.Option("--window", "-w", help="seconds to measure over",
                                              min=0.1, max=MAX_TIMEOUT_S)] = 5.0,
        type_name: Annotated[str | None, typer.Option("--type", help="message type (default: discovered)")] = None,
-       discovery_wait: DiscoveryOpt = None) -> None:
+       discovery_wait: DiscoveryOpt = None, namespace: NamespaceOpt = None) -> None:
     """Measure a topic's message rate over a window."""
-    name = _topic_name(name)
+    name = _topic_name(name, namespace)
     meter = _RateMeter()
     with open_transport(transport, connect) as t:
         msg_type = _resolve_type(t, name, type_name, discovery_wait)

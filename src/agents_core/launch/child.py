@@ -184,6 +184,7 @@ class _Startup:
             return not self._activating
 
     def _run(self) -> None:
+        from ..transport.namespace import namespaced  # noqa: PLC0415
         from ..transport.registry import resolve_transport  # noqa: PLC0415
         from .recipe_import import import_recipe  # noqa: PLC0415
         from .spec import RECIPE_MODULE, decode_value  # noqa: PLC0415
@@ -195,7 +196,8 @@ class _Startup:
             if spec.recipe_path is not None:
                 import_recipe(spec.recipe_path, RECIPE_MODULE)
             component = spec.build()
-            transport = resolve_transport(spec.transport, **decode_value(spec.transport_options))
+            transport = namespaced(resolve_transport(spec.transport, **decode_value(spec.transport_options)),
+                                   spec.namespace, owns_inner=True)
             with self._lock:
                 self.component, self.transport = component, transport
             component.runtime.bind(transport)

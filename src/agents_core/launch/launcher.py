@@ -9,11 +9,10 @@ Blocking, for a robot::
 Non-blocking, for tests and embedding: ``with Launcher(transport="memory") as launcher:`` (start()
 on enter, stop() on exit; ``launcher.transport`` reaches the components).
 
-What ``add_pkg``, ``on_fail``, ``enable_ui``, ... are given is held as data in
-:attr:`Launcher.recipe` (``agentsctl recipe show`` prints it); :meth:`Launcher.start` opens the
-transport and starts one run (:mod:`agents_core.launch.runs`: this process, or a process per
-component with ``add_pkg(..., multiprocessing=True)``), the events
-(:mod:`agents_core.launch.event_wiring`) and the attachments (:mod:`agents_core.launch.attachments`).
+What ``add_pkg``, ``on_fail``, ``enable_ui``, ... are given is held as data in :attr:`Launcher.recipe`
+(``agentsctl recipe show`` prints it); :meth:`Launcher.start` opens the transport and starts one run
+(:mod:`agents_core.launch.runs`: this process, or a process per component with ``add_pkg(...,
+multiprocessing=True)``), the events (:mod:`agents_core.launch.event_wiring`) and the attachments.
 """
 
 from __future__ import annotations
@@ -33,7 +32,7 @@ from ..events import Event
 from ..install_hint import install_hint
 from ..status import LifecycleState
 from ..transport.contract import Transport
-from ..transport.registry import DEFAULT_CROSS_PROCESS, TRANSPORT_ENV_VAR, cross_process_transports, resolve_transport
+from ..transport.registry import DEFAULT_CROSS_PROCESS, TRANSPORT_ENV_VAR, cross_process_transports
 from ..transport.registry import describe_transport_kind as _describe
 from .attachments import RunningAttachments, foxglove_options, record_options, ui_options
 from .event_wiring import EventWiring
@@ -77,14 +76,18 @@ class Launcher:
         a pre-imported server, :mod:`agents_core.launch.fork_server`; the default on Linux) or
         ``"spawn"`` (a fresh interpreter each); None reads ``AGENTS_PROCESS_START``.
     :param telemetry: OpenTelemetry traces and metrics (:mod:`agents_core.telemetry`); None: ``OTEL_*`` variables.
+    :param namespace: run under this namespace (``"robot1"``; None reads ``AGENTS_NAMESPACE``) as ROS 2 does:
+        components and relative topics are ``robot1/...`` on the wire (:mod:`agents_core.transport.namespace`).
     """
 
     def __init__(self, transport: str | Transport | None = None, *,
                  transport_options: Mapping[str, Any] | None = None,
                  config_file: str | os.PathLike[str] | None = None, quiet: bool | None = None,
-                 process_start: str | None = None, telemetry: Any = None) -> None:
+                 process_start: str | None = None, telemetry: Any = None,
+                 namespace: str | None = None) -> None:
         self._quiet, self._telemetry = quiet, _telemetry.telemetry_settings(telemetry)  # on at start
         settings, self._component_sections = launch_settings(transport, transport_options, config_file, process_start)
+        settings.set_namespace(namespace)
         #: What this launcher runs, as data (:mod:`agents_core.launch.recipe`).
         self.recipe = Recipe(settings=settings)
         self._fork_server: ForkServer | None = None
@@ -228,8 +231,7 @@ class Launcher:
         apply_launch_file(self.components, self._component_sections, settings.config_file)
         apply_fail_action(self.components, settings.fail_action, settings.fallback_rate)
         self._choose_default_transport()  # then the fork server, which imports the adapter meanwhile
-        self._transport = transport = resolve_transport(settings.transport, **settings.transport_options)
-        self._owns_transport = isinstance(settings.transport, str) or settings.transport is None
+        self._transport, self._owns_transport = transport, _ = settings.open_transport()  # namespaced, if any
         if settings.multiprocessing and not transport.capabilities.cross_process:
             self._transport = None
             if self._owns_transport:
@@ -285,8 +287,8 @@ class Launcher:
     def stop(self) -> None:
         """Deactivate and shut down every component, then close the transport if the launcher made it.
 
-        The transport is closed whatever happens before (a component that fails to stop, an
-        interrupt): its threads and shared-memory segments must not outlive the recipe.
+        The transport is closed whatever happens before (a component that fails to stop, an interrupt):
+        its threads and shared-memory segments must not outlive the recipe.
         """
         run, wiring = self._run, self._wiring
         try:
@@ -326,9 +328,8 @@ class Launcher:
     def bringup(self) -> None:
         """Start, run until SIGINT / SIGTERM (or :meth:`request_stop`), then stop cleanly.
 
-        The first signal starts a clean shutdown (running steps get ``step_finish_timeout`` to
-        finish); a second one makes it hurry (nothing more is waited for, the transport is still
-        closed); a third exits the process at once with status 128 + the signal number.
+        The first signal starts a clean shutdown (running steps get ``step_finish_timeout`` to finish); a
+        second makes it hurry (nothing more is waited for, the transport is still closed); a third exits at once.
         """
         stop_if_capturing(self.recipe)  # `agentsctl recipe show`: the recipe is complete here
         with short_errors(), stop_signals(self._stop_requested.set, self.hurry, quiet=self._quiet):

@@ -178,6 +178,28 @@ class RecipeSettings:
     #: ``Launcher.on_process_fail(max_retries)`` (None: a crashed process is not respawned) and its give-up.
     process_fail_retries: int | None = None
     process_giveup: Action | None = None
+    #: ``Launcher(namespace=...)`` (else ``AGENTS_NAMESPACE``): component and relative topic names go under it
+    #: on the wire (:mod:`agents_core.transport.namespace`); ``""``: none.
+    namespace: str = ""
+
+    def set_namespace(self, namespace: str | None) -> None:
+        """``Launcher(namespace=...)``: checked (ConfigError naming the field), then kept; None: the environment's."""
+        from ..transport.namespace import namespace_from_env, validate_namespace  # noqa: PLC0415
+
+        self.namespace = namespace_from_env() if namespace is None else validate_namespace(
+            namespace, "Launcher(namespace=...)")
+
+    def open_transport(self) -> tuple[Any, bool]:
+        """The transport the run uses and whether the launcher closes it: the named one opened (owned), or the
+        object given; seen through the namespace (:func:`~agents_core.transport.namespace.namespaced`) if any."""
+        from ..transport.namespace import namespaced  # noqa: PLC0415
+        from ..transport.registry import resolve_transport  # noqa: PLC0415
+
+        owned = isinstance(self.transport, str) or self.transport is None
+        transport = resolve_transport(self.transport, **self.transport_options)
+        if not self.namespace:
+            return transport, owned
+        return namespaced(transport, self.namespace, owns_inner=owned), True
 
     def set_process_fail(self, max_retries: int, on_giveup: Action | None) -> None:
         """``Launcher.on_process_fail``: checked, then kept."""
@@ -218,7 +240,8 @@ class RecipeSettings:
                 "on_fail": None if self.fail_action is None else {"action_name": self.fail_action[0],
                                                                   "max_retries": self.fail_action[1]},
                 "fallback_rate": self.fallback_rate, "process_fail_retries": self.process_fail_retries,
-                "process_giveup": None if self.process_giveup is None else _action(self.process_giveup)}
+                "process_giveup": None if self.process_giveup is None else _action(self.process_giveup),
+                "namespace": self.namespace}
 
 
 @attrs.define(eq=False)

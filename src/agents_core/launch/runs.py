@@ -154,6 +154,7 @@ class ProcessRun:
         specs = []
         for entry in self._recipe.entries():
             spec = ComponentSpec.from_entry(entry, transport.name, options, os.getpid())
+            spec.namespace = self._recipe.settings.namespace
             check_rebuild(entry.component, spec)
             specs.append(spec)
         for event, actions in self._recipe.events_actions.items():

@@ -107,6 +107,8 @@ class ComponentSpec:
     sys_path: list[str] = attrs.field(factory=list)
     #: The launcher's telemetry settings (:class:`~agents_core.telemetry.TelemetrySettings` fields), None: off there.
     telemetry: dict[str, Any] | None = None
+    #: The recipe's namespace: the child sees its transport through it (:mod:`agents_core.transport.namespace`).
+    namespace: str = ""
     version: int = SPEC_VERSION
 
     @classmethod
