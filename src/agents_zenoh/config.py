@@ -101,6 +101,13 @@ class ZenohConfig(BaseAttrs):
         waits until Zenoh has matched a subscriber (at most that long), so the first values
         are not lost to discovery; 0 disables.
     :param request_workers: threads serving incoming requests and lifecycle transitions.
+    :param shared_memory: put values of ``shm_threshold`` bytes or more from a shared-memory pool,
+        so that peers on this host receive them without the bytes crossing a socket (peers on
+        other hosts get them over the network as before; see :mod:`agents_zenoh.shm`). False
+        also turns Zenoh's own shared-memory transport off, so everything takes the network path.
+    :param shm_threshold: the smallest payload (bytes) put from shared memory.
+    :param shm_pool_size: the size (bytes) of the pool, created on the first large value; when it
+        is full a value takes the network path.
     :param zenoh_options: raw Zenoh settings, key path -> value (e.g.
         ``{"scouting/delay": 50}``), applied last; for what has no field here.
     """
@@ -116,6 +123,9 @@ class ZenohConfig(BaseAttrs):
     priorities: dict[str, str] = field(factory=dict, validator=_priorities)
     match_timeout: float = field(default=0.5, validator=base_validators.in_range(0.0, 60.0))
     request_workers: int = field(default=4, validator=[_int, base_validators.in_range(1, 256)])
+    shared_memory: bool = field(default=True, validator=_bool)
+    shm_threshold: int = field(default=64 * 1024, validator=[_int, base_validators.in_range(1, 2**40)])
+    shm_pool_size: int = field(default=32 * 1024 * 1024, validator=[_int, base_validators.in_range(4096, 2**40)])
     zenoh_options: dict[str, Any] = field(factory=dict, validator=_options)
 
     @config_file.validator

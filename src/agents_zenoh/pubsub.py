@@ -16,6 +16,7 @@ from agents_core.transport.driver import Sink
 from .codecs import MSGPACK, CodecError, decoder_for, encoder_for
 from .context import ZenohContext, undeclare
 from .graph import EntityToken
+from .shm import shm_payload
 
 __all__ = ["ZenohPublisher", "ZenohSubscription"]
 
@@ -68,6 +69,7 @@ class ZenohPublisher:
             self._match_deadline = time.monotonic() + context.match_timeout
         # Bound once: send() runs for every value.
         self._put = self._pub.put
+        self._shm = shm_payload(context)  # large payloads from shared memory (agents_zenoh.shm)
         # For graph discovery (agents_zenoh.graph): who publishes what, seen by any peer.
         self._token = EntityToken(context, "pub", topic)
 
@@ -79,9 +81,11 @@ class ZenohPublisher:
             self._wait_for_match()
         with self._lock:
             # Under the lock: the reusable buffer is shared, and sequence numbers follow put order.
-            payload = self._encode(value, self._buffer)
+            payload: Any = self._encode(value, self._buffer)
             seq = self._seq
             self._seq = seq + 1
+            if len(payload) >= self._shm[0]:
+                payload = self._shm[1](payload)
             try:
                 self._put(payload, attachment=_PACK_ATTACHMENT(0x82, _SEQ_KEY, 0xCF, seq, _STAMP_KEY, 0xCF,
                                                                time.time_ns()))
