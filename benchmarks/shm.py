@@ -6,10 +6,10 @@ process, one value in flight) and the throughput (8 in flight) of five modes, in
 order rotates each round), and prints every figure with its baseline:
 
 - ``fw``: the framework (a relay component under ``Launcher``, the transport's publisher and
-  subscription in the pinger) with the default ``ZenohConfig`` (``shared_memory=True``);
+  subscription in the pinger) putting large values from its own pool (``shm_threshold=65536``);
 - ``fw_noshm``: the same with ``ZenohConfig(shared_memory=False)``;
-- ``fw_tox``: shared memory on but no value put from the pool (``shm_threshold`` above every payload),
-  so only Zenoh's transport optimisation moves the bytes: what the pool itself adds;
+- ``fw_tox``: the default ``ZenohConfig`` (shared memory on, no pool: only Zenoh's transport
+  optimisation moves the bytes); ``fw`` ÷ ``fw_tox`` is what the pool itself adds;
 - ``raw_noshm``: zenoh-python alone with ``transport/shared_memory/enabled: false`` (the network path);
 - ``raw_default``: zenoh-python's default configuration (its transport optimisation moves payloads
   above 3 KB through shared memory, with a copy on each side);
@@ -63,8 +63,8 @@ def _raw_config(mode: str, listen: list[str], connect: list[str]) -> Any:
 def _fw_options(mode: str, listen: list[str], connect: list[str], namespace: str) -> dict[str, Any]:
     options: dict[str, Any] = {"mode": "peer", "listen": listen, "connect": connect, "namespace": namespace,
                                "multicast_scouting": False, "shared_memory": mode != "fw_noshm"}
-    if mode == "fw_tox":
-        options["shm_threshold"] = 2**40
+    if mode == "fw":
+        options["shm_threshold"] = 65_536
     return options
 
 
@@ -243,13 +243,14 @@ def _pinger(mode: str, connect: str, namespace: str, counts: tuple[int, int], se
 # -- orchestration --------------------------------------------------------------------------------
 
 
-def run(rounds: int, counts: tuple[int, int], seconds: float, log_dir: Path) -> list[dict[str, Any]]:
+def run(rounds: int, counts: tuple[int, int], seconds: float, log_dir: Path,
+        modes: tuple[str, ...] = MODES) -> list[dict[str, Any]]:
     """Every mode once per round (the order rotating), each in a fresh relay + pinger pair; the records."""
     records: list[dict[str, Any]] = []
     children = Children(log_dir)
     try:
         for round_no in range(rounds):
-            order = MODES[round_no % len(MODES):] + MODES[:round_no % len(MODES)]
+            order = modes[round_no % len(modes):] + modes[:round_no % len(modes)]
             for mode in order:
                 port = free_tcp_port()
                 endpoint, namespace = f"tcp/127.0.0.1:{port}", f"shmbench{port}"
@@ -308,11 +309,12 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--quick", action="store_true")
     parser.add_argument("--rounds", type=int)
+    parser.add_argument("--modes", default=",".join(MODES), help="comma-separated subset of " + ",".join(MODES))
     opts = parser.parse_args(args)
     rounds = opts.rounds or (1 if opts.quick else 3)
     counts, seconds = ((10, 60), 1.0) if opts.quick else ((30, 300), 3.0)
     with tempfile.TemporaryDirectory(prefix="shm-bench-") as logs:
-        records = run(rounds, counts, seconds, Path(logs))
+        records = run(rounds, counts, seconds, Path(logs), tuple(opts.modes.split(",")))
     for line in summarize(records):
         print(line)
     return 0

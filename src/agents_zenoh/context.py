@@ -40,9 +40,10 @@ class ZenohContext:
     def __init__(self, session: zenoh.Session, config: ZenohConfig) -> None:
         self._session: zenoh.Session | None = session
         self._config = config
-        #: Where large payloads are put from (see :mod:`agents_zenoh.shm`); None when shared memory is off.
-        self.shm: ShmPool | None = ShmPool(config.shm_pool_size, config.shm_threshold) \
-            if config.shared_memory else None
+        #: Where large payloads are put from (see :mod:`agents_zenoh.shm`); None unless ``shm_threshold`` is set.
+        self.shm: ShmPool | None = None
+        if config.shared_memory and config.shm_threshold is not None:
+            self.shm = ShmPool(config.shm_pool_size, config.shm_threshold)
 
     @property
     def session(self) -> zenoh.Session:

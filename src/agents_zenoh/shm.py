@@ -1,31 +1,32 @@
 """Shared memory for large values between processes on one host (the Zenoh driver's publishing side).
 
-With :attr:`ZenohConfig.shared_memory <agents_zenoh.config.ZenohConfig.shared_memory>` on (the
-default), a publisher's payload of :attr:`~agents_zenoh.config.ZenohConfig.shm_threshold` bytes
-or more (an image, a point cloud, an audio chunk, an array) is written once into a block of a
-shared-memory pool (:class:`ShmPool`, one per transport, created on the first large value) and
-put as that block: Zenoh hands a peer on the same host a reference to the block instead of the
-bytes. A peer on another host, or one whose shared memory is off, gets the bytes over the
+Two levels, both set in :class:`~agents_zenoh.config.ZenohConfig`:
+
+- ``shared_memory`` (on by default, as in Zenoh): the session's shared-memory transport. Zenoh
+  copies a payload above 3 KB into a shared-memory segment and hands a peer on the same host a
+  reference to it (its "transport optimisation"); False (``transport/shared_memory/enabled``)
+  sends everything over the network path instead.
+- ``shm_threshold`` (None by default): a payload of that many bytes or more is written once into
+  a block of a pool of the transport's own (:class:`ShmPool`, created on the first large value)
+  and put as that block, which skips Zenoh's copy into its segment. It measured no better than
+  the transport alone here (``benchmarks/shm.py``, see ``benchmarks/README.md``), hence off.
+
+Either way, a peer on another host, or one whose shared memory is off, gets the bytes over the
 network: Zenoh copies the block into the message for it, so nothing changes for the receiver.
 
 What is copied, and the lifetime rule:
 
-- publishing: the encoded payload is copied once into the block (zenoh-python's
-  ``ZShmMut`` takes bytes by slice assignment; it has no buffer a codec could write into). Without
-  the pool, zenoh-python copies the payload into a ``ZBytes`` and then Zenoh's own transport
-  optimisation copies it again into its shared memory, so this is one copy less per value.
+- publishing from the pool: the encoded payload is copied once into the block (zenoh-python's
+  ``ZShmMut`` takes bytes by slice assignment; it exports no buffer a codec could write into).
 - receiving: zenoh-python 1.10 gives no buffer view of a received block (``ZShm`` / ``ZBytes``
   do not export the buffer protocol), so the subscriber copies the payload out once
   (``to_bytes``) and the decoded arrays are numpy views of that private copy. **A value kept past
   the callback is therefore a copy, never a view of the shared block**: the block goes back to
-  the publisher's pool as soon as the sample is dropped, and nothing a publisher writes later can
-  show through a kept value (``tests/agents_zenoh/test_shm.py`` checks it).
-- a block is never written twice: each value gets a fresh allocation, and Zenoh frees a block
-  only when every receiver has dropped it. When the pool is full (slow receivers holding
-  blocks), a garbage collection is tried, then the value goes out on the network path as bytes.
-
-Setting ``shared_memory=False`` turns Zenoh's shared-memory transport off for the session too
-(``transport/shared_memory/enabled``), so every value takes the network path.
+  the publisher as soon as the sample is dropped, and nothing a publisher writes later can show
+  through a kept value (``tests/agents_zenoh/test_shm.py`` checks it with a pool reused 3 times).
+- a block is never written twice while in use: each value gets a fresh allocation, and Zenoh
+  frees a block only when every receiver has dropped it. When the pool is full (slow receivers
+  holding blocks) it collects and defragments, then the value takes the ordinary path.
 """
 
 from __future__ import annotations

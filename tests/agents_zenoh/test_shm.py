@@ -112,7 +112,7 @@ def link(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[tuple[Zenoh
     port = free_tcp_port()
     endpoint, namespace = f"tcp/127.0.0.1:{port}", f"shm_{os.getpid()}_{port}"
     bus = ZenohTransport(mode="peer", listen=[endpoint], connect=[], namespace=namespace, multicast_scouting=False,
-                         shm_pool_size=pool_size, match_timeout=5.0)
+                         shm_pool_size=pool_size, shm_threshold=64 * 1024, match_timeout=5.0)
     peer = Peer(endpoint, namespace, peer_shared, tmp_path / "peer.log")
     peer.seen = []
     try:
@@ -218,7 +218,7 @@ def test_the_off_switch() -> None:
     assert json.loads(zenoh_config(ZenohConfig()).get_json("transport/shared_memory/enabled")) is True
     port = free_tcp_port()
     bus = ZenohTransport(mode="peer", listen=[f"tcp/127.0.0.1:{port}"], connect=[], multicast_scouting=False,
-                         shared_memory=False)
+                         shared_memory=False, shm_threshold=1024)
     try:
         assert bus.driver.context.shm is None
         threshold, wrap = shm_payload(bus.driver.context)
@@ -229,6 +229,8 @@ def test_the_off_switch() -> None:
         ZenohConfig(shared_memory="yes")  # type: ignore[arg-type]
     with pytest.raises(ConfigError, match="shm_threshold"):
         ZenohConfig(shm_threshold=0)
+    # The default: Zenoh's shared-memory transport on, no pool of the transport's own.
+    assert ZenohConfig().shared_memory is True and ZenohConfig().shm_threshold is None
 
 
 def test_a_full_pool_falls_back_to_the_network_path() -> None:
