@@ -69,7 +69,7 @@ class ZenohPublisher:
             self._match_deadline = time.monotonic() + context.match_timeout
         # Bound once: send() runs for every value.
         self._put = self._pub.put
-        self._shm = shm_payload(context)  # large payloads from shared memory (agents_zenoh.shm)
+        self._shm = shm_payload(context.shm)  # large payloads from shared memory (agents_zenoh.shm)
         # For graph discovery (agents_zenoh.graph): who publishes what, seen by any peer.
         self._token = EntityToken(context, "pub", topic)
 

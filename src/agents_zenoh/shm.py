@@ -35,12 +35,9 @@ import logging
 import sys
 import threading
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import zenoh
-
-if TYPE_CHECKING:
-    from .context import ZenohContext
 
 __all__ = ["NEVER", "ShmPool", "shm_payload", "shm_session_options"]
 
@@ -113,10 +110,9 @@ def _unchanged(data: bytes | bytearray) -> Any:
     return data
 
 
-def shm_payload(context: ZenohContext) -> tuple[int, Callable[[bytes | bytearray], Any]]:
-    """(threshold, wrap) for a publisher of ``context``: a payload of ``threshold`` bytes or more is put as
-    ``wrap(payload)`` (from the context's pool); with shared memory off the threshold is :data:`NEVER`."""
-    pool = context.shm
+def shm_payload(pool: ShmPool | None) -> tuple[int, Callable[[bytes | bytearray], Any]]:
+    """(threshold, wrap) for a publisher: a payload of ``threshold`` bytes or more is put as ``wrap(payload)``
+    (from ``pool``, the context's); without a pool the threshold is :data:`NEVER`."""
     if pool is None:
         return NEVER, _unchanged
     return pool.threshold, pool.payload

@@ -221,7 +221,7 @@ def test_the_off_switch() -> None:
                          shared_memory=False, shm_threshold=1024)
     try:
         assert bus.driver.context.shm is None
-        threshold, wrap = shm_payload(bus.driver.context)
+        threshold, wrap = shm_payload(bus.driver.context.shm)
         assert threshold == NEVER and wrap(b"x" * 10) == b"x" * 10
     finally:
         bus.close()
