@@ -6,10 +6,11 @@ process, one value in flight) and the throughput (8 in flight) of five modes, in
 order rotates each round), and prints every figure with its baseline:
 
 - ``fw``: the framework (a relay component under ``Launcher``, the transport's publisher and
-  subscription in the pinger) putting large values from its own pool (``shm_threshold=65536``);
+  subscription in the pinger) with the default ``ZenohConfig`` (Zenoh's shared-memory transport on,
+  no pool of its own: Zenoh's transport optimisation moves the bytes);
+- ``fw_pool``: the same putting values of 64 KiB or more from its own pool (``shm_threshold=65536``);
+  ``fw_pool`` ÷ ``fw`` is what the pool itself adds;
 - ``fw_noshm``: the same with ``ZenohConfig(shared_memory=False)``;
-- ``fw_tox``: the default ``ZenohConfig`` (shared memory on, no pool: only Zenoh's transport
-  optimisation moves the bytes); ``fw`` ÷ ``fw_tox`` is what the pool itself adds;
 - ``raw_noshm``: zenoh-python alone with ``transport/shared_memory/enabled: false`` (the network path);
 - ``raw_default``: zenoh-python's default configuration (its transport optimisation moves payloads
   above 3 KB through shared memory, with a copy on each side);
@@ -37,7 +38,7 @@ from .common import READY, Children, StopFlag, child_env, emit, free_tcp_port, z
 from .hop import await_echo, measure_latency
 from .throughput import measure_throughput
 
-MODES = ("fw", "raw_noshm", "fw_noshm", "raw_default", "fw_tox", "raw_shm")
+MODES = ("fw", "raw_noshm", "fw_noshm", "raw_default", "fw_pool", "raw_shm")
 TOPICS = {"image": ("shm/img_in", "shm/img_out"), "cloud": ("shm/pc_in", "shm/pc_out")}
 CLOUD_POINTS = 65_536
 SIZES = {"image": 640 * 480 * 3, "cloud": CLOUD_POINTS * 16}
@@ -63,7 +64,7 @@ def _raw_config(mode: str, listen: list[str], connect: list[str]) -> Any:
 def _fw_options(mode: str, listen: list[str], connect: list[str], namespace: str) -> dict[str, Any]:
     options: dict[str, Any] = {"mode": "peer", "listen": listen, "connect": connect, "namespace": namespace,
                                "multicast_scouting": False, "shared_memory": mode != "fw_noshm"}
-    if mode == "fw":
+    if mode == "fw_pool":
         options["shm_threshold"] = 65_536
     return options
 
@@ -265,7 +266,7 @@ def run(rounds: int, counts: tuple[int, int], seconds: float, log_dir: Path,
                     for record in pinger.records(timeout=120.0):
                         record.update(mode=mode, round=round_no)
                         records.append(record)
-                        print(json.dumps(record), flush=True)
+                        print(json.dumps(record), file=sys.stderr, flush=True)
                     children.stop(pinger)
                 finally:
                     children.stop(relay)
@@ -288,13 +289,55 @@ def summarize(records: list[dict[str, Any]]) -> list[str]:
             for mode, vals in per_mode.items():
                 lines.append(f"{suite} {payload} {mode}: median {statistics.median(vals):.1f} "
                              f"range {min(vals):.1f}..{max(vals):.1f} {key} ({better} is better)")
-            for fw in ("fw", "fw_noshm", "fw_tox"):
+            for fw in ("fw", "fw_noshm", "fw_pool"):
                 for base in ("raw_noshm", "raw_default", "raw_shm"):
                     ratios = [v[fw] / v[base] for v in per_round.values() if fw in v and base in v]
                     if ratios:
                         lines.append(f"  {suite} {payload} {fw} / {base}: median {statistics.median(ratios):.2f} "
                                      f"range {min(ratios):.2f}..{max(ratios):.2f}")
     return lines
+
+
+#: (framework mode, raw baseline) pairs the runner reports as framework ÷ raw.
+PAIRS = (("fw", "raw_noshm"), ("fw", "raw_default"), ("fw", "raw_shm"), ("fw_pool", "raw_shm"),
+         ("fw_noshm", "raw_noshm"))
+
+
+def as_figures(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """The records in the runner's form: per (framework mode, baseline) and payload one framework and one raw
+    record (``payload`` names both, e.g. ``image_fw_vs_raw_noshm``), medians over the rounds."""
+    out = []
+    for fw, base in PAIRS:
+        for payload in TOPICS:
+            for mode, source in (("framework", fw), ("raw", base)):
+                hops = [r["median_us"] for r in records if r["suite"] == "shm_hop" and r["mode"] == source
+                        and r["payload"] == payload]
+                rates = [r["mb_per_s"] for r in records if r["suite"] == "shm_throughput" and r["mode"] == source
+                         and r["payload"] == payload]
+                if hops and rates:
+                    out.append({"suite": "shm", "transport": "zenoh", "payload": f"{payload}_{fw}_vs_{base}",
+                                "mode": mode, "rtt_median_us": statistics.median(hops),
+                                "mb_per_s": statistics.median(rates), "rounds": len(hops), "source_mode": source})
+    return out
+
+
+def run_suite(settings: dict[str, Any], children: Children,
+              progress: Any) -> tuple[list[dict[str, Any]], list[dict[str, str]]]:
+    """What ``benchmarks.run`` calls: every mode, ``settings["rounds"]`` rounds; (records, skipped)."""
+    from .common import ChildFailed, available  # noqa: PLC0415
+
+    if not available("zenoh"):
+        return [], [{"suite": "shm", "transport": "zenoh", "mode": "both", "reason": "zenoh is not installed"}]
+    quick = settings.get("rounds", 1) <= 1
+    counts, seconds = ((10, 60), 1.0) if quick else ((30, 300), 3.0)
+    try:
+        raw_records = run(int(settings.get("rounds", 1)), counts, seconds, children.log_dir)
+    except ChildFailed as exc:
+        progress(f"shm: FAILED: {str(exc).splitlines()[0]}")
+        return [], [{"suite": "shm", "transport": "zenoh", "mode": "both", "reason": str(exc)[-1500:]}]
+    for line in summarize(raw_records):
+        progress(f"shm        {line}")
+    return as_figures(raw_records), []
 
 
 def main(argv: list[str] | None = None) -> int:
