@@ -20,8 +20,8 @@ Binary clients get the UI's default preview size (``UISettings.image_preview``: 
 JSON clients the whole image.
 
 ``image_encode_floor``: the UI's JPEG encode of the same image alone (``frames.image_bytes`` at the
-preview size, timed in the same rounds as a third measurement) against the same raw hops: the least the ``image`` figure can
-be, whatever the rest of the path costs.
+preview size, timed in the same rounds as a third measurement) against the same raw hops: the least the
+``image`` figure can be, whatever the rest of the path costs.
 
 ``python -m benchmarks.ui --count N`` prints the records.
 """
