@@ -52,6 +52,9 @@ METRICS: dict[str, list[tuple[str, str, str, str]]] = {
     # a goal with N feedbacks, sent to its result: send_goal / create_action_server vs raw zenoh queryables
     # or raw rclpy ActionServer / ActionClient.
     "goals": [("rtt_median", "us", "lower", "rtt.median_us"), ("rtt_p99", "us", "lower", "rtt.p99_us")],
+    # 640x480 rgb8 and 1 MiB PointCloud2 through a relay between two processes (benchmarks/shm.py): the framework's
+    # default / pool / no-shared-memory config vs raw zenoh with shared memory off, its default, its own SHM buffers.
+    "shm": [("rtt_median", "us", "lower", "rtt_median_us"), ("mb_per_s", "MB/s", "higher", "mb_per_s")],
     # one observation -> action chunk round trip: LeRobotClient.inference vs the raw gRPC stubs, one server.
     "vla": [("latency_p50", "ms", "lower", "latency_ms.p50"), ("latency_p99", "ms", "lower", "latency_ms.p99")],
     # the rate `agentsctl topics hz` reports vs a raw zenoh subscriber counting the same publisher.

@@ -1,7 +1,7 @@
 """Run the benchmarks: ``python -m benchmarks.run [--quick] [--transports memory,zenoh,ros2] [--out DIR]``.
 
 Runs the suites (hop latency and throughput, start-up, model path, import cost, vision, voice, map,
-processes, ui, goals, vla, cli, sim, e2e) for every transport this environment has, framework and raw library
+processes, ui, goals, vla, shm, cli, sim, e2e) for every transport this environment has, framework and raw library
 side by side, then writes
 ``<out>/<stamp>-<quick|full>.json`` and ``.png`` and prints a markdown table. A transport or suite
 that cannot run here (its extra is not installed) is skipped, and the reason is recorded in the
@@ -29,6 +29,7 @@ from . import mcp as mcp_suite
 from . import memory as memory_suite
 from . import recording as recording_suite
 from . import rmw_zenoh as rmw_zenoh_suite
+from . import shm as shm_suite
 from . import sim as sim_suite
 from . import telemetry as telemetry_suite
 from .common import IMAGE_SHAPE, REPO, STRING_BYTES, Children, available
@@ -58,7 +59,7 @@ SETTINGS: dict[str, dict[str, Any]] = {
 }
 
 SUITES = ("hop", "startup", "model", "imports", "vision", "voice", "map", "processes", "ui", "goals", "vla",
-          "cortex", "cli", "memory", "recording", "sim", "e2e", "mcp", "rmw_zenoh", "telemetry", "fleet")
+          "cortex", "cli", "memory", "recording", "sim", "e2e", "mcp", "rmw_zenoh", "telemetry", "fleet", "shm")
 
 
 def transport_unavailable(name: str) -> str | None:
@@ -123,6 +124,7 @@ def run_suites(transports: list[str], suites: list[str], settings: dict[str, Any
         ("ui", "memory", lambda: ui.run_suite(settings, p)),
         ("goals", None, lambda: goals.run_suite(t, settings, c, d, p)),
         ("vla", None, lambda: vla.run_suite(settings, c, p)),
+        ("shm", "zenoh", lambda: shm_suite.run_suite(settings, c, p)),
         ("cortex", None, lambda: cortex.run_suite(settings, c, p)),
         ("mcp", None, lambda: mcp_suite.run_suite(settings, c, p)),
         ("cli", "zenoh", lambda: cli_hz.run_suite(settings, p)),

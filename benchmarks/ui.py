@@ -16,9 +16,12 @@ Payloads: ``string`` (a short String) and ``image`` (a 640x480 rgb8 Image, sent 
 JPEG; ``image_bgr8``: the same in a camera's bgr8). The ratio shows what serving a browser costs over
 reading the topic in-process.
 
-``image_encode_floor``: the UI's JPEG encode of the same image alone (``frames.image_bytes``, timed in
-the same rounds as a third measurement) against the same raw hops: the least the ``image`` figure can
-be, whatever the rest of the path costs.
+Binary clients get the UI's default preview size (``UISettings.image_preview``: 640x480 goes as 320x240);
+JSON clients the whole image.
+
+``image_encode_floor``: the UI's JPEG encode of the same image alone (``frames.image_bytes`` at the
+preview size, timed in the same rounds as a third measurement) against the same raw hops: the least the
+``image`` figure can be, whatever the rest of the path costs.
 
 ``python -m benchmarks.ui --count N`` prints the records.
 """
@@ -99,10 +102,11 @@ def _latencies(payload: str, count: int, warmup: int, frames: str = "json",
                     raise RuntimeError("the raw subscription got nothing in 10 s")
                 return time.perf_counter() - start
 
-            def encode(value: Any) -> float:
+            # At the size the UI sends a binary client (the live view) by default.
+            def encode(value: Any, preview: int | None = UISettings().image_preview) -> float:
                 image = ImageMsg.from_array(value)
                 start = time.perf_counter()
-                image_bytes(image, image_format)
+                image_bytes(image, image_format, preview)
                 return time.perf_counter() - start
 
             for seq in range(warmup + count):

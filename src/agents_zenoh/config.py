@@ -69,6 +69,11 @@ def _int(_inst: Any, attribute: Any, value: Any) -> None:
         raise ConfigError(f"{attribute.name} must be an int, got {value!r}")
 
 
+def _threshold(_inst: Any, attribute: Any, value: Any) -> None:
+    if value is not None and (isinstance(value, bool) or not isinstance(value, int) or value < 1):
+        raise ConfigError(f"{attribute.name} must be None or a positive int (bytes), got {value!r}")
+
+
 def _priorities(_inst: Any, _attribute: Any, value: Any) -> None:
     if not isinstance(value, dict):
         raise ConfigError("priorities must map topic names to priority names")
@@ -101,6 +106,16 @@ class ZenohConfig(BaseAttrs):
         waits until Zenoh has matched a subscriber (at most that long), so the first values
         are not lost to discovery; 0 disables.
     :param request_workers: threads serving incoming requests and lifecycle transitions.
+    :param shared_memory: Zenoh's shared-memory transport between processes on this host (on by
+        default, as in Zenoh: payloads above 3 KB then cross through shared memory, with a copy on
+        each side); False turns it off, so every value takes the network path (loopback TCP).
+    :param shm_threshold: None (default): no value is put from a pool of this transport's own.
+        An int: values encoded to this many bytes or more are put from a shared-memory pool
+        (:mod:`agents_zenoh.shm`), so Zenoh's own copy into shared memory is skipped; peers on
+        other hosts still get the bytes over the network. Off by default because it measured no
+        better than Zenoh's transport alone (``benchmarks/shm.py``). Needs ``shared_memory``.
+    :param shm_pool_size: the size (bytes) of that pool, created on the first large value; when it
+        is full a value takes the ordinary path.
     :param zenoh_options: raw Zenoh settings, key path -> value (e.g.
         ``{"scouting/delay": 50}``), applied last; for what has no field here.
     """
@@ -116,6 +131,9 @@ class ZenohConfig(BaseAttrs):
     priorities: dict[str, str] = field(factory=dict, validator=_priorities)
     match_timeout: float = field(default=0.5, validator=base_validators.in_range(0.0, 60.0))
     request_workers: int = field(default=4, validator=[_int, base_validators.in_range(1, 256)])
+    shared_memory: bool = field(default=True, validator=_bool)
+    shm_threshold: int | None = field(default=None, validator=_threshold)
+    shm_pool_size: int = field(default=32 * 1024 * 1024, validator=[_int, base_validators.in_range(4096, 2**40)])
     zenoh_options: dict[str, Any] = field(factory=dict, validator=_options)
 
     @config_file.validator

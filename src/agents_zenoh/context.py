@@ -19,6 +19,7 @@ from agents_core.topics import Topic
 
 from .config import ZenohConfig
 from .keys import goal_key, topic_key
+from .shm import ShmPool
 
 __all__ = ["CONTROL_PRIORITY", "ZenohContext", "undeclare"]
 
@@ -39,6 +40,10 @@ class ZenohContext:
     def __init__(self, session: zenoh.Session, config: ZenohConfig) -> None:
         self._session: zenoh.Session | None = session
         self._config = config
+        #: Where large payloads are put from (see :mod:`agents_zenoh.shm`); None unless ``shm_threshold`` is set.
+        self.shm: ShmPool | None = None
+        if config.shared_memory and config.shm_threshold is not None:
+            self.shm = ShmPool(config.shm_pool_size, config.shm_threshold)
 
     @property
     def session(self) -> zenoh.Session:

@@ -18,6 +18,7 @@ from agents_core.transport.driver import Sink
 from .codecs import MSGPACK, CodecError, decoder_for, encoder_for
 from .context import ZenohContext, undeclare
 from .graph import EntityToken
+from .shm import shm_payload
 
 __all__ = ["ZenohPublisher", "ZenohSubscription"]
 
@@ -70,6 +71,7 @@ class ZenohPublisher:
             self._match_deadline = time.monotonic() + context.match_timeout
         # Bound once: send() runs for every value.
         self._put = self._pub.put
+        self._shm = shm_payload(context.shm)  # large payloads from shared memory (agents_zenoh.shm)
         # For graph discovery (agents_zenoh.graph): who publishes what, seen by any peer.
         self._token = EntityToken(context, "pub", topic)
 
@@ -81,13 +83,15 @@ class ZenohPublisher:
             self._wait_for_match()
         with self._lock:
             # Under the lock: the reusable buffer is shared, and sequence numbers follow put order.
-            payload = self._encode(value, self._buffer)
+            payload: Any = self._encode(value, self._buffer)
             seq = self._seq
             self._seq = seq + 1
             attachment = _PACK_ATTACHMENT(0x82, _SEQ_KEY, 0xCF, seq, _STAMP_KEY, 0xCF, time.time_ns())
             tel = _telemetry.hooks
             if tel is not None and (traceparent := tel.traceparent()) is not None:
                 attachment = append_traceparent(attachment, traceparent)  # the W3C context of the publish span
+            if len(payload) >= self._shm[0]:
+                payload = self._shm[1](payload)
             try:
                 self._put(payload, attachment=attachment)
             except zenoh.ZError as exc:

@@ -13,6 +13,7 @@ import zenoh
 from agents_core.errors import ConfigError, TransportError
 
 from .config import ZenohConfig
+from .shm import shm_session_options
 
 __all__ = ["effective_mode", "open_session", "zenoh_config"]
 
@@ -61,6 +62,9 @@ def zenoh_config(config: ZenohConfig, *, listen: list[str] | None = None,
         cfg.insert_json5("connect/retry", json.dumps(RECONNECT_RETRY))
     # Needed by transient_local topics (Zenoh's advanced publisher caches timestamped samples).
     cfg.insert_json5("timestamping/enabled", "true")
+    if not config.shared_memory:
+        for key, value in shm_session_options(False).items():
+            cfg.insert_json5(key, json.dumps(value))
     for key, value in config.zenoh_options.items():
         try:
             cfg.insert_json5(key, json.dumps(value))

@@ -109,12 +109,13 @@ def test_raw_image_format_sends_the_exact_pixels() -> None:
 
 
 def _stalled_binary_client(port: int) -> socket.socket:
-    """A binary-frames WebSocket client that completes the handshake and then never reads."""
+    """A binary-frames WebSocket client (full resolution: big frames) that completes the handshake and then
+    never reads."""
     sock = socket.socket()
     sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
     sock.connect(("127.0.0.1", port))
     key = base64.b64encode(os.urandom(16)).decode()
-    sock.sendall((f"GET /api/outputs?topics=picture&frames=binary HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\n"
+    sock.sendall((f"GET /api/outputs?topics=picture&frames=binary&full=1 HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\n"
                   f"Upgrade: websocket\r\nConnection: Upgrade\r\nSec-WebSocket-Key: {key}\r\n"
                   "Sec-WebSocket-Version: 13\r\n\r\n").encode())
     head = b""

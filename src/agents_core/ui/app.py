@@ -6,7 +6,7 @@
                                                               inputs, outputs, actions) and the
                                                               inputs / outputs the UI shows
 ``POST /api/inputs/<topic>``                                  publish (see :mod:`.inputs`)
-``WS   /api/outputs[?topics=a,b][&frames=binary]``          frames (see :mod:`.frames`, :mod:`.binary_frames`)
+``WS   /api/outputs[?topics=a,b][&frames=binary][&full=1]`` frames (see :mod:`.frames`, :mod:`.binary_frames`)
 ``POST /api/components/<name>/transition``                    ``{"transition": "deactivate"}``
 ``POST /api/components/<name>/actions/<action>``              ``{"args": [...], "kwargs": {...}}``,
                                                               ``@component_action`` methods only
@@ -76,7 +76,7 @@ class UIState:
         self.inputs = {t.name: t for t in inputs}
         self.outputs = {t.name: t for t in outputs}
         self.hub = OutputHub(transport, outputs, view.component_names(), image_format=settings.image_format,
-                             client_queue=settings.client_queue)
+                             client_queue=settings.client_queue, image_preview=settings.image_preview)
         self.gate = Gatekeeper(settings.token, settings.session_seconds)
         #: Uploads decoded at once: each may take a few hundred MB and a core for a second.
         self.decoders = anyio.CapacityLimiter(settings.decode_workers)
@@ -395,7 +395,7 @@ def _outputs_socket(state: UIState) -> Callable[[WebSocket], Awaitable[None]]:
             state.hub.refused_clients += 1
             await websocket.close(code=1013, reason=f"too many clients ({state.settings.max_clients}); try later")
             return
-        client = state.hub.connect(topics, binary=form == "binary")
+        client = state.hub.connect(topics, binary=form == "binary", full=websocket.query_params.get("full") == "1")
         try:
             # Two tasks, the first to end stops both: pump sends frames until the client is dropped,
             # listen notices a client that goes away (what it sends is ignored; the server's

@@ -80,27 +80,35 @@ def _b64(data: bytes) -> str:
 RGB8_MIME = "application/x-rgb8"
 
 
-def image_bytes(image: ImageMsg | CompressedImageMsg,
-                image_format: str = "jpeg") -> tuple[str, bytes, int | None, int | None, str | None]:
+def image_bytes(image: ImageMsg | CompressedImageMsg, image_format: str = "jpeg",
+                max_side: int | None = None) -> tuple[str, bytes, int | None, int | None, str | None]:
     """``image`` ready to send: ``(mime, data, width, height, note)``.
 
     Compressed images are passed as they are (``width`` / ``height`` None); raw ones are encoded as
     JPEG or PNG, or (``image_format="raw"``) sent as their rgb8 pixels. Depth and 16-bit images are
     scaled to 8 bits for display (the frame is for eyes, not for maths). ``note`` says when the image
-    was downscaled (a side past JPEG's limit).
+    was downscaled (a side past JPEG's limit). ``max_side`` (JPEG and PNG only): a larger image is
+    sent downscaled by the smallest whole step that brings its longest side within it (every
+    step-th pixel: the UI's preview), ``width`` / ``height`` still the image's own.
     """
     if isinstance(image, CompressedImageMsg):
         fmt = image.format.lower()
         return _MIME.get(fmt, f"image/{fmt}"), bytes(image.data), None, None, None
-    if image_format == "jpeg" and (native := _native_jpeg(image)) is not None:
-        return "image/jpeg", native, image.width, image.height, None
-    pixels = image.to_rgb()
+    limit = MAX_JPEG_SIDE if image_format == "jpeg" else None
+    if max_side is not None and image_format != "raw":
+        limit = max_side if limit is None else min(limit, max_side)
+    longest = max(image.data.shape[:2])
+    step = -(-longest // limit) if limit is not None and longest > limit else 1  # ceil: every side within
     note = None
-    if image_format == "jpeg" and max(pixels.shape[:2]) > MAX_JPEG_SIDE:
-        step = -(-max(pixels.shape[:2]) // MAX_JPEG_SIDE)  # ceil: every side within the limit
-        pixels = pixels[::step, ::step]
-        note = (f"downscaled 1:{step} to {pixels.shape[1]}x{pixels.shape[0]} for display "
+    if step > 1 and image_format == "jpeg" and longest > MAX_JPEG_SIDE:
+        height, width = image.data.shape[:2]
+        note = (f"downscaled 1:{step} to {-(-width // step)}x{-(-height // step)} for display "
                 f"(JPEG allows {MAX_JPEG_SIDE} pixels a side)")
+    if image_format == "jpeg" and (native := _native_jpeg(image, step)) is not None:
+        return "image/jpeg", native, image.width, image.height, note
+    pixels = image.to_rgb()
+    if step > 1:
+        pixels = pixels[::step, ::step]
     if pixels.dtype != np.uint8:
         finite = pixels[np.isfinite(pixels)] if pixels.dtype.kind == "f" else pixels
         top = float(finite.max()) if finite.size else 1.0
@@ -158,11 +166,14 @@ _NATIVE_JPEG = {"rgb8": ("RGB", 3), "bgr8": ("BGR", 3), "rgba8": ("RGBX", 4), "b
                 "mono8": ("GRAY", 1)}
 
 
-def _native_jpeg(image: ImageMsg) -> bytes | None:
+def _native_jpeg(image: ImageMsg, step: int = 1) -> bytes | None:
     """``image`` as a JPEG straight from its own pixels by simplejpeg (None: not installed, or an encoding,
     dtype or size it does not take that way). A camera's bgr8 frame skips the copy to RGB that
-    :meth:`ImageMsg.to_rgb` would need: that copy took as long as the encode for 640x480."""
+    :meth:`ImageMsg.to_rgb` would need: that copy took as long as the encode for 640x480. ``step`` > 1:
+    every step-th pixel of every step-th row (the preview)."""
     encoder, layout, data = _simplejpeg(), _NATIVE_JPEG.get(image.encoding), image.data
+    if step > 1:
+        data = data[::step, ::step]
     if encoder is None or layout is None or data.dtype != np.uint8 or data.ndim not in (2, 3):
         return None
     space, channels = layout

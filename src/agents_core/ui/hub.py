@@ -60,21 +60,27 @@ class _ImageFrames:
         self._hub, self._topic, self._type, self._value = hub, topic, type_name, value
         self._text: str | None = None
         self._binary: bytes | str | None = None
+        self._binary_full: bytes | str | None = None
 
     def text(self) -> str:
         if self._text is None:
             self._text = self._hub.encode(self._topic, self._type, self._value)[1]
         return self._text
 
-    def binary(self) -> bytes | str:
+    def binary(self, full: bool = False) -> bytes | str:
+        """The binary frame: the preview (``hub.image_preview``), or the image at full resolution."""
+        if full and self._hub.image_preview is not None:
+            if self._binary_full is None:
+                self._binary_full = self._encode_binary(None)
+            return self._binary_full
         if self._binary is None:
-            self._binary = self._encode_binary()
+            self._binary = self._encode_binary(self._hub.image_preview)
         return self._binary
 
-    def _encode_binary(self) -> bytes | str:
+    def _encode_binary(self, max_side: int | None) -> bytes | str:
         hub, value = self._hub, self._value
         try:
-            mime, data, width, height, _ = image_bytes(value, hub.image_format)
+            mime, data, width, height, _ = image_bytes(value, hub.image_format, max_side)
         except Exception:
             return self.text()  # the JSON path says why, in an error frame (and counts it)
         header = getattr(value, "header", None)
@@ -86,7 +92,7 @@ class _ImageFrames:
 class OutputClient:
     """One WebSocket client's bounded queue of encoded frames (None: the client was dropped)."""
 
-    def __init__(self, topics: frozenset[str] | None, depth: int, binary: bool = False) -> None:
+    def __init__(self, topics: frozenset[str] | None, depth: int, binary: bool = False, full: bool = False) -> None:
         #: The topics it asked for (None: all); status frames always come.
         self.topics = topics
         #: Unbounded as a queue, bounded by the hub: at most ``depth`` frames plus one entry per topic in
@@ -95,6 +101,8 @@ class OutputClient:
         self.depth = depth
         #: Images as binary frames, image / detections frames latest-wins (see the module docstring).
         self.binary = binary
+        #: Images at full resolution rather than the hub's preview size (binary clients that asked).
+        self.full = full
         #: topic -> its newest latest-wins frame not sent yet.
         self.latest: dict[str, str | bytes] = {}
         #: Latest-wins frames replaced by a newer one before they were sent.
@@ -126,14 +134,18 @@ class OutputHub:
 
     :param image_format: ``"jpeg"`` or ``"png"`` for raw images.
     :param client_queue: frames a client may have waiting before it is dropped.
+    :param image_preview: binary clients get raw images downscaled so their longest side is at most
+        this (a whole step: 640x480 -> 320x240 at 320), unless they asked for full resolution; None:
+        always full.
     """
 
     def __init__(self, transport: Transport, outputs: Iterable[Topic], components: Iterable[str], *,
-                 image_format: str = "jpeg", client_queue: int = 256) -> None:
+                 image_format: str = "jpeg", client_queue: int = 256, image_preview: int | None = None) -> None:
         self._transport = transport
         self.outputs = {t.name: t for t in outputs}
         self.components = sorted(set(components))
         self.image_format = image_format
+        self.image_preview = image_preview
         self.client_queue = client_queue
         self._clients: set[OutputClient] = set()
         self._loop: asyncio.AbstractEventLoop | None = None
@@ -146,6 +158,7 @@ class OutputHub:
         #: output topic -> the ``topic_id`` of its binary frames (its place in ``outputs``).
         self.topic_ids = {name: i for i, name in enumerate(self.outputs)}
         self._binary_clients = 0
+        self._full_clients = 0
         self._json_clients = 0
         self.frames_sent = 0
         #: Latest-wins frames replaced before they were sent, over every client.
@@ -201,8 +214,10 @@ class OutputHub:
             if isinstance(value, ImageMsg | CompressedImageMsg):
                 kind, payload = "image", _ImageFrames(self, name, type_name, value)
                 # Encoded here, off the event loop, in the forms the clients connected now take.
-                if self._binary_clients:
+                if self._binary_clients > self._full_clients:
                     payload.binary()
+                if self._full_clients:
+                    payload.binary(full=True)
                 if self._json_clients:
                     payload.text()
             else:
@@ -234,7 +249,7 @@ class OutputHub:
             if isinstance(payload, str):
                 data: str | bytes = payload
             else:
-                data = payload.binary() if client.binary else payload.text()
+                data = payload.binary(client.full) if client.binary else payload.text()
             if client.binary and kind in LATEST_WINS:
                 if topic in client.latest:  # the older one was not sent yet: the newer replaces it
                     client.dropped_frames += 1
@@ -281,13 +296,16 @@ class OutputHub:
 
     # -- clients ------------------------------------------------------------------------------
 
-    def connect(self, topics: Iterable[str] | None = None, binary: bool = False) -> OutputClient:
+    def connect(self, topics: Iterable[str] | None = None, binary: bool = False, full: bool = False) -> OutputClient:
         """A new client (on the event loop), following ``topics`` (None: every shown output); ``binary``:
-        images as binary frames, latest-wins (see the module docstring)."""
-        client = OutputClient(frozenset(topics) if topics is not None else None, self.client_queue, binary)
+        images as binary frames, latest-wins (see the module docstring); ``full``: those images at full
+        resolution, not the preview size."""
+        client = OutputClient(frozenset(topics) if topics is not None else None, self.client_queue, binary,
+                              binary and full)
         self._clients.add(client)
         if binary:
             self._binary_clients += 1
+            self._full_clients += client.full
         else:
             self._json_clients += 1
         with self._lock:
@@ -302,6 +320,7 @@ class OutputHub:
             self._clients.discard(client)
             if client.binary:
                 self._binary_clients -= 1
+                self._full_clients -= client.full
             else:
                 self._json_clients -= 1
 

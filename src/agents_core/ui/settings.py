@@ -38,6 +38,11 @@ class UISettings:
     :param max_upload_bytes: the largest request body (uploads included).
     :param image_format: ``"jpeg"`` or ``"png"`` for raw images sent to clients; ``"raw"``: their rgb8
         pixels in binary frames (no encode; several times the bytes, for loopback), JPEG in JSON frames.
+    :param image_preview: the longest side (pixels) of the raw images the live view gets: a larger one
+        is sent downscaled by a whole step (640x480 -> 320x240 at the default 320), which cuts the JPEG
+        encode about 4x; a client that opens ``/api/outputs?frames=binary&full=1`` gets them whole
+        (full resolution on demand; boxes are drawn in the image's own pixels either way). None: always
+        full resolution. JSON frames are always whole.
     :param client_queue: frames a WebSocket client may have waiting before it is dropped as too slow.
     :param request_timeout: seconds for a transition or an action to answer.
     :param max_json_bytes: the largest JSON body of an input (uploads are bounded by ``max_upload_bytes``).
@@ -66,6 +71,7 @@ class UISettings:
     token: str | None = field(default=None, repr=False)
     max_upload_bytes: int = 20 * 1024 * 1024
     image_format: str = "jpeg"
+    image_preview: int | None = 320
     client_queue: int = 256
     request_timeout: float = 30.0
     max_json_bytes: int = 1024 * 1024
@@ -92,6 +98,10 @@ class UISettings:
                 raise ConfigError(f"UI trusted_proxies: {proxy!r} is not an IP address or network") from None
         if not isinstance(self.port, int) or not 0 <= self.port <= 65535:
             raise ConfigError(f"UI port must be an int from 0 to 65535, got {self.port!r}")
+        if self.image_preview is not None and (isinstance(self.image_preview, bool)
+                                               or not isinstance(self.image_preview, int) or self.image_preview < 16):
+            raise ConfigError(f"UI image_preview must be None or an int of at least 16 pixels, "
+                              f"got {self.image_preview!r}")
         if self.image_format not in ("jpeg", "png", "raw"):
             raise ConfigError(f"UI image_format must be 'jpeg', 'png' or 'raw', got {self.image_format!r}")
         if self.max_upload_bytes <= 0 or self.client_queue <= 0 or not self.request_timeout > 0:
