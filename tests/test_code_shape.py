@@ -12,8 +12,9 @@ These are the structural promises of docs/architecture.md:
   private state is written by that class only).
 
 Imports are read with :mod:`ast`: those at module level count, ``if TYPE_CHECKING:`` ones too (a
-type-level dependency is a dependency), except in a package's ``__init__`` (the lazy façades name
-their whole package for type checkers only); imports inside functions do not count. Importing
+type-level dependency is a dependency), except in a package's ``__init__`` and in a module that is a
+lazy façade (``lazy_facade(__name__ ...)``, such as ``config``): those name what they re-export for
+type checkers only, and import it at first use; imports inside functions do not count. Importing
 ``a.b.c`` also runs ``a/__init__`` and ``a/b/__init__``.
 """
 
@@ -99,8 +100,9 @@ def _import_graph() -> dict[str, set[str]]:
     graph: dict[str, set[str]] = {name: set() for name in known}
     for name, path in known.items():
         is_package = path.name == "__init__.py"
-        tree = ast.parse(path.read_text(encoding="utf-8"))
-        for node in _module_imports(tree, type_checking=not is_package):
+        text = path.read_text(encoding="utf-8")
+        facade = is_package or "lazy_facade(__name__" in text
+        for node in _module_imports(ast.parse(text), type_checking=not facade):
             targets: list[str] = []
             if isinstance(node, ast.Import):
                 targets = [alias.name for alias in node.names]

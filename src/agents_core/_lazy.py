@@ -1,30 +1,31 @@
-"""Lazy re-exports for the package ``__init__`` modules (PEP 562 module ``__getattr__`` and ``__dir__``).
+"""Lazy re-exports for the façades (PEP 562 module ``__getattr__`` and ``__dir__``), each name written once.
 
 A robot process that only relays topics should not pay for the model stack (httpx, jinja2, the
-clients, the model components) because a package re-exports those names. Each re-exporting module
-declares a table, module -> names, and installs the pair this module builds::
-
-    _EXPORTS = {".topics": ("Topic", "QoSConfig"), ".launch.launcher": ("Launcher",)}
-    if TYPE_CHECKING:
-        from .launch.launcher import Launcher
-        from .topics import QoSConfig, Topic
-    else:
-        __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
-
-Or, with each name written once in the table above the ``__all__`` that type checkers and the
-API reference read, let the ``TYPE_CHECKING`` imports *be* the table (:func:`lazy_facade`)::
+clients, the model components) because a package re-exports those names. A façade writes each name
+it re-exports once, as an explicit re-export (``X as X``) under ``if TYPE_CHECKING:``, and installs
+the pair :func:`lazy_facade` builds::
 
     if TYPE_CHECKING:
-        from .launch.launcher import Launcher
-        from .topics import QoSConfig, Topic
+        from .launch.launcher import Launcher as Launcher
+        from .topics import QoSConfig as QoSConfig
+        from .topics import Topic as Topic
     else:
         __getattr__, __dir__ = lazy_facade(__name__)
 
-    __all__ = ["Launcher", "QoSConfig", "Topic"]
+Those imports are the whole table: type checkers read them (``X as X`` is what marks a re-export
+under mypy's ``--strict``), and :func:`lazy_facade` reads the same lines from the module's source at
+the first attribute looked up, never at import. ``__all__`` (what ``from façade import *`` reads) is
+answered from them too: the re-exports, in source order, then the names the module defines itself
+(``own``). A name the module imports eagerly at the top level as ``X as X`` is a re-export as well,
+and is listed in ``__all__``.
 
-The first access of a name imports its module and caches the value in the package, so later
-accesses are plain attribute reads. Type checkers and IDEs read the ``TYPE_CHECKING`` imports;
-keeping ``__getattr__`` out of their sight also keeps a typo'd name an error for them.
+The first access of a name imports its module and caches the value in the façade, so later
+accesses are plain attribute reads. Keeping ``__getattr__`` in the ``else:`` branch keeps it out of
+the type checkers' sight, so a typo'd name stays an error for them.
+
+The source is read with ``re`` (loaded at start-up anyway), not ``ast``, whose import and parse
+cost a recipe's import several milliseconds; ``tests/test_facades.py`` checks the reading against
+``ast`` for every façade.
 """
 
 from __future__ import annotations
@@ -34,9 +35,9 @@ import importlib.util
 import re
 import sys
 from collections.abc import Callable, Iterable, Mapping
-from typing import Any
+from typing import Any, NamedTuple
 
-__all__ = ["facade_imports", "lazy_exports", "lazy_facade"]
+__all__ = ["FacadeTable", "facade_table", "lazy_exports", "lazy_facade"]
 
 
 def lazy_exports(
@@ -106,55 +107,102 @@ def lazy_exports(
     return __getattr__, __dir__
 
 
+class FacadeTable(NamedTuple):
+    """What a façade's source re-exports (:func:`facade_table`)."""
+
+    #: Re-exported under ``if TYPE_CHECKING:`` (resolved on first use): name -> (module path, name there).
+    lazy: dict[str, tuple[str, str]]
+    #: Re-exported by a top-level ``from PATH import X as X`` (bound at import), in source order.
+    eager: list[str]
+    #: Imports under ``if TYPE_CHECKING:`` that are not written ``X as X``: "PATH: NAME" each.
+    not_explicit: list[str]
+
+
 _FROM_IMPORT = re.compile(r"^from\s+(\.*[\w.]*)\s+import\s+(.+)$")
 
 
-def facade_imports(source: str) -> dict[str, tuple[str, str]]:
-    """The names a façade imports under its module-level ``if TYPE_CHECKING:``: name -> (module path, name there).
-
-    Read from the text (``re``, loaded at start-up anyway; not ``ast``, which costs a recipe's
-    import tens of milliseconds): ``from PATH import A, B as C`` lines, parenthesised ones too.
-    """
-    found: dict[str, tuple[str, str]] = {}
-    lines = source.splitlines()
-    try:
-        start = next(i for i, line in enumerate(lines) if line.rstrip() == "if TYPE_CHECKING:")
-    except StopIteration:
-        return found
-    statement = ""
-    for line in lines[start + 1:]:
-        if line.strip() and not line.startswith((" ", "\t")):
-            break  # the block ended (``else:`` or the next statement)
+def _statements(lines: Iterable[str]) -> Iterable[tuple[bool, str]]:
+    """``(indented, statement)`` for each statement; a parenthesised import is joined into one line."""
+    statement, indented = "", False
+    for line in lines:
         text = line.split("#", 1)[0].strip()
         if not text:
             continue
-        statement = f"{statement} {text}".strip() if statement else text
-        if statement.count("(") > statement.count(")"):
-            continue  # a parenthesised import goes on
-        match = _FROM_IMPORT.match(statement)
+        if statement:
+            statement = f"{statement} {text}"
+        else:
+            statement, indented = text, line[:1] in (" ", "\t")
+        if statement.startswith("from ") and (statement.count("(") > statement.count(")") or statement.endswith("\\")):
+            statement = statement.removesuffix("\\")
+            continue  # the import goes on
+        yield indented, statement
         statement = ""
-        if match is None:
+
+
+def _imported(statement: str) -> tuple[str, list[tuple[str, str, bool]]] | None:
+    """``from P import A, B as B`` -> ``(P, [(A, A, False), (B, B, True)])``: (name there, name here, re-export)."""
+    match = _FROM_IMPORT.match(statement)
+    if match is None:
+        return None
+    found = []
+    for item in (part.strip() for part in match.group(2).replace("(", "").replace(")", "").split(",")):
+        if item:
+            original, as_, alias = (word.strip() for word in item.partition(" as "))
+            found.append((original, alias or original, bool(as_) and alias == original))
+    return match.group(1), found
+
+
+def facade_table(source: str) -> FacadeTable:
+    """Read a façade's re-exports from its source text (see the module docstring for the forms).
+
+    Lines before ``from __future__ import annotations`` (the docstring) are not read; an import
+    renamed on the way (``A as B``) is not a re-export.
+    """
+    lines = source.splitlines()
+    start = next((i + 1 for i, line in enumerate(lines) if line.startswith("from __future__ import")), 0)
+    table = FacadeTable({}, [], [])
+    inside = False
+    for indented, statement in _statements(lines[start:]):
+        if not indented:
+            inside = statement == "if TYPE_CHECKING:"
+        if inside and not indented:
             continue
-        module, names = match.group(1), match.group(2).replace("(", "").replace(")", "")
-        for item in (part.strip() for part in names.split(",")):
-            if item:
-                original, _, alias = item.partition(" as ")
-                found[(alias or original).strip()] = (module, original.strip())
-    return found
+        found = _imported(statement) if inside or not indented else None
+        if found is None:
+            if inside:
+                table.not_explicit.append(statement)
+            continue
+        path, names = found
+        for original, name, explicit in names:
+            if inside and explicit:
+                table.lazy[name] = (path, original)
+            elif inside:
+                table.not_explicit.append(f"{path}: {original}")
+            elif explicit:
+                table.eager.append(name)
+    return table
 
 
-def lazy_facade(module_name: str, *, import_all_for: Iterable[str] = ()) -> tuple[Callable[[str], Any],
-                                                                                   Callable[[], list[str]]]:
-    """:func:`lazy_exports` whose table is the module's own ``if TYPE_CHECKING:`` imports (each name written once).
+def lazy_facade(module_name: str, *, own: Iterable[str] = (),
+                import_all_for: Iterable[str] = ()) -> tuple[Callable[[str], Any], Callable[[], list[str]]]:
+    """:func:`lazy_exports` whose table is the module's own ``if TYPE_CHECKING:`` re-exports (each name written once).
+
+    :param module_name: the façade's ``__name__``.
+    :param own: the public names the module defines itself (added to ``__all__`` after the re-exports).
+    :param import_all_for: as for :func:`lazy_exports`.
 
     The module's source is read at the first attribute looked up, never at import. A name imported
-    as a submodule (``from . import base_validators``) resolves to that module.
+    as a submodule (``from . import base_validators as base_validators``) resolves to that module.
+    ``__all__`` is answered (and cached on the module) at its first access, ``_EXPORTS`` and
+    ``_MODULE_EXPORTS`` give the derived table as data.
     """
     this = sys.modules[module_name]
+    defined = tuple(own)
     pair: tuple[Callable[[str], Any], Callable[[], list[str]]] | None = None
     #: The derived table, as :func:`lazy_exports` takes it (also answered as ``_EXPORTS`` / ``_MODULE_EXPORTS``).
     exports: dict[str, tuple[str, ...]] = {}
     modules: dict[str, str] = {}
+    names: list[str] = []
 
     def _pair() -> tuple[Callable[[str], Any], Callable[[], list[str]]]:
         nonlocal pair
@@ -162,20 +210,31 @@ def lazy_facade(module_name: str, *, import_all_for: Iterable[str] = ()) -> tupl
             spec = this.__spec__
             loader = getattr(spec, "loader", None)
             source = loader.get_source(module_name) if loader is not None and hasattr(loader, "get_source") else None
-            table = facade_imports(source or "")
+            table = facade_table(source or "")
+            if table.not_explicit:
+                raise ValueError(f"{module_name}: write each import under TYPE_CHECKING as `X as X` (a façade's "
+                                 f"re-export), not {table.not_explicit}")
             package = this.__package__ or module_name
-            for name, (path, original) in table.items():
-                if original != name:
-                    raise ValueError(f"{module_name}: {original} is re-exported as {name}; a façade keeps the name")
+            for name, (path, _original) in table.lazy.items():
                 base = importlib.util.resolve_name(path, package) if path.startswith(".") else path
                 if path.endswith(".") and importlib.util.find_spec(f"{base}.{name}") is not None:
                     modules[name] = f"{path}{name}"
                 else:
                     exports[path] = (*exports.get(path, ()), name)
+            listed = [*table.eager, *table.lazy, *defined]
+            doubled = sorted({n for n in listed if listed.count(n) > 1})
+            if doubled:
+                raise ValueError(f"{module_name}: {doubled} are exported more than once")
+            names[:] = listed
             pair = lazy_exports(module_name, exports, modules=modules, import_all_for=import_all_for)
         return pair
 
     def __getattr__(name: str) -> Any:
+        if name == "__all__":
+            _pair()
+            listed = list(names)
+            vars(this)["__all__"] = listed  # cached: asked again, it is a plain attribute
+            return listed
         if name.startswith("__"):  # ``__path__``, ``__file__``, ...: never a re-export (and asked while building)
             raise AttributeError(f"module {module_name!r} has no attribute {name!r}")
         if name in ("_EXPORTS", "_MODULE_EXPORTS"):  # the table itself, as data
@@ -184,7 +243,6 @@ def lazy_facade(module_name: str, *, import_all_for: Iterable[str] = ()) -> tupl
         return _pair()[0](name)
 
     def __dir__() -> list[str]:
-        return _pair()[1]()
+        return sorted({*_pair()[1](), *names})
 
     return __getattr__, __dir__
-

@@ -37,8 +37,6 @@ from typing import TYPE_CHECKING
 from ..._lazy import lazy_facade
 
 if TYPE_CHECKING:
-    from .client import ChromaClient
+    from .client import ChromaClient as ChromaClient
 else:
     __getattr__, __dir__ = lazy_facade(__name__)
-
-__all__ = ["ChromaClient"]

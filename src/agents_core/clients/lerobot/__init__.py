@@ -13,8 +13,6 @@ from typing import TYPE_CHECKING
 from ..._lazy import lazy_facade
 
 if TYPE_CHECKING:
-    from .client import LeRobotClient
+    from .client import LeRobotClient as LeRobotClient
 else:
     __getattr__, __dir__ = lazy_facade(__name__)
-
-__all__ = ["LeRobotClient"]

@@ -13,8 +13,6 @@ from typing import TYPE_CHECKING
 from ..._lazy import lazy_facade
 
 if TYPE_CHECKING:
-    from .component import Vision
+    from .component import Vision as Vision
 else:
     __getattr__, __dir__ = lazy_facade(__name__)
-
-__all__ = ["Vision"]

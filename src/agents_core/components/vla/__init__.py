@@ -14,8 +14,6 @@ from typing import TYPE_CHECKING
 from ..._lazy import lazy_facade
 
 if TYPE_CHECKING:
-    from .component import VLA
+    from .component import VLA as VLA
 else:
     __getattr__, __dir__ = lazy_facade(__name__)
-
-__all__ = ["VLA"]
