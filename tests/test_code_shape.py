@@ -36,7 +36,7 @@ ALLOWED_CYCLES = {("agents_core.conditions", "agents_core.topics")}
 LAYERS: tuple[tuple[str, frozenset[str]], ...] = (
     ("base", frozenset({"", "_version", "_lazy", "_numpy", "errors", "install_hint", "registry", "bounded_json",
                         "checked_attrs", "base_validators", "console", "utils", "concurrency", "status"})),
-    ("vocabulary", frozenset({"types", "supported_types", "messages", "config", "_component_configs", "topics",
+    ("vocabulary", frozenset({"types", "supported_types", "messages", "config", "topics",
                               "conditions", "events", "actions", "callbacks", "component_method", "setup_calls",
                               "models", "vectordbs", "action_schema", "guardrails", "event_transfer"})),
     ("transport", frozenset({"transport"})),

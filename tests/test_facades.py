@@ -195,12 +195,12 @@ def test_a_name_that_does_not_resolve_is_an_import_error(tmp_path: Path) -> None
 
 def test_a_name_is_resolved_on_first_use_only() -> None:
     code = ("import sys, agents_core.config as cfg\n"
-            "assert 'LLMConfig' in cfg.__all__ and 'agents_core._component_configs' not in sys.modules\n"
+            "assert 'LLMConfig' in cfg.__all__ and 'agents_core.components.llm_config' not in sys.modules\n"
             "import agents_core.components as c\n"
             "assert 'agents_core.components.llm' not in sys.modules\n"
             "assert c.LLM is sys.modules['agents_core.components.llm'].LLM\n"
             "import agents_core.ros as r\n"
             "assert r.base_validators is sys.modules['agents_core.base_validators']\n"
-            "assert cfg.LLMConfig is sys.modules['agents_core._component_configs'].LLMConfig\n")
+            "assert cfg.LLMConfig is sys.modules['agents_core.components.llm_config'].LLMConfig\n")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=False)
     assert done.returncode == 0, done.stderr

@@ -180,18 +180,18 @@ class ModelComponentConfig(BaseComponentConfig):
 # (which import this one), and a recipe does not pay for building the attrs classes of the configs
 # it does not use.
 if TYPE_CHECKING:
-    from ._component_configs import LLMConfig as LLMConfig
-    from ._component_configs import MapConfig as MapConfig
-    from ._component_configs import MLLMConfig as MLLMConfig
-    from ._component_configs import SemanticRouterConfig as SemanticRouterConfig
-    from ._component_configs import SpeechToTextConfig as SpeechToTextConfig
-    from ._component_configs import TextToSpeechConfig as TextToSpeechConfig
-    from ._component_configs import VideoMessageMakerConfig as VideoMessageMakerConfig
-    from ._component_configs import VisionConfig as VisionConfig
-    from ._component_configs import VLAConfig as VLAConfig
-    from ._component_configs import VLMConfig as VLMConfig
     from .components.cortex.config import CortexConfig as CortexConfig
+    from .components.llm_config import LLMConfig as LLMConfig
+    from .components.map_encoding_config import MapConfig as MapConfig
     from .components.memory.config import MemoryConfig as MemoryConfig
+    from .components.mllm_config import MLLMConfig as MLLMConfig
+    from .components.mllm_config import VLMConfig as VLMConfig
+    from .components.semantic_router_config import SemanticRouterConfig as SemanticRouterConfig
+    from .components.speech_to_text_config import SpeechToTextConfig as SpeechToTextConfig
+    from .components.text_to_speech_config import TextToSpeechConfig as TextToSpeechConfig
+    from .components.video_maker_config import VideoMessageMakerConfig as VideoMessageMakerConfig
+    from .components.vision.config import VisionConfig as VisionConfig
+    from .components.vla.config import VLAConfig as VLAConfig
 else:
     __getattr__, __dir__ = lazy_facade(__name__, own=("BaseAttrs", "BaseComponentConfig", "ModelComponentConfig",
                                                       "configure_time_fields", "load_config_file"))

@@ -19,7 +19,6 @@ from typing import Any
 
 import jinja2
 
-from .._component_configs import LLMConfig
 from ..action_schema import describe_action
 from ..actions import ACTION_MARK, component_action
 from ..callbacks import DetectionsCallback
@@ -33,6 +32,7 @@ from ..status import LifecycleState
 from ..supported_types import Detections, StreamingString, String, SupportedType
 from ..topics import Topic
 from .component_base import AllowedTypes, TriggerType
+from .llm_config import LLMConfig
 from .model_component import ModelComponent
 
 __all__ = ["LLM", "ThinkStripper"]

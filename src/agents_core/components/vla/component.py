@@ -33,7 +33,6 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..._component_configs import VLAConfig
 from ...errors import AlgorithmFailure, ComponentError, ConfigError, ModelClientError, WiringError
 from ...events import Event
 from ...messages import JointJogMsg, JointStateMsg, JointTrajectoryMsg, JointTrajectoryPointMsg
@@ -45,6 +44,7 @@ from ...topics import Topic
 from ..model_component import ModelComponent
 from ..wiring import AllowedTypes
 from .action_chunks import ActionChunkQueue, AggregationFunction, aggregation_function
+from .config import VLAConfig
 from .urdf import JointLimits, joint_limits_from_config, read_urdf_joint_limits
 
 if TYPE_CHECKING:
