@@ -32,13 +32,12 @@ ALLOWED_CYCLES = {("agents_core.conditions", "agents_core.topics")}
 #: The layers of agents_core, lowest first: name -> the package-root modules / folders in it. A module
 #: may import its own layer and those below; the adapters (agents_zenoh, agents_ros2) sit with the
 #: transport's users, at :data:`ADAPTER_LAYER`. The package root (``agents_core/__init__``, a lazy
-#: façade importing only ``_lazy`` at run time) is in the base.
+#: façade importing only ``support.lazy`` at run time) is in the base.
 LAYERS: tuple[tuple[str, frozenset[str]], ...] = (
-    ("base", frozenset({"", "_version", "_lazy", "_numpy", "errors", "install_hint", "registry", "bounded_json",
-                        "checked_attrs", "base_validators", "console", "utils", "concurrency", "status"})),
+    ("base", frozenset({"", "support", "errors", "base_validators", "utils", "status"})),
     ("vocabulary", frozenset({"types", "supported_types", "messages", "config", "topics",
-                              "conditions", "events", "actions", "callbacks", "component_method", "setup_calls",
-                              "models", "vectordbs", "action_schema", "guardrails", "event_transfer"})),
+                              "conditions", "events", "actions", "callbacks", "declarations", "models",
+                              "vectordbs", "guardrails"})),
     ("transport", frozenset({"transport"})),
     ("runtime", frozenset({"runtime"})),
     ("clients", frozenset({"clients", "engines"})),

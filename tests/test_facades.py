@@ -1,7 +1,7 @@
 """The lazy façades: each re-exported name is written once, as ``from PATH import X as X``.
 
 Under ``if TYPE_CHECKING:`` such an import is a lazy re-export (mypy reads it, and
-:func:`agents_core._lazy.lazy_facade` reads the same line at the first attribute looked up); at the
+:func:`agents_core.support.lazy.lazy_facade` reads the same line at the first attribute looked up); at the
 top level it is an eager one. ``__all__`` is not written: the façade answers it from those imports
 and from the names it defines itself (``own=``).
 """
@@ -18,13 +18,13 @@ from pathlib import Path
 
 import pytest
 
-from agents_core._lazy import facade_table
+from agents_core.support.lazy import facade_table
 
 SRC = Path(__file__).resolve().parent.parent / "src"
 FACADES = sorted(
     ".".join(path.relative_to(SRC).with_suffix("").parts).removesuffix(".__init__")
     for path in (SRC / "agents_core").rglob("*.py")
-    if path.name != "_lazy.py" and "lazy_facade(__name__" in path.read_text(encoding="utf-8"))
+    if path != SRC / "agents_core/support/lazy.py" and "lazy_facade(__name__" in path.read_text(encoding="utf-8"))
 
 
 def _source(name: str) -> str:
@@ -147,7 +147,7 @@ def _facade_package(tmp_path: Path, body: str) -> str:
     package.mkdir()
     (package / "mod.py").write_text("class M:\n    pass\n\n\nclass N:\n    pass\n", encoding="utf-8")
     header = ("from __future__ import annotations\nfrom typing import TYPE_CHECKING\n"
-              "from agents_core._lazy import lazy_facade\n")
+              "from agents_core.support.lazy import lazy_facade\n")
     (package / "__init__.py").write_text(header + textwrap.dedent(body), encoding="utf-8")
     return str(tmp_path)
 

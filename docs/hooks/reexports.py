@@ -1,7 +1,7 @@
 """A griffe extension (mkdocs.yml, mkdocstrings' ``extensions``): ``from x import A as A`` makes ``A`` public.
 
 The façades (``agents_core.components``, ``.ros``, ``.config``, ...) write each re-exported name
-once, as such an import, and write no ``__all__`` (``agents_core._lazy`` answers it at run time). Type
+once, as such an import, and write no ``__all__`` (``agents_core.support.lazy`` answers it at run time). Type
 checkers read that form as an explicit re-export; griffe, reading the source statically, would
 otherwise count every imported name as private and the API reference of a façade would be empty.
 """

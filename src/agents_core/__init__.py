@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
-from ._lazy import lazy_facade
+from .support.lazy import lazy_facade
 
 if TYPE_CHECKING:
     from .actions import Action as Action
@@ -44,7 +44,7 @@ else:
 
     def __getattr__(name: str) -> Any:
         if name == "__version__":
-            from ._version import package_version  # noqa: PLC0415
+            from .support.version import package_version  # noqa: PLC0415
 
             value = globals()["__version__"] = package_version()
             return value

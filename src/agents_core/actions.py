@@ -18,8 +18,8 @@ import functools
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any, TypeVar, overload
 
-from .action_schema import describe_action
 from .conditions import FieldRef
+from .declarations.action_schema import describe_action
 from .errors import ConfigError
 from .guardrails import DEFAULT_APPROVAL_TIMEOUT, ActionGuard, run_guarded
 

@@ -23,8 +23,8 @@ from typing import TYPE_CHECKING, Any
 
 import attrs
 
-from ._numpy import is_ndarray, np
 from .errors import ConfigError
+from .support.lazy_numpy import is_ndarray, np
 
 if TYPE_CHECKING:
     from .topics import Topic

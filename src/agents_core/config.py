@@ -23,9 +23,9 @@ import attrs
 from attrs import define, field
 
 from . import base_validators
-from ._lazy import lazy_facade
-from .checked_attrs import CheckedFieldsMeta, name_hints
 from .errors import ConfigError
+from .support.checked_attrs import CheckedFieldsMeta, name_hints
+from .support.lazy import lazy_facade
 
 #: Field metadata of settings read only at configure (model files, local model placement):
 #: ``set_param`` refuses them on a configured component instead of storing a value that

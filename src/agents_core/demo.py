@@ -37,9 +37,9 @@ from typing import Any
 
 from .components.llm import LLM
 from .components.llm_config import LLMConfig
-from .install_hint import install_hint
 from .launch.launcher import Launcher
 from .messages import StreamingStringMsg
+from .support.install_hint import install_hint
 from .topics import Topic
 from .transport.contract import Transport
 from .transport.registry import DEFAULT_CROSS_PROCESS, describe_transport_kind

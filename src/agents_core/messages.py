@@ -17,7 +17,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from ._lazy import lazy_facade
+from .support.lazy import lazy_facade
 from .types.component_status import ComponentStatusMsg as ComponentStatusMsg
 from .types.fields import MAX_ARRAY_DIM as MAX_ARRAY_DIM
 from .types.fields import Header as Header

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from ._lazy import lazy_facade
+from .support.lazy import lazy_facade
 from .types.base import SupportedType as SupportedType
 from .types.base import _registry  # noqa: F401 - tests and plugins undo their registrations through it
 from .types.base import add_additional_datatypes as add_additional_datatypes

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from .._lazy import lazy_facade
+from ..support.lazy import lazy_facade
 
 #: Clients register themselves by class name when their module is imported, and these names read that
 #: registry (ChromaClient rebuilds its embedding client from a spec): taking one from the package imports

@@ -28,13 +28,13 @@ from typing import TYPE_CHECKING, Any
 from ..actions import ACTION_MARK, GUARD_MARK, Action
 from ..callbacks import GenericCallback, callback_for
 from ..config import BaseComponentConfig
+from ..declarations.setup_calls import constructor, setup_method, start_recording
 from ..errors import ConfigError, WiringError
 from ..events import Event
 from ..runtime.component_runtime import ComponentRuntime
 from ..runtime.health import ANY_FAILURE
 from ..runtime.run_type import ComponentRunType
 from ..runtime.worker import WorkerStatistics
-from ..setup_calls import constructor, setup_method, start_recording
 from ..status import HealthStatus, LifecycleState
 from ..topics import Topic, validate_topic_name
 from ..transport.core import status_topic

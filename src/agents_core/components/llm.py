@@ -19,15 +19,15 @@ from typing import Any
 
 import jinja2
 
-from ..action_schema import describe_action
 from ..actions import ACTION_MARK, component_action
 from ..callbacks import DetectionsCallback
 from ..clients.db_base import DBClient
 from ..clients.model_base import ModelClient
-from ..component_method import ComponentMethod
+from ..declarations.action_schema import describe_action
+from ..declarations.component_method import ComponentMethod
+from ..declarations.setup_calls import setup_method
 from ..errors import AlgorithmFailure, ConfigError, WiringError
 from ..messages import DetectionsMsg, StreamingStringMsg
-from ..setup_calls import setup_method
 from ..status import LifecycleState
 from ..supported_types import Detections, StreamingString, String, SupportedType
 from ..topics import Topic

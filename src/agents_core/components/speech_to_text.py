@@ -43,8 +43,8 @@ import numpy.typing as npt
 from ..clients.model_base import ModelClient
 from ..engines.audio import AudioInputError, StreamResampler, check_rate, to_mono_float
 from ..errors import AlgorithmFailure, ConfigError
-from ..install_hint import install_hint
 from ..messages import AudioMsg, StreamingStringMsg
+from ..support.install_hint import install_hint
 from ..supported_types import Audio, StreamingString, String, SupportedType
 from ..topics import Topic
 from .component_base import TriggerType

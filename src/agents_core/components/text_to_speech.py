@@ -41,8 +41,8 @@ from ..clients.model_base import ModelClient
 from ..engines.audio import AudioInputError, float_to_int16, read_wav, to_mono_float
 from ..engines.local_tts import split_speakable
 from ..errors import AlgorithmFailure, ConfigError, WiringError
-from ..install_hint import install_hint
 from ..messages import AudioMsg, StreamingStringMsg
+from ..support.install_hint import install_hint
 from ..supported_types import Audio, String, SupportedType
 from ..topics import Topic
 from .component_base import TriggerType

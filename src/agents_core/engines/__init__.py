@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from .._lazy import lazy_facade
+from ..support.lazy import lazy_facade
 
 if TYPE_CHECKING:
     from .audio import StreamResampler as StreamResampler

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from .._lazy import lazy_facade
+from ..support.lazy import lazy_facade
 from .buffer import PreBuffer as PreBuffer
 from .buffer import value_bytes as value_bytes
 from .hooks import EpisodeRecordingHooks as EpisodeRecordingHooks

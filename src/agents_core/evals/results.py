@@ -20,8 +20,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ..bounded_json import InvalidJsonError, JsonLimits, loads
 from ..errors import ConfigError
+from ..support.bounded_json import InvalidJsonError, JsonLimits, loads
 
 __all__ = [
     "ENDED_VALUES",

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from .._lazy import lazy_facade
+from ..support.lazy import lazy_facade
 
 if TYPE_CHECKING:
     from .launcher import Launcher as Launcher

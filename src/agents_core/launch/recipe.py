@@ -27,9 +27,9 @@ from typing import TYPE_CHECKING, Any
 import attrs
 
 from ..actions import Action
+from ..declarations.setup_calls import SetupCall, recorded_assignments, recorded_setup_calls
 from ..errors import ConfigError, WiringError
 from ..events import Event
-from ..setup_calls import SetupCall, recorded_assignments, recorded_setup_calls
 from ..topics import Topic
 from ..transport.process_values import TAG, encode_value
 

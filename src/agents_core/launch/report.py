@@ -22,7 +22,7 @@ from __future__ import annotations
 import sys
 from typing import Any, TextIO
 
-from ..console import quiet_requested
+from ..support.console import quiet_requested
 
 __all__ = ["LaunchReport", "already_reported", "component_row", "describe_transport"]
 

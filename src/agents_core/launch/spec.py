@@ -42,9 +42,9 @@ from typing import TYPE_CHECKING, Any
 
 import attrs
 
+from ..declarations.setup_calls import SETUP_MARK, SetupCall, expected_state
 from ..errors import ConfigError
 from ..events import Event
-from ..setup_calls import SETUP_MARK, SetupCall, expected_state
 from ..topics import Topic
 from ..transport.process_values import (  # re-exported: the codecs moved below the launcher
     RECIPE_MODULE,

@@ -29,8 +29,8 @@ from typing import TYPE_CHECKING, Any
 
 from attrs import define
 
-from ..concurrency import DrainQueue
 from ..errors import ConfigError, UnknownTypeError
+from ..support.concurrency import DrainQueue
 from ..topics import Topic
 from ..transport.contract import Subscription, Transport
 from ..transport.core import status_topic

@@ -22,8 +22,8 @@ from typing import Any
 
 from attrs import define
 
-from ..concurrency import DrainQueue, DropPolicy
 from ..errors import ComponentError
+from ..support.concurrency import DrainQueue, DropPolicy
 
 __all__ = ["MAX_TIMER_RATE_HZ", "PeriodicTimer", "StepWorker", "WorkerStatistics", "control_deadline_passed"]
 

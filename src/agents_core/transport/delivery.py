@@ -25,7 +25,7 @@ from typing import Any
 
 from attrs import define
 
-from ..concurrency import CloseOnce, DrainQueue
+from ..support.concurrency import CloseOnce, DrainQueue
 from ..topics import Topic
 
 __all__ = ["BoundedDelivery", "InlineDelivery", "SubscriptionStatistics", "TopicCounters", "TopicStatistics",

@@ -26,12 +26,12 @@ from typing import Any
 import attrs
 
 from ..actions import ACTION_MARK
-from ..component_method import ComponentMethod
 from ..config import BaseAttrs
+from ..declarations.component_method import ComponentMethod
+from ..declarations.event_transfer import decode_event, encode_event
 from ..errors import ConfigError
-from ..event_transfer import decode_event, encode_event
 from ..events import Event
-from ..registry import Registry
+from ..support.registry import Registry
 from ..topics import FixedInput, QoSConfig, Topic
 
 __all__ = [

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from ..bounded_json import InvalidJsonError, JsonLimits, loads
+from ..support.bounded_json import InvalidJsonError, JsonLimits, loads
 
 __all__ = ["MAX_DEPTH", "BadJSON", "parse_json_body"]
 

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Any
 import attrs
 from attrs import define, field
 
-from agents_core.bounded_json import JsonLimits
+from agents_core.support.bounded_json import JsonLimits
 from agents_core.types import is_builtin_type
 
 from .errors import CodecError

@@ -33,11 +33,11 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ...declarations.setup_calls import setup_method
 from ...errors import AlgorithmFailure, ComponentError, ConfigError, ModelClientError, WiringError
 from ...events import Event
 from ...messages import JointJogMsg, JointStateMsg, JointTrajectoryMsg, JointTrajectoryPointMsg
 from ...runtime.run_type import ComponentRunType
-from ...setup_calls import setup_method
 from ...status import HealthStatus, LifecycleState
 from ...supported_types import RGBD, Image, JointJog, JointState, JointTrajectory
 from ...topics import Topic
