@@ -12,7 +12,17 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
-from .support.lazy import lazy_facade
+from .support.lazy import keep_moved_modules, lazy_facade
+
+# The package root holds the user's vocabulary, machinery lives in folders (support/, declarations/);
+# a module that moved keeps its old import path (a plugin or a recipe may import it by that one).
+keep_moved_modules({f"{__name__}.{old}": f"{__name__}.{new}" for old, new in (
+    ("_lazy", "support.lazy"), ("_numpy", "support.lazy_numpy"), ("_version", "support.version"),
+    ("bounded_json", "support.bounded_json"), ("checked_attrs", "support.checked_attrs"),
+    ("concurrency", "support.concurrency"), ("console", "support.console"), ("install_hint", "support.install_hint"),
+    ("registry", "support.registry"), ("action_schema", "declarations.action_schema"),
+    ("component_method", "declarations.component_method"), ("event_transfer", "declarations.event_transfer"),
+    ("setup_calls", "declarations.setup_calls"))})
 
 if TYPE_CHECKING:
     from .actions import Action as Action

@@ -126,7 +126,7 @@ class Fallback:
 def _description_for(func: Callable[..., Any], description: Mapping[str, Any] | None) -> dict[str, Any]:
     if description is not None and "name" in description and "function" not in description:
         return dict(description)
-    # The parameters from the signature, annotations and docstring (agents_core.action_schema).
+    # The parameters from the signature, annotations and docstring (agents_core.declarations.action_schema).
     return describe_action(func, description)
 
 

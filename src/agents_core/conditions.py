@@ -199,7 +199,7 @@ class Condition:
         self.topics = topics
         #: How the condition was built, as data (``("compare", topic, path, symbol, value)``, ``("and", a, b)``,
         #: ``("or", a, b)``, ``("not", a)``), so another process can build it again
-        #: (:mod:`agents_core.event_transfer`); None for a condition made from a function.
+        #: (:mod:`agents_core.declarations.event_transfer`); None for a condition made from a function.
         self.recipe = recipe
 
     def evaluate(self, values: Mapping[str, Any]) -> bool:

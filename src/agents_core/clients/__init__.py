@@ -3,7 +3,7 @@
 Each name is imported from its module on first use (PEP 562), so using one client does not load
 the others (nor httpx for a process that uses none). To add a client, add one line per name under
 ``if TYPE_CHECKING:`` below (``from .mine import MineClient as MineClient``): that line is the whole
-re-export (see :mod:`agents_core._lazy`).
+re-export (see :mod:`agents_core.support.lazy`).
 """
 
 from __future__ import annotations

@@ -89,7 +89,7 @@ class Component:
         # the component from them in its own process (see agents_core.launch.spec).
         instance = super().__new__(cls)
         instance._init_arguments = (args, dict(kwargs))
-        # The setup calls made and attributes assigned after construction (agents_core.setup_calls).
+        # The setup calls made and attributes assigned after construction (agents_core.declarations.setup_calls).
         start_recording(instance, carried_state)
         return instance
 

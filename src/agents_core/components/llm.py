@@ -235,7 +235,8 @@ class LLM(ModelComponent):
         :param tool_description: an OpenAI-style description, ``{"type": "function", "function":
             {"name", "description", "parameters"}}`` (or just the inner ``function`` dict); the
             name must be the function's name. None: the one a ``@component_action`` carries, else one
-            built from the function's signature and docstring (:func:`agents_core.action_schema.action_schema`).
+            built from the function's signature and docstring
+            (:func:`agents_core.declarations.action_schema.action_schema`).
         :param send_tool_response_to_model: give the tool's result back to the model so it can
             answer with it; otherwise the result itself is published on the outputs.
         """

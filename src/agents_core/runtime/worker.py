@@ -78,7 +78,7 @@ class _WorkerQueue(DrainQueue[Callable[[], None]]):
 class StepWorker:
     """Runs submitted callables one at a time on a dedicated thread (``worker:<name>``).
 
-    Built on a :class:`~agents_core.concurrency.DrainQueue`: steps are its bounded lane, control
+    Built on a :class:`~agents_core.support.concurrency.DrainQueue`: steps are its bounded lane, control
     items its urgent lane.
     """
 

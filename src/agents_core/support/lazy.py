@@ -35,9 +35,11 @@ import importlib.util
 import re
 import sys
 from collections.abc import Callable, Iterable, Mapping
+from importlib.machinery import ModuleSpec
+from types import ModuleType
 from typing import Any, NamedTuple
 
-__all__ = ["FacadeTable", "facade_table", "lazy_exports", "lazy_facade"]
+__all__ = ["FacadeTable", "facade_table", "keep_moved_modules", "lazy_exports", "lazy_facade"]
 
 
 def lazy_exports(
@@ -246,3 +248,47 @@ def lazy_facade(module_name: str, *, own: Iterable[str] = (),
         return sorted({*_pair()[1](), *names})
 
     return __getattr__, __dir__
+
+
+class _MovedModule:
+    """The loader of a module's old path: the module it moved to, imported (once) and bound under both names."""
+
+    def __init__(self, new_name: str) -> None:
+        self.new_name = new_name
+        self._spec: ModuleSpec | None = None
+
+    def create_module(self, spec: ModuleSpec) -> ModuleType:
+        module = importlib.import_module(self.new_name)
+        self._spec = module.__spec__  # the import system writes the old path's spec over it: put back below
+        return module
+
+    def exec_module(self, module: ModuleType) -> None:
+        module.__spec__ = self._spec  # already executed under its own name: only its own spec is restored
+
+
+class _MovedModules:
+    """A meta path finder answering the old paths of moved modules (see :func:`keep_moved_modules`)."""
+
+    def __init__(self) -> None:
+        self.moves: dict[str, str] = {}
+
+    def find_spec(self, fullname: str, path: object = None, target: object = None) -> ModuleSpec | None:
+        new_name = self.moves.get(fullname)
+        if new_name is None:
+            return None
+        return importlib.util.spec_from_loader(fullname, _MovedModule(new_name))
+
+
+_MOVED = _MovedModules()
+
+
+def keep_moved_modules(moves: Mapping[str, str]) -> None:
+    """Keep the old import path of each moved module working: old dotted name -> new dotted name.
+
+    ``import old`` (and ``from old import x``, ``from package import old``) then gives the module at
+    its new place, the same object, imported once: classes keep their new ``__module__``. Type
+    checkers do not see the old paths; code of this project imports the new ones.
+    """
+    _MOVED.moves.update(moves)
+    if _MOVED not in sys.meta_path:
+        sys.meta_path.append(_MOVED)

@@ -136,7 +136,7 @@ class BoundedDelivery(_Counted):
 
     With ``counters``, every event is also added to the topic's totals there. Every value
     offered ends in exactly one of delivered, dropped, callback_errors or discarded (or is
-    still queued). The queue is a :class:`~agents_core.concurrency.DrainQueue` (drop oldest),
+    still queued). The queue is a :class:`~agents_core.support.concurrency.DrainQueue` (drop oldest),
     its thread named ``deliver:<topic>``.
     """
 

@@ -4,7 +4,7 @@ What a component process is built from (:class:`~agents_core.launch.spec.Compone
 constructor's arguments, encoded here: topics, configs, models and other attrs data, model and
 database clients through their own ``serialize()``, enums, paths, tuples, plain JSON values,
 functions by their ``module:qualname``, another component's ``@component_action`` as a
-:class:`~agents_core.component_method.ComponentMethod`, and what a package registers with
+:class:`~agents_core.declarations.component_method.ComponentMethod`, and what a package registers with
 :func:`register_value_codec` (Cortex's actions: :mod:`agents_core.components.cortex.transfer`).
 A class defined in the recipe itself (the ``__main__`` module) is named ``RECIPE_MODULE:qualname``;
 the child imports the recipe file under that module name.
