@@ -276,7 +276,8 @@ class _MovedModules:
         new_name = self.moves.get(fullname)
         if new_name is None:
             return None
-        return importlib.util.spec_from_loader(fullname, _MovedModule(new_name))
+        loader: Any = _MovedModule(new_name)  # PEP 451 (create_module, exec_module); typeshed asks load_module
+        return importlib.util.spec_from_loader(fullname, loader)
 
 
 _MOVED = _MovedModules()
