@@ -1,4 +1,4 @@
-"""agents_core.bounded_json: hostile JSON is refused by a scan that builds nothing; valid JSON decodes as usual.
+"""agents_core.support.bounded_json: hostile JSON is refused by a scan that builds nothing; valid JSON decodes as usual.
 
 Each hostile shape below took unbounded memory or time, or raised something other than a clear
 error, under a plain ``json.loads`` (32 MB of ``{}``: ~870 MB peak; 100,000 nested brackets:
@@ -17,7 +17,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from agents_core.bounded_json import (
+from agents_core.errors import ConfigError, TypeValidationError
+from agents_core.support.bounded_json import (
     DEFAULT_JSON_LIMITS,
     REQUEST_JSON_LIMITS,
     InvalidJsonError,
@@ -25,7 +26,6 @@ from agents_core.bounded_json import (
     JsonLimits,
     loads,
 )
-from agents_core.errors import ConfigError, TypeValidationError
 
 _MIB = 1024 * 1024
 

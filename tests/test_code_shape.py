@@ -12,8 +12,9 @@ These are the structural promises of docs/architecture.md:
   private state is written by that class only).
 
 Imports are read with :mod:`ast`: those at module level count, ``if TYPE_CHECKING:`` ones too (a
-type-level dependency is a dependency), except in a package's ``__init__`` (the lazy façades name
-their whole package for type checkers only); imports inside functions do not count. Importing
+type-level dependency is a dependency), except in a package's ``__init__`` and in a module that is a
+lazy façade (``lazy_facade(__name__ ...)``, such as ``config``): those name what they re-export for
+type checkers only, and import it at first use; imports inside functions do not count. Importing
 ``a.b.c`` also runs ``a/__init__`` and ``a/b/__init__``.
 """
 
@@ -31,14 +32,12 @@ ALLOWED_CYCLES = {("agents_core.conditions", "agents_core.topics")}
 #: The layers of agents_core, lowest first: name -> the package-root modules / folders in it. A module
 #: may import its own layer and those below; the adapters (agents_zenoh, agents_ros2) sit with the
 #: transport's users, at :data:`ADAPTER_LAYER`. The package root (``agents_core/__init__``, a lazy
-#: façade importing only ``_lazy`` at run time) is in the base.
+#: façade importing only ``support.lazy`` at run time) is in the base.
 LAYERS: tuple[tuple[str, frozenset[str]], ...] = (
-    ("base", frozenset({"", "_version", "_lazy", "_numpy", "errors", "install_hint", "registry", "bounded_json",
-                        "checked_attrs", "base_validators", "console", "utils", "concurrency", "status",
-                        "telemetry"})),
-    ("vocabulary", frozenset({"types", "supported_types", "messages", "config", "_component_configs", "topics",
-                              "conditions", "events", "actions", "callbacks", "component_method", "setup_calls",
-                              "models", "vectordbs", "action_schema", "guardrails", "event_transfer"})),
+    ("base", frozenset({"", "support", "errors", "base_validators", "utils", "status", "telemetry"})),
+    ("vocabulary", frozenset({"types", "supported_types", "messages", "config", "topics",
+                              "conditions", "events", "actions", "callbacks", "declarations", "models",
+                              "vectordbs", "guardrails"})),
     ("transport", frozenset({"transport"})),
     ("runtime", frozenset({"runtime"})),
     ("clients", frozenset({"clients", "engines"})),
@@ -100,8 +99,9 @@ def _import_graph() -> dict[str, set[str]]:
     graph: dict[str, set[str]] = {name: set() for name in known}
     for name, path in known.items():
         is_package = path.name == "__init__.py"
-        tree = ast.parse(path.read_text(encoding="utf-8"))
-        for node in _module_imports(tree, type_checking=not is_package):
+        text = path.read_text(encoding="utf-8")
+        facade = is_package or "lazy_facade(__name__" in text
+        for node in _module_imports(ast.parse(text), type_checking=not facade):
             targets: list[str] = []
             if isinstance(node, ast.Import):
                 targets = [alias.name for alias in node.names]

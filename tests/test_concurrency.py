@@ -1,4 +1,4 @@
-"""agents_core.concurrency: the DrainQueue (bounded queue drained by a thread) and CloseOnce.
+"""agents_core.support.concurrency: the DrainQueue (bounded queue drained by a thread) and CloseOnce.
 
 Unit tests of the queue's ordering, both drop policies, counted drops, the urgent lane, stop
 with a stuck handler and a raising handler; then a Hypothesis state machine (derandomized) that
@@ -20,7 +20,7 @@ from hypothesis import settings
 from hypothesis import strategies as st
 from hypothesis.stateful import RuleBasedStateMachine, initialize, invariant, precondition, rule
 
-from agents_core.concurrency import CloseOnce, DrainQueue, DrainStatistics
+from agents_core.support.concurrency import CloseOnce, DrainQueue, DrainStatistics
 
 WAIT_S = 5.0
 
@@ -174,7 +174,7 @@ def test_a_raising_handler_is_counted_and_the_queue_goes_on(caplog: pytest.LogCa
 
     # The default hook logs the error with its traceback, naming the thread.
     plain: DrainQueue[str] = DrainQueue(handler, depth=2, name="drain:logged")
-    with caplog.at_level(logging.ERROR, logger="agents_core.concurrency"):
+    with caplog.at_level(logging.ERROR, logger="agents_core.support.concurrency"):
         plain.put("fail-3")
         wait_for(lambda: plain.statistics().errors == 1)
         plain.stop()

@@ -1,59 +1,206 @@
-"""The lazy façades: each re-exported name is written once, as an import under ``if TYPE_CHECKING:``.
+"""The lazy façades: each re-exported name is written once, as ``from PATH import X as X``.
 
-That block is the façade's table (:func:`agents_core._lazy.lazy_facade` reads it at the first
-attribute looked up); ``__all__`` (what type checkers and the API reference read) must list each of
-its names and nothing that does not exist (beyond them: what the module defines, or declares for its
-own ``__getattr__``, such as ``__version__``).
+Under ``if TYPE_CHECKING:`` such an import is a lazy re-export (mypy reads it, and
+:func:`agents_core.support.lazy.lazy_facade` reads the same line at the first attribute looked up); at the
+top level it is an eager one. ``__all__`` is not written: the façade answers it from those imports
+and from the names it defines itself (``own=``).
 """
 
 from __future__ import annotations
 
+import ast
 import importlib
+import importlib.util
 import subprocess
 import sys
+import textwrap
 from pathlib import Path
 
 import pytest
 
-from agents_core._lazy import facade_imports
+from agents_core.support.lazy import facade_table
 
 SRC = Path(__file__).resolve().parent.parent / "src"
 FACADES = sorted(
     ".".join(path.relative_to(SRC).with_suffix("").parts).removesuffix(".__init__")
     for path in (SRC / "agents_core").rglob("*.py")
-    if path.name != "_lazy.py" and "lazy_facade(__name__" in path.read_text(encoding="utf-8"))
+    if path != SRC / "agents_core/support/lazy.py" and "lazy_facade(__name__" in path.read_text(encoding="utf-8"))
+
+
+def _source(name: str) -> str:
+    spec = importlib.util.find_spec(name)
+    assert spec is not None and spec.origin is not None
+    return Path(spec.origin).read_text(encoding="utf-8")
+
+
+def _ast_reexports(tree: ast.Module) -> tuple[dict[str, tuple[str, str]], list[str], list[str]]:
+    """What ``ast`` reads as the façade's re-exports: (lazy, eager, imports under TYPE_CHECKING not ``X as X``)."""
+    lazy: dict[str, tuple[str, str]] = {}
+    eager: list[str] = []
+    loose: list[str] = []
+    for node in tree.body:
+        if isinstance(node, ast.If) and isinstance(node.test, ast.Name) and node.test.id == "TYPE_CHECKING":
+            for stmt in node.body:
+                if not isinstance(stmt, ast.ImportFrom):
+                    loose.append(ast.unparse(stmt))
+                    continue
+                path = "." * stmt.level + (stmt.module or "")
+                for alias in stmt.names:
+                    if alias.asname == alias.name:
+                        lazy[alias.name] = (path, alias.name)
+                    else:
+                        loose.append(f"{path}: {alias.name}")
+        elif isinstance(node, ast.ImportFrom) and node.module != "__future__":
+            eager.extend(alias.name for alias in node.names if alias.asname == alias.name)
+    return lazy, eager, loose
 
 
 def test_the_facades_are_found() -> None:
-    assert {"agents_core", "agents_core.components", "agents_core.ros", "agents_core.clients"} <= set(FACADES)
+    assert {"agents_core", "agents_core.components", "agents_core.ros", "agents_core.clients",
+            "agents_core.config", "agents_core.episodes"} <= set(FACADES)
 
 
 @pytest.mark.parametrize("name", FACADES)
-def test_all_lists_exactly_the_type_checking_imports_and_what_the_module_defines(name: str) -> None:
+def test_the_reader_reads_what_ast_reads(name: str) -> None:
+    source = _source(name)
+    lazy, eager, loose = _ast_reexports(ast.parse(source))
+    assert not loose, f"{name}: imports under TYPE_CHECKING not written `X as X`: {loose}"
+    table = facade_table(source)
+    assert table.lazy == lazy
+    assert table.eager == eager
+    assert not table.not_explicit
+
+
+@pytest.mark.parametrize("name", FACADES)
+def test_each_name_is_written_once(name: str) -> None:
+    tree = ast.parse(_source(name))
+    lazy, eager, _ = _ast_reexports(tree)
+    bound = [alias.name for node in ast.walk(tree) if isinstance(node, ast.ImportFrom) and node.module != "__future__"
+             for alias in node.names if alias.asname == alias.name]
+    doubled = sorted({n for n in bound if bound.count(n) > 1})
+    assert not doubled, f"{name}: re-exported twice: {doubled}"
+    # Names given to import_all_for (a property of a name, not a second list of them) are allowed.
+    marked = {id(node) for node in ast.walk(tree) if isinstance(node, ast.Assign)
+              and any(isinstance(t, ast.Name) and f"import_all_for={t.id}" in ast.unparse(tree) for t in node.targets)
+              for node in ast.walk(node)}
+    exported = {*lazy, *eager}
+    strings = sorted(node.value for node in ast.walk(tree) if id(node) not in marked
+                     and isinstance(node, ast.Constant) and isinstance(node.value, str) and node.value in exported)
+    assert not strings, f"{name}: re-exported names written again as strings (an __all__?): {strings}"
+    assigned = [t.id for node in tree.body if isinstance(node, ast.Assign) for t in node.targets
+                if isinstance(t, ast.Name)]
+    assert "__all__" not in assigned, f"{name}: writes __all__ (the façade answers it from its imports)"
+
+
+@pytest.mark.parametrize("name", FACADES)
+def test_every_name_resolves_and_star_import_and_dir_agree(name: str) -> None:
     module = importlib.import_module(name)
-    spec = module.__spec__
-    assert spec is not None and spec.origin is not None
-    imported = set(facade_imports(Path(spec.origin).read_text(encoding="utf-8")))
-    assert imported, f"{name}: no TYPE_CHECKING imports found"
-    listed = set(module.__all__)
-    assert imported <= listed, f"{name}: imported for re-export but not in __all__: {sorted(imported - listed)}"
-    eager = listed - imported
-    missing = sorted(n for n in eager if n not in vars(module) and n not in vars(module).get("__annotations__", {}))
-    assert not missing, f"{name}: __all__ names {missing}, neither imported under TYPE_CHECKING nor defined"
+    tree = ast.parse(_source(name))
+    lazy, eager, _ = _ast_reexports(tree)
+    names = list(module.__all__)
+    assert len(names) == len(set(names))
+    assert set(lazy) | set(eager) <= set(names)
+    own = set(names) - set(lazy) - set(eager)
+    defined = {node.name for node in tree.body if isinstance(node, ast.FunctionDef | ast.ClassDef)} | {
+        node.target.id for node in tree.body if isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name)}
+    assert own <= defined, f"{name}: own= names {sorted(own - defined)} the module does not define"
+    for export in names:
+        assert getattr(module, export) is not None, f"{name}.{export}"
+    namespace: dict[str, object] = {}
+    exec(f"from {name} import *", namespace)
+    assert set(namespace) - {"__builtins__"} == set(names)
+    assert set(names) <= set(dir(module))
 
 
 def test_the_reader_understands_every_import_form() -> None:
-    source = ("x = 1\nif TYPE_CHECKING:\n    from . import base_validators\n    from .a import A, B  # two\n"
-              "    from ..b.c import (\n        C,\n        D as D,\n    )\nelse:\n    from .z import Z\n")
-    assert facade_imports(source) == {"base_validators": (".", "base_validators"), "A": (".a", "A"),
-                                      "B": (".a", "B"), "C": ("..b.c", "C"), "D": ("..b.c", "D")}
+    source = textwrap.dedent("""
+        \"\"\"Docstring: from .q import Q as Q is not read here.\"\"\"
+        from __future__ import annotations
+        from .e import E as E, F  # F is not re-exported
+        from .g import (
+            G as G,
+        )
+        if TYPE_CHECKING:
+            from . import base_validators as base_validators
+            from .a import A as A, B as B  # two
+            from ..b.c import (
+                C as C,
+                D as D,
+            )
+            from .x import Renamed as Other
+            from .y import Plain
+        else:
+            from .z import Z as Z
+        def f():
+            from .w import W as W
+    """)
+    table = facade_table(source)
+    assert table.lazy == {"base_validators": (".", "base_validators"), "A": (".a", "A"), "B": (".a", "B"),
+                          "C": ("..b.c", "C"), "D": ("..b.c", "D")}
+    assert table.eager == ["E", "G"]
+    assert table.not_explicit == [".x: Renamed", ".y: Plain"]
+
+
+def _facade_package(tmp_path: Path, body: str) -> str:
+    """A package ``façade_pkg`` in tmp_path with a module ``mod`` (class M) and the given façade ``__init__``."""
+    package = tmp_path / "facade_pkg"
+    package.mkdir()
+    (package / "mod.py").write_text("class M:\n    pass\n\n\nclass N:\n    pass\n", encoding="utf-8")
+    header = ("from __future__ import annotations\nfrom typing import TYPE_CHECKING\n"
+              "from agents_core.support.lazy import lazy_facade\n")
+    (package / "__init__.py").write_text(header + textwrap.dedent(body), encoding="utf-8")
+    return str(tmp_path)
+
+
+def _run(path: str, code: str) -> subprocess.CompletedProcess[str]:
+    env_path = f"{path}:{SRC}"
+    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=False,
+                          env={"PYTHONPATH": env_path, "PATH": "/usr/bin:/bin"})
+
+
+def test_a_name_written_twice_is_refused(tmp_path: Path) -> None:
+    path = _facade_package(tmp_path, """
+        from .mod import M as M
+        if TYPE_CHECKING:
+            from .mod import M as M
+        else:
+            __getattr__, __dir__ = lazy_facade(__name__)
+    """)
+    done = _run(path, "import facade_pkg\nprint(facade_pkg.__all__)")
+    assert done.returncode != 0 and "['M'] are exported more than once" in done.stderr, done.stderr
+
+
+def test_an_import_that_is_not_a_reexport_is_refused(tmp_path: Path) -> None:
+    path = _facade_package(tmp_path, """
+        if TYPE_CHECKING:
+            from .mod import M as M
+            from .mod import N
+        else:
+            __getattr__, __dir__ = lazy_facade(__name__)
+    """)
+    done = _run(path, "import facade_pkg\nfacade_pkg.M")
+    assert done.returncode != 0 and "`X as X`" in done.stderr and ".mod: N" in done.stderr, done.stderr
+
+
+def test_a_name_that_does_not_resolve_is_an_import_error(tmp_path: Path) -> None:
+    path = _facade_package(tmp_path, """
+        if TYPE_CHECKING:
+            from .mod import Missing as Missing
+        else:
+            __getattr__, __dir__ = lazy_facade(__name__)
+    """)
+    done = _run(path, "import facade_pkg\nassert facade_pkg.__all__ == ['Missing']\nfacade_pkg.Missing")
+    assert done.returncode != 0 and "Missing" in done.stderr, done.stderr
 
 
 def test_a_name_is_resolved_on_first_use_only() -> None:
-    code = ("import sys, agents_core.components as c\n"
+    code = ("import sys, agents_core.config as cfg\n"
+            "assert 'LLMConfig' in cfg.__all__ and 'agents_core.components.llm_config' not in sys.modules\n"
+            "import agents_core.components as c\n"
             "assert 'agents_core.components.llm' not in sys.modules\n"
             "assert c.LLM is sys.modules['agents_core.components.llm'].LLM\n"
             "import agents_core.ros as r\n"
-            "assert r.base_validators is sys.modules['agents_core.base_validators']\n")
+            "assert r.base_validators is sys.modules['agents_core.base_validators']\n"
+            "assert cfg.LLMConfig is sys.modules['agents_core.components.llm_config'].LLMConfig\n")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=False)
     assert done.returncode == 0, done.stderr

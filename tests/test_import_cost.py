@@ -112,7 +112,7 @@ def test_light_path_loads_no_model_stack(code: str) -> None:
 def test_plain_import_loads_nothing_but_the_package() -> None:
     loaded = _fresh("import agents_core")["loaded"]
     ours = [m for m in loaded if m.startswith("agents_core")]
-    assert ours == ["agents_core", "agents_core._lazy"], ours
+    assert ours == ["agents_core", "agents_core.support", "agents_core.support.lazy"], ours
     assert "numpy" not in loaded
 
 

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from agents_core.install_hint import install_hint
+from agents_core.support.install_hint import install_hint
 from agents_core.transport.registry import TRANSPORT_ALIASES, TransportNotAvailableError, resolve_transport
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -12,7 +12,7 @@ import agents_core
 import agents_core.ros
 from agents_core import errors
 from agents_core.errors import AgentsError, ConfigError, TransportNotAvailableError
-from agents_core.install_hint import install_hint
+from agents_core.support.install_hint import install_hint
 from agents_core.transport import MemoryTransport, resolve_transport
 
 

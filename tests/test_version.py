@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 
 import agents_core
-from agents_core import _version
+from agents_core.support import version as _version
 
 REPO = Path(__file__).resolve().parent.parent
 

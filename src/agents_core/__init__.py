@@ -12,29 +12,49 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
-from ._lazy import lazy_facade
+from .support.lazy import keep_moved_modules, lazy_facade
+
+# The package root holds the user's vocabulary, machinery lives in folders (support/, declarations/);
+# a module that moved keeps its old import path (a plugin or a recipe may import it by that one).
+keep_moved_modules({f"{__name__}.{old}": f"{__name__}.{new}" for old, new in (
+    ("_lazy", "support.lazy"), ("_numpy", "support.lazy_numpy"), ("_version", "support.version"),
+    ("bounded_json", "support.bounded_json"), ("checked_attrs", "support.checked_attrs"),
+    ("concurrency", "support.concurrency"), ("console", "support.console"), ("install_hint", "support.install_hint"),
+    ("registry", "support.registry"), ("action_schema", "declarations.action_schema"),
+    ("component_method", "declarations.component_method"), ("event_transfer", "declarations.event_transfer"),
+    ("setup_calls", "declarations.setup_calls"))})
 
 if TYPE_CHECKING:
-    from .actions import Action, component_action, component_fallback
-    from .components import Component, ComponentRunType, ModelComponent
-    from .config import BaseComponentConfig, ModelComponentConfig
-    from .errors import AgentsError
-    from .events import Event
-    from .launch.launcher import Launcher
-    from .messages import Header
-    from .status import HealthStatus, LifecycleState
-    from .supported_types import SupportedType, add_additional_datatypes, get_type, registered_types
-    from .topics import FixedInput, QoSConfig, Topic
-    from .transport import MemoryTransport, Transport, resolve_transport
+    from .actions import Action as Action
+    from .actions import component_action as component_action
+    from .actions import component_fallback as component_fallback
+    from .components import Component as Component
+    from .components import ComponentRunType as ComponentRunType
+    from .components import ModelComponent as ModelComponent
+    from .config import BaseComponentConfig as BaseComponentConfig
+    from .config import ModelComponentConfig as ModelComponentConfig
+    from .errors import AgentsError as AgentsError
+    from .events import Event as Event
+    from .launch.launcher import Launcher as Launcher
+    from .messages import Header as Header
+    from .status import HealthStatus as HealthStatus
+    from .status import LifecycleState as LifecycleState
+    from .supported_types import SupportedType as SupportedType
+    from .supported_types import add_additional_datatypes as add_additional_datatypes
+    from .supported_types import get_type as get_type
+    from .supported_types import registered_types as registered_types
+    from .topics import FixedInput as FixedInput
+    from .topics import QoSConfig as QoSConfig
+    from .topics import Topic as Topic
+    from .transport import MemoryTransport as MemoryTransport
+    from .transport import Transport as Transport
+    from .transport import resolve_transport as resolve_transport
 else:
-    _lazy_getattr, _lazy_dir = lazy_facade(__name__)
-
-    def __dir__() -> list[str]:
-        return sorted({*_lazy_dir(), "__version__"})
+    _lazy_getattr, __dir__ = lazy_facade(__name__, own=("__version__",))
 
     def __getattr__(name: str) -> Any:
         if name == "__version__":
-            from ._version import package_version  # noqa: PLC0415
+            from .support.version import package_version  # noqa: PLC0415
 
             value = globals()["__version__"] = package_version()
             return value
@@ -43,31 +63,3 @@ else:
 #: The version of this package: pyproject.toml's, read on first access (``_version``); declared, not
 #: assigned, so that the module ``__getattr__`` above answers it.
 __version__: str
-
-__all__ = [
-    "Action",
-    "AgentsError",
-    "BaseComponentConfig",
-    "Component",
-    "ComponentRunType",
-    "Event",
-    "FixedInput",
-    "Header",
-    "HealthStatus",
-    "Launcher",
-    "LifecycleState",
-    "MemoryTransport",
-    "ModelComponent",
-    "ModelComponentConfig",
-    "QoSConfig",
-    "SupportedType",
-    "Topic",
-    "Transport",
-    "__version__",
-    "add_additional_datatypes",
-    "component_action",
-    "component_fallback",
-    "get_type",
-    "registered_types",
-    "resolve_transport",
-]

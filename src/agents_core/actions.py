@@ -18,8 +18,8 @@ import functools
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any, TypeVar, overload
 
-from .action_schema import describe_action
 from .conditions import FieldRef
+from .declarations.action_schema import describe_action
 from .errors import ConfigError
 from .guardrails import DEFAULT_APPROVAL_TIMEOUT, ActionGuard, run_guarded
 from .telemetry import switch as _telemetry
@@ -131,7 +131,7 @@ class Fallback:
 def _description_for(func: Callable[..., Any], description: Mapping[str, Any] | None) -> dict[str, Any]:
     if description is not None and "name" in description and "function" not in description:
         return dict(description)
-    # The parameters from the signature, annotations and docstring (agents_core.action_schema).
+    # The parameters from the signature, annotations and docstring (agents_core.declarations.action_schema).
     return describe_action(func, description)
 
 

@@ -14,7 +14,7 @@ import attrs
 
 from .errors import ConfigError
 
-__all__ = ["ge", "gt", "in_", "in_range", "le", "list_contained_in", "lt"]
+__all__ = ["ge", "gt", "in_", "in_range", "le", "list_contained_in", "lt", "non_empty_str", "optional_str"]
 
 Validator = Callable[[Any, "attrs.Attribute[Any]", Any], None]
 
@@ -88,3 +88,15 @@ def list_contained_in(options: Collection[Any]) -> Validator:
             raise ConfigError(f"{_where(instance, attribute)}: {bad} not among {allowed}")
 
     return validate
+
+
+def optional_str(instance: Any, attribute: attrs.Attribute[Any], value: Any) -> None:
+    """Value must be a ``str`` or ``None`` (used as is: ``validator=base_validators.optional_str``)."""
+    if value is not None and not isinstance(value, str):
+        raise ConfigError(f"{_where(instance, attribute)} must be a str or None, got {value!r}")
+
+
+def non_empty_str(instance: Any, attribute: attrs.Attribute[Any], value: Any) -> None:
+    """Value must be a non-empty ``str`` (used as is: ``validator=base_validators.non_empty_str``)."""
+    if not isinstance(value, str) or not value:
+        raise ConfigError(f"{_where(instance, attribute)} must be a non-empty str, got {value!r}")

@@ -23,8 +23,8 @@ from typing import TYPE_CHECKING, Any
 
 import attrs
 
-from ._numpy import is_ndarray, np
 from .errors import ConfigError
+from .support.lazy_numpy import is_ndarray, np
 
 if TYPE_CHECKING:
     from .topics import Topic
@@ -199,7 +199,7 @@ class Condition:
         self.topics = topics
         #: How the condition was built, as data (``("compare", topic, path, symbol, value)``, ``("and", a, b)``,
         #: ``("or", a, b)``, ``("not", a)``), so another process can build it again
-        #: (:mod:`agents_core.event_transfer`); None for a condition made from a function.
+        #: (:mod:`agents_core.declarations.event_transfer`); None for a condition made from a function.
         self.recipe = recipe
 
     def evaluate(self, values: Mapping[str, Any]) -> bool:

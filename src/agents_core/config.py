@@ -17,35 +17,15 @@ import copy
 import json
 import sys
 from pathlib import Path
-from typing import Any, Literal, TypeVar
+from typing import TYPE_CHECKING, Any, Literal, TypeVar
 
 import attrs
 from attrs import define, field
 
 from . import base_validators
-from ._lazy import lazy_exports
-from .checked_attrs import CheckedFieldsMeta, name_hints
 from .errors import ConfigError
-
-__all__ = [
-    "BaseAttrs",
-    "BaseComponentConfig",
-    "CortexConfig",  # noqa: F822  (resolved on first use by the module __getattr__ at the end)
-    "LLMConfig",  # noqa: F822  (agents_core._component_configs, on first use)
-    "MLLMConfig",  # noqa: F822  (agents_core._component_configs, on first use)
-    "MapConfig",  # noqa: F822  (agents_core._component_configs, on first use)
-    "MemoryConfig",  # noqa: F822  (resolved lazily by the __getattr__ at the end)
-    "ModelComponentConfig",
-    "SemanticRouterConfig",  # noqa: F822  (agents_core._component_configs, on first use)
-    "SpeechToTextConfig",  # noqa: F822  (agents_core._component_configs, on first use)
-    "TextToSpeechConfig",  # noqa: F822  (agents_core._component_configs, on first use)
-    "VLAConfig",  # noqa: F822  (agents_core._component_configs, on first use)
-    "VLMConfig",  # noqa: F822  (agents_core._component_configs, on first use)
-    "VideoMessageMakerConfig",  # noqa: F822  (agents_core._component_configs, on first use)
-    "VisionConfig",  # noqa: F822  (agents_core._component_configs, on first use)
-    "configure_time_fields",
-    "load_config_file",
-]
+from .support.checked_attrs import CheckedFieldsMeta, name_hints
+from .support.lazy import lazy_facade
 
 #: Field metadata of settings read only at configure (model files, local model placement):
 #: ``set_param`` refuses them on a configured component instead of storing a value that
@@ -196,12 +176,22 @@ class ModelComponentConfig(BaseComponentConfig):
         return {}
 
 
-# Configs that live with their component package (agents_core.components.memory, .cortex): read
-# lazily, so this module never imports those packages (which import this one). The other component
-# configs are generated on first use too: building their attrs classes was most of this module's
-# import time, which every recipe pays (see agents_core._component_configs).
-_COMPONENT_CONFIGS = ("LLMConfig", "MLLMConfig", "VLMConfig", "SemanticRouterConfig", "MapConfig", "VisionConfig",
-                      "VideoMessageMakerConfig", "SpeechToTextConfig", "TextToSpeechConfig", "VLAConfig")
-__getattr__, _ = lazy_exports(__name__, {".components.memory.config": ("MemoryConfig",),
-                                         ".components.cortex.config": ("CortexConfig",),
-                                         "._component_configs": _COMPONENT_CONFIGS})
+# The component configs, re-exported on first use: this module never imports the component packages
+# (which import this one), and a recipe does not pay for building the attrs classes of the configs
+# it does not use.
+if TYPE_CHECKING:
+    from .components.cortex.config import CortexConfig as CortexConfig
+    from .components.llm_config import LLMConfig as LLMConfig
+    from .components.map_encoding_config import MapConfig as MapConfig
+    from .components.memory.config import MemoryConfig as MemoryConfig
+    from .components.mllm_config import MLLMConfig as MLLMConfig
+    from .components.mllm_config import VLMConfig as VLMConfig
+    from .components.semantic_router_config import SemanticRouterConfig as SemanticRouterConfig
+    from .components.speech_to_text_config import SpeechToTextConfig as SpeechToTextConfig
+    from .components.text_to_speech_config import TextToSpeechConfig as TextToSpeechConfig
+    from .components.video_maker_config import VideoMessageMakerConfig as VideoMessageMakerConfig
+    from .components.vision.config import VisionConfig as VisionConfig
+    from .components.vla.config import VLAConfig as VLAConfig
+else:
+    __getattr__, __dir__ = lazy_facade(__name__, own=("BaseAttrs", "BaseComponentConfig", "ModelComponentConfig",
+                                                      "configure_time_fields", "load_config_file"))

@@ -35,11 +35,11 @@ import threading
 import time
 from typing import Any
 
-from ._component_configs import LLMConfig
 from .components.llm import LLM
-from .install_hint import install_hint
+from .components.llm_config import LLMConfig
 from .launch.launcher import Launcher
 from .messages import StreamingStringMsg
+from .support.install_hint import install_hint
 from .topics import Topic
 from .transport.contract import Transport
 from .transport.registry import DEFAULT_CROSS_PROCESS, describe_transport_kind
@@ -191,8 +191,8 @@ def _vision_demo(argv: list[str]) -> int:
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
     from pathlib import Path  # noqa: PLC0415
 
-    from ._component_configs import VisionConfig  # noqa: PLC0415
     from .components.vision import Vision  # noqa: PLC0415
+    from .components.vision.config import VisionConfig  # noqa: PLC0415
     from .errors import ConfigError  # noqa: PLC0415
 
     try:
@@ -287,9 +287,10 @@ def _voice_demo(argv: list[str]) -> int:
     parser.add_argument("--timeout", type=float, default=120.0)
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
-    from ._component_configs import SpeechToTextConfig, TextToSpeechConfig  # noqa: PLC0415
     from .components.speech_to_text import SpeechToText  # noqa: PLC0415
+    from .components.speech_to_text_config import SpeechToTextConfig  # noqa: PLC0415
     from .components.text_to_speech import TextToSpeech  # noqa: PLC0415
+    from .components.text_to_speech_config import TextToSpeechConfig  # noqa: PLC0415
     from .engines.audio import read_wav  # noqa: PLC0415
     from .errors import AgentsError  # noqa: PLC0415
 

@@ -14,7 +14,7 @@ import sys
 from pathlib import Path
 from types import ModuleType
 
-from .install_hint import install_hint
+from .support.install_hint import install_hint
 
 __all__ = ["main"]
 

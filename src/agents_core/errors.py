@@ -9,7 +9,7 @@ so code that does not know this module still handles them sensibly::
     ├── ConfigError (ValueError)            a value given by the user is invalid
     │   ├── TypeValidationError (TypeError) a value does not fit its message type
     │   │   └── InvalidJsonError            JSON from outside is malformed or over its limits
-    │   │       └── JsonLimitError          (both in agents_core.bounded_json)
+    │   │       └── JsonLimitError          (both in agents_core.support.bounded_json)
     │   ├── UnknownTypeError (LookupError)  a msg_type name is not registered
     │   ├── TopicNameError                  a topic or service name no transport can carry
     │   ├── PositionalArgumentsError (TypeError)

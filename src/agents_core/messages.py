@@ -17,68 +17,46 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from ._lazy import lazy_facade
-from .types.component_status import ComponentStatusMsg
-from .types.fields import MAX_ARRAY_DIM, Header, Wire, as_numeric_array, values_equal, wire
+from .support.lazy import lazy_facade
+from .types.component_status import ComponentStatusMsg as ComponentStatusMsg
+from .types.fields import MAX_ARRAY_DIM as MAX_ARRAY_DIM
+from .types.fields import Header as Header
+from .types.fields import Wire as Wire
+from .types.fields import as_numeric_array as as_numeric_array
+from .types.fields import values_equal as values_equal
+from .types.fields import wire as wire
 
 if TYPE_CHECKING:
-    from .types.geometry import OdometryMsg, PathMsg, PointMsg, PoseArrayMsg, PoseMsg, TwistMsg
-    from .types.joints import JointJogMsg, JointStateMsg, JointTrajectoryMsg, JointTrajectoryPointMsg
-    from .types.maps import MapMetaDataMsg, OccupancyGridMsg
-    from .types.media import (
-        DEPTH_ENCODINGS,
-        IMAGE_ENCODINGS,
-        MAX_IMAGE_SIDE,
-        AudioMsg,
-        CompressedImageMsg,
-        ImageMsg,
-        RGBDMsg,
-        VideoMsg,
-        image_array,
-    )
-    from .types.perception import DetectionsMsg, PointsOfInterestMsg, TrackingsMsg
-    from .types.sensors import POINT_FIELD_DTYPES, CameraInfoMsg, ImuMsg, LaserScanMsg, NavSatFixMsg, PointCloud2Msg
-    from .types.text import StreamingStringMsg
+    from .types.geometry import OdometryMsg as OdometryMsg
+    from .types.geometry import PathMsg as PathMsg
+    from .types.geometry import PointMsg as PointMsg
+    from .types.geometry import PoseArrayMsg as PoseArrayMsg
+    from .types.geometry import PoseMsg as PoseMsg
+    from .types.geometry import TwistMsg as TwistMsg
+    from .types.joints import JointJogMsg as JointJogMsg
+    from .types.joints import JointStateMsg as JointStateMsg
+    from .types.joints import JointTrajectoryMsg as JointTrajectoryMsg
+    from .types.joints import JointTrajectoryPointMsg as JointTrajectoryPointMsg
+    from .types.maps import MapMetaDataMsg as MapMetaDataMsg
+    from .types.maps import OccupancyGridMsg as OccupancyGridMsg
+    from .types.media import DEPTH_ENCODINGS as DEPTH_ENCODINGS
+    from .types.media import IMAGE_ENCODINGS as IMAGE_ENCODINGS
+    from .types.media import MAX_IMAGE_SIDE as MAX_IMAGE_SIDE
+    from .types.media import AudioMsg as AudioMsg
+    from .types.media import CompressedImageMsg as CompressedImageMsg
+    from .types.media import ImageMsg as ImageMsg
+    from .types.media import RGBDMsg as RGBDMsg
+    from .types.media import VideoMsg as VideoMsg
+    from .types.media import image_array as image_array
+    from .types.perception import DetectionsMsg as DetectionsMsg
+    from .types.perception import PointsOfInterestMsg as PointsOfInterestMsg
+    from .types.perception import TrackingsMsg as TrackingsMsg
+    from .types.sensors import POINT_FIELD_DTYPES as POINT_FIELD_DTYPES
+    from .types.sensors import CameraInfoMsg as CameraInfoMsg
+    from .types.sensors import ImuMsg as ImuMsg
+    from .types.sensors import LaserScanMsg as LaserScanMsg
+    from .types.sensors import NavSatFixMsg as NavSatFixMsg
+    from .types.sensors import PointCloud2Msg as PointCloud2Msg
+    from .types.text import StreamingStringMsg as StreamingStringMsg
 else:
     __getattr__, __dir__ = lazy_facade(__name__)
-
-__all__ = [
-    "DEPTH_ENCODINGS",
-    "IMAGE_ENCODINGS",
-    "MAX_ARRAY_DIM",
-    "MAX_IMAGE_SIDE",
-    "POINT_FIELD_DTYPES",
-    "AudioMsg",
-    "CameraInfoMsg",
-    "ComponentStatusMsg",
-    "CompressedImageMsg",
-    "DetectionsMsg",
-    "Header",
-    "ImageMsg",
-    "ImuMsg",
-    "JointJogMsg",
-    "JointStateMsg",
-    "JointTrajectoryMsg",
-    "JointTrajectoryPointMsg",
-    "LaserScanMsg",
-    "MapMetaDataMsg",
-    "NavSatFixMsg",
-    "OccupancyGridMsg",
-    "OdometryMsg",
-    "PathMsg",
-    "PointCloud2Msg",
-    "PointMsg",
-    "PointsOfInterestMsg",
-    "PoseArrayMsg",
-    "PoseMsg",
-    "RGBDMsg",
-    "StreamingStringMsg",
-    "TrackingsMsg",
-    "TwistMsg",
-    "VideoMsg",
-    "Wire",
-    "as_numeric_array",
-    "image_array",
-    "values_equal",
-    "wire",
-]

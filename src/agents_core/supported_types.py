@@ -18,76 +18,55 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from ._lazy import lazy_facade
-from .types.base import (
-    SupportedType,
-    _registry,  # noqa: F401 - re-exported: tests and plugins undo their registrations through it
-    add_additional_datatypes,
-    check_ros_message,
-    get_type,
-    registered_types,
-    ros_message_class,
-    shares_value_class,
-)
+from .support.lazy import lazy_facade
+from .types.base import SupportedType as SupportedType
+from .types.base import _registry  # noqa: F401 - tests and plugins undo their registrations through it
+from .types.base import add_additional_datatypes as add_additional_datatypes
+from .types.base import check_ros_message as check_ros_message
+from .types.base import get_type as get_type
+from .types.base import registered_types as registered_types
+from .types.base import ros_message_class as ros_message_class
+from .types.base import shares_value_class as shares_value_class
 
 if TYPE_CHECKING:
-    from .types.component_status import ComponentStatus
-    from .types.geometry import Odometry, Path, Point, PointStamped, Pose, PoseArray, PoseStamped, Twist
-    from .types.joints import JointJog, JointState, JointTrajectory, JointTrajectoryPoint
-    from .types.maps import MapMetaData, OccupancyGrid
-    from .types.media import RGBD, Audio, CompressedImage, Image, Video
-    from .types.perception import Detections, DetectionsMultiSource, PointsOfInterest, Trackings, TrackingsMultiSource
-    from .types.scalars import Bool, Float32, Float32MultiArray, Float64, Float64MultiArray, Int32, Int64
-    from .types.sensors import CameraInfo, Imu, LaserScan, NavSatFix, PointCloud2
-    from .types.text import StreamingString, String
+    from .types.component_status import ComponentStatus as ComponentStatus
+    from .types.geometry import Odometry as Odometry
+    from .types.geometry import Path as Path
+    from .types.geometry import Point as Point
+    from .types.geometry import PointStamped as PointStamped
+    from .types.geometry import Pose as Pose
+    from .types.geometry import PoseArray as PoseArray
+    from .types.geometry import PoseStamped as PoseStamped
+    from .types.geometry import Twist as Twist
+    from .types.joints import JointJog as JointJog
+    from .types.joints import JointState as JointState
+    from .types.joints import JointTrajectory as JointTrajectory
+    from .types.joints import JointTrajectoryPoint as JointTrajectoryPoint
+    from .types.maps import MapMetaData as MapMetaData
+    from .types.maps import OccupancyGrid as OccupancyGrid
+    from .types.media import RGBD as RGBD
+    from .types.media import Audio as Audio
+    from .types.media import CompressedImage as CompressedImage
+    from .types.media import Image as Image
+    from .types.media import Video as Video
+    from .types.perception import Detections as Detections
+    from .types.perception import DetectionsMultiSource as DetectionsMultiSource
+    from .types.perception import PointsOfInterest as PointsOfInterest
+    from .types.perception import Trackings as Trackings
+    from .types.perception import TrackingsMultiSource as TrackingsMultiSource
+    from .types.scalars import Bool as Bool
+    from .types.scalars import Float32 as Float32
+    from .types.scalars import Float32MultiArray as Float32MultiArray
+    from .types.scalars import Float64 as Float64
+    from .types.scalars import Float64MultiArray as Float64MultiArray
+    from .types.scalars import Int32 as Int32
+    from .types.scalars import Int64 as Int64
+    from .types.sensors import CameraInfo as CameraInfo
+    from .types.sensors import Imu as Imu
+    from .types.sensors import LaserScan as LaserScan
+    from .types.sensors import NavSatFix as NavSatFix
+    from .types.sensors import PointCloud2 as PointCloud2
+    from .types.text import StreamingString as StreamingString
+    from .types.text import String as String
 else:
     __getattr__, __dir__ = lazy_facade(__name__)
-
-__all__ = [
-    "RGBD",
-    "Audio",
-    "Bool",
-    "CameraInfo",
-    "ComponentStatus",
-    "CompressedImage",
-    "Detections",
-    "DetectionsMultiSource",
-    "Float32",
-    "Float32MultiArray",
-    "Float64",
-    "Float64MultiArray",
-    "Image",
-    "Imu",
-    "Int32",
-    "Int64",
-    "JointJog",
-    "JointState",
-    "JointTrajectory",
-    "JointTrajectoryPoint",
-    "LaserScan",
-    "MapMetaData",
-    "NavSatFix",
-    "OccupancyGrid",
-    "Odometry",
-    "Path",
-    "Point",
-    "PointCloud2",
-    "PointStamped",
-    "PointsOfInterest",
-    "Pose",
-    "PoseArray",
-    "PoseStamped",
-    "StreamingString",
-    "String",
-    "SupportedType",
-    "Trackings",
-    "TrackingsMultiSource",
-    "Twist",
-    "Video",
-    "add_additional_datatypes",
-    "check_ros_message",
-    "get_type",
-    "registered_types",
-    "ros_message_class",
-    "shares_value_class",
-]

@@ -15,8 +15,8 @@ from typing import TYPE_CHECKING, Any, Literal
 from attrs import define, field
 
 from . import base_validators
-from .checked_attrs import CheckedFieldsMeta
 from .errors import ConfigError, TopicNameError, TypeValidationError
+from .support.checked_attrs import CheckedFieldsMeta
 from .types.base import SupportedType, get_type
 
 if TYPE_CHECKING:

@@ -11,7 +11,7 @@ from attrs import define, field
 from . import base_validators
 from .config import BaseAttrs
 from .errors import ConfigError
-from .registry import Registry
+from .support.registry import Registry
 
 __all__ = ["DB", "ChromaDB", "db_types"]
 

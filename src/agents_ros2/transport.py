@@ -62,8 +62,6 @@ from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
-from agents_core import bounded_json
-from agents_core.bounded_json import REQUEST_JSON_LIMITS
 from agents_core.errors import (
     ConfigError,
     RemoteError,
@@ -72,6 +70,8 @@ from agents_core.errors import (
     TransportClosedError,
 )
 from agents_core.messages import ComponentStatusMsg
+from agents_core.support import bounded_json
+from agents_core.support.bounded_json import REQUEST_JSON_LIMITS
 from agents_core.supported_types import ComponentStatus
 from agents_core.topics import Topic
 from agents_core.transport.core import DriverTransport

@@ -15,10 +15,10 @@ from typing import Any
 
 import zenoh
 
-from agents_core import bounded_json
 from agents_core.errors import RemoteError, RequestTimeoutError
 from agents_core.messages import ComponentStatusMsg
 from agents_core.status import HealthStatus, LifecycleState
+from agents_core.support import bounded_json
 from agents_core.supported_types import ComponentStatus
 from agents_core.transport.contract import ServiceHandler, TransitionHandler
 from agents_core.transport.driver import Lane

@@ -27,7 +27,7 @@ pytest.importorskip("msgpack")
 import msgpack
 import zenoh
 
-from agents_core.bounded_json import REQUEST_JSON_LIMITS
+from agents_core.support.bounded_json import REQUEST_JSON_LIMITS
 from agents_zenoh.codecs import DEFAULT_DECODE_LIMITS
 from agents_zenoh.codecs.limits import json_limits
 from tests.agents_zenoh import raw_client as rc

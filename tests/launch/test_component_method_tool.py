@@ -12,7 +12,7 @@ import os
 
 import pytest
 
-from agents_core.component_method import ComponentMethod
+from agents_core.declarations.component_method import ComponentMethod
 from agents_core.errors import ComponentError, ConfigError
 from agents_core.launch.launcher import Launcher
 from agents_core.launch.spec import ComponentSpec, decode_value, encode_value

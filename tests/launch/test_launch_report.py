@@ -16,9 +16,9 @@ import pytest
 
 from agents_core import Launcher, Topic
 from agents_core.components import Component
-from agents_core.console import quiet_requested, say
 from agents_core.errors import ComponentError
 from agents_core.launch.report import LaunchReport, describe_transport
+from agents_core.support.console import quiet_requested, say
 
 ROOT = Path(__file__).resolve().parents[2]
 

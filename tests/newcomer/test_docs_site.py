@@ -24,8 +24,20 @@ import pytest
 from tests.newcomer.site_requests import external_requests
 
 REPO = Path(__file__).resolve().parents[2]
-CONFIG_FILES = ["src/agents_core/config.py", "src/agents_core/_component_configs.py",
-                "src/agents_core/components/memory/config.py", "src/agents_core/components/cortex/config.py"]
+CONFIG_FILES = [
+    "src/agents_core/config.py",
+    "src/agents_core/components/llm_config.py",
+    "src/agents_core/components/mllm_config.py",
+    "src/agents_core/components/semantic_router_config.py",
+    "src/agents_core/components/map_encoding_config.py",
+    "src/agents_core/components/vision/config.py",
+    "src/agents_core/components/video_maker_config.py",
+    "src/agents_core/components/speech_to_text_config.py",
+    "src/agents_core/components/text_to_speech_config.py",
+    "src/agents_core/components/vla/config.py",
+    "src/agents_core/components/memory/config.py",
+    "src/agents_core/components/cortex/config.py",
+]
 
 
 def _hook() -> ModuleType:

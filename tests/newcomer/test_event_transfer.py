@@ -1,11 +1,11 @@
-"""Events as data for a component process (agents_core.event_transfer): what crosses, and what is refused."""
+"""Events as data for a component process (agents_core.declarations.event_transfer): what crosses, what is refused."""
 
 from __future__ import annotations
 
 import pytest
 
+from agents_core.declarations.event_transfer import decode_event, encode_event
 from agents_core.errors import ConfigError
-from agents_core.event_transfer import decode_event, encode_event
 from agents_core.events import Event
 from agents_core.launch.spec import decode_value, encode_value
 from agents_core.topics import Topic

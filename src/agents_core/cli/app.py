@@ -11,9 +11,9 @@ from typing import Annotated
 
 import typer
 
-from ..console import QUIET_ENV_VAR
 from ..errors import AgentsError, ConfigError
-from ..install_hint import install_hint
+from ..support.console import QUIET_ENV_VAR
+from ..support.install_hint import install_hint
 from ..transport.registry import TRANSPORT_ENV_VAR, available_transports
 from . import components, episodes, eval_run, recipe, recording, top, topics  # noqa: F401 - eval_run registers `eval run`
 from . import mcp as mcp_cli

@@ -7,7 +7,7 @@ from typing import Annotated, Any
 
 import typer
 
-from ..action_schema import parameters_text
+from ..declarations.action_schema import parameters_text
 from ..errors import AgentsError, ConfigError, ServiceUnavailableError
 from ..topics import validate_topic_name
 from ..transport.graph import describe_component

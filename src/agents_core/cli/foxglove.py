@@ -11,7 +11,7 @@ import typer
 
 from ..errors import ConfigError, UnknownTypeError
 from ..foxglove.settings import FoxgloveSettings
-from ..install_hint import install_hint
+from ..support.install_hint import install_hint
 from ..topics import QoSConfig, Topic
 from ..transport.contract import Transport
 from ..types.base import get_type

@@ -40,7 +40,7 @@ from ..errors import (
     InferenceTimeoutError,
     ModelClientError,
 )
-from ..registry import Registry
+from ..support.registry import Registry
 
 __all__ = [
     "SECRET_MASK",

@@ -53,8 +53,8 @@ from typing import Any, Generic, TypeVar
 import httpx
 import numpy as np
 
-from ..concurrency import CloseOnce
 from ..errors import ClientConnectionError, InferenceConnectionError, InferenceError, ModelClientError, ProtocolError
+from ..support.concurrency import CloseOnce
 from .client_base import map_client_exception, scrub_exception
 from .deadline import CallWatch
 

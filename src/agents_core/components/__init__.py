@@ -8,45 +8,27 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from .._lazy import lazy_facade
+from ..support.lazy import lazy_facade
 
 if TYPE_CHECKING:
-    from ..runtime.run_type import ComponentRunType
-    from .component_base import Component
-    from .cortex.component import Cortex
-    from .llm import LLM
-    from .map_encoding import MapEncoding, MapLayer
-    from .memory import MemLayer, Memory
-    from .mllm import MLLM, VLM
-    from .model_component import ModelComponent
-    from .publisher import ComponentPublisher
-    from .semantic_router import Route, SemanticRouter
-    from .speech_to_text import SpeechToText
-    from .text_to_speech import TextToSpeech
-    from .video_maker import VideoMessageMaker
-    from .vision.component import Vision
-    from .vla.component import VLA
+    from ..runtime.run_type import ComponentRunType as ComponentRunType
+    from .component_base import Component as Component
+    from .cortex.component import Cortex as Cortex
+    from .llm import LLM as LLM
+    from .map_encoding import MapEncoding as MapEncoding
+    from .map_encoding import MapLayer as MapLayer
+    from .memory import MemLayer as MemLayer
+    from .memory import Memory as Memory
+    from .mllm import MLLM as MLLM
+    from .mllm import VLM as VLM
+    from .model_component import ModelComponent as ModelComponent
+    from .publisher import ComponentPublisher as ComponentPublisher
+    from .semantic_router import Route as Route
+    from .semantic_router import SemanticRouter as SemanticRouter
+    from .speech_to_text import SpeechToText as SpeechToText
+    from .text_to_speech import TextToSpeech as TextToSpeech
+    from .video_maker import VideoMessageMaker as VideoMessageMaker
+    from .vision.component import Vision as Vision
+    from .vla.component import VLA as VLA
 else:
     __getattr__, __dir__ = lazy_facade(__name__)
-
-__all__ = [
-    "LLM",
-    "MLLM",
-    "VLA",
-    "VLM",
-    "Component",
-    "ComponentPublisher",
-    "ComponentRunType",
-    "Cortex",
-    "MapEncoding",
-    "MapLayer",
-    "MemLayer",
-    "Memory",
-    "ModelComponent",
-    "Route",
-    "SemanticRouter",
-    "SpeechToText",
-    "TextToSpeech",
-    "VideoMessageMaker",
-    "Vision",
-]

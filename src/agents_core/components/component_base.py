@@ -28,13 +28,13 @@ from typing import TYPE_CHECKING, Any
 from ..actions import ACTION_MARK, GUARD_MARK, Action
 from ..callbacks import GenericCallback, callback_for
 from ..config import BaseComponentConfig
+from ..declarations.setup_calls import constructor, setup_method, start_recording
 from ..errors import ConfigError, WiringError
 from ..events import Event
 from ..runtime.component_runtime import ComponentRuntime
 from ..runtime.health import ANY_FAILURE
 from ..runtime.run_type import ComponentRunType
 from ..runtime.worker import WorkerStatistics
-from ..setup_calls import constructor, setup_method, start_recording
 from ..status import HealthStatus, LifecycleState
 from ..topics import Topic, validate_topic_name
 from ..transport.core import status_topic
@@ -89,7 +89,7 @@ class Component:
         # the component from them in its own process (see agents_core.launch.spec).
         instance = super().__new__(cls)
         instance._init_arguments = (args, dict(kwargs))
-        # The setup calls made and attributes assigned after construction (agents_core.setup_calls).
+        # The setup calls made and attributes assigned after construction (agents_core.declarations.setup_calls).
         start_recording(instance, carried_state)
         return instance
 

@@ -19,21 +19,21 @@ from typing import Any
 
 import jinja2
 
-from .._component_configs import LLMConfig
-from ..action_schema import describe_action
 from ..actions import ACTION_MARK, component_action
 from ..callbacks import DetectionsCallback
 from ..clients.db_base import DBClient
 from ..clients.model_base import ModelClient
-from ..component_method import ComponentMethod
+from ..declarations.action_schema import describe_action
+from ..declarations.component_method import ComponentMethod
+from ..declarations.setup_calls import setup_method
 from ..errors import AlgorithmFailure, ConfigError, WiringError
 from ..messages import DetectionsMsg, StreamingStringMsg
-from ..setup_calls import setup_method
 from ..status import LifecycleState
 from ..supported_types import Detections, StreamingString, String, SupportedType
 from ..telemetry import switch as _telemetry
 from ..topics import Topic
 from .component_base import AllowedTypes, TriggerType
+from .llm_config import LLMConfig
 from .model_component import ModelComponent
 
 __all__ = ["LLM", "ThinkStripper"]
@@ -236,7 +236,8 @@ class LLM(ModelComponent):
         :param tool_description: an OpenAI-style description, ``{"type": "function", "function":
             {"name", "description", "parameters"}}`` (or just the inner ``function`` dict); the
             name must be the function's name. None: the one a ``@component_action`` carries, else one
-            built from the function's signature and docstring (:func:`agents_core.action_schema.action_schema`).
+            built from the function's signature and docstring
+            (:func:`agents_core.declarations.action_schema.action_schema`).
         :param send_tool_response_to_model: give the tool's result back to the model so it can
             answer with it; otherwise the result itself is published on the outputs.
         """

@@ -44,7 +44,6 @@ from typing import Any
 
 from attrs import define, field
 
-from .._component_configs import MapConfig
 from ..actions import component_action
 from ..clients.db_base import DBClient
 from ..config import BaseAttrs
@@ -55,6 +54,7 @@ from ..supported_types import Detections, OccupancyGrid, Odometry, Pose, String,
 from ..topics import Topic
 from .component_base import Component, TriggerType
 from .layer_points import convert_points, position_of, pre_defined_validator
+from .map_encoding_config import MapConfig
 
 __all__ = ["MapEncoding", "MapLayer"]
 

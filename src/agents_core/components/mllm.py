@@ -25,7 +25,6 @@ from typing import Any
 
 import numpy as np
 
-from .._component_configs import MLLMConfig
 from ..actions import component_action
 from ..clients.db_base import DBClient
 from ..clients.model_base import ModelClient
@@ -35,6 +34,7 @@ from ..supported_types import Detections, Image, PointsOfInterest, StreamingStri
 from ..topics import Topic
 from .component_base import TriggerType
 from .llm import LLM
+from .mllm_config import MLLMConfig
 
 __all__ = ["MLLM", "VLM"]
 

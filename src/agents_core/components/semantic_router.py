@@ -20,7 +20,6 @@ from typing import Any
 
 from attrs import define, field
 
-from .._component_configs import SemanticRouterConfig
 from ..clients.db_base import DBClient
 from ..clients.model_base import ModelClient
 from ..config import BaseAttrs
@@ -30,6 +29,7 @@ from ..supported_types import String
 from ..topics import Topic
 from .component_base import TriggerType
 from .model_component import ModelComponent
+from .semantic_router_config import SemanticRouterConfig
 
 __all__ = ["Route", "SemanticRouter"]
 

@@ -40,16 +40,16 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from .._component_configs import SpeechToTextConfig
 from ..clients.model_base import ModelClient
 from ..engines.audio import AudioInputError, StreamResampler, check_rate, to_mono_float
 from ..errors import AlgorithmFailure, ConfigError
-from ..install_hint import install_hint
 from ..messages import AudioMsg, StreamingStringMsg
+from ..support.install_hint import install_hint
 from ..supported_types import Audio, StreamingString, String, SupportedType
 from ..topics import Topic
 from .component_base import TriggerType
 from .model_component import ModelComponent
+from .speech_to_text_config import SpeechToTextConfig
 
 __all__ = ["SpeechToText"]
 

@@ -36,18 +36,18 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from .._component_configs import TextToSpeechConfig
 from ..actions import component_action
 from ..clients.model_base import ModelClient
 from ..engines.audio import AudioInputError, float_to_int16, read_wav, to_mono_float
 from ..engines.local_tts import split_speakable
 from ..errors import AlgorithmFailure, ConfigError, WiringError
-from ..install_hint import install_hint
 from ..messages import AudioMsg, StreamingStringMsg
+from ..support.install_hint import install_hint
 from ..supported_types import Audio, String, SupportedType
 from ..topics import Topic
 from .component_base import TriggerType
 from .model_component import ModelComponent
+from .text_to_speech_config import TextToSpeechConfig
 
 __all__ = ["TextToSpeech"]
 

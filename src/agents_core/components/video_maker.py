@@ -20,12 +20,12 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from .._component_configs import VideoMessageMakerConfig
 from ..errors import AlgorithmFailure
 from ..messages import ImageMsg, VideoMsg
 from ..supported_types import Image, Video
 from ..topics import Topic
 from .component_base import AllowedTypes, Component, TriggerType
+from .video_maker_config import VideoMessageMakerConfig
 
 __all__ = ["VideoMessageMaker", "motion_fraction"]
 

@@ -13,17 +13,17 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from .._lazy import lazy_facade
+from ..support.lazy import lazy_facade
 
 if TYPE_CHECKING:
-    from .audio import StreamResampler, to_mono_float
-    from .local_llm import LocalLLM, LocalVLM
-    from .local_stt import LocalSTT
-    from .local_tts import LocalTTS
-    from .local_vision import LocalVisionModel
-    from .model_files import default_llm_path, resolve_model_file
+    from .audio import StreamResampler as StreamResampler
+    from .audio import to_mono_float as to_mono_float
+    from .local_llm import LocalLLM as LocalLLM
+    from .local_llm import LocalVLM as LocalVLM
+    from .local_stt import LocalSTT as LocalSTT
+    from .local_tts import LocalTTS as LocalTTS
+    from .local_vision import LocalVisionModel as LocalVisionModel
+    from .model_files import default_llm_path as default_llm_path
+    from .model_files import resolve_model_file as resolve_model_file
 else:
     __getattr__, __dir__ = lazy_facade(__name__)
-
-__all__ = ["LocalLLM", "LocalSTT", "LocalTTS", "LocalVLM", "LocalVisionModel", "StreamResampler",
-           "default_llm_path", "resolve_model_file", "to_mono_float"]

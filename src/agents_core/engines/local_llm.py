@@ -22,7 +22,7 @@ from typing import Any
 
 from ..clients.payloads import ChunkStream, checked_messages, image_to_data_uri, make_tool_call, message_text
 from ..errors import ConfigError, InferenceError
-from ..install_hint import install_hint
+from ..support.install_hint import install_hint
 from .device import DEVICES, resolve_device
 from .model_files import default_llm_path, resolve_model_file
 

@@ -34,9 +34,9 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from ..console import say
 from ..errors import ConfigError, InferenceError
-from ..install_hint import install_hint
+from ..support.console import say
+from ..support.install_hint import install_hint
 from .audio import float_to_int16, read_wav, to_mono_float
 from .device import resolve_device
 from .model_files import import_hub, looks_like_hub_id

@@ -37,7 +37,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ..errors import ConfigError, InferenceError
-from ..install_hint import install_hint
+from ..support.install_hint import install_hint
 from .audio import wav_bytes
 from .device import resolve_device
 from .local_stt import import_sherpa_onnx

@@ -42,7 +42,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ..errors import ConfigError, InferenceError
-from ..install_hint import install_hint
+from ..support.install_hint import install_hint
 from .device import DEVICES, resolve_device
 from .model_files import resolve_model_file
 

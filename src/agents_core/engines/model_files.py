@@ -26,8 +26,8 @@ import threading
 from pathlib import Path
 from types import ModuleType
 
-from ..console import say
 from ..errors import ConfigError
+from ..support.console import say
 
 __all__ = ["DEFAULT_LLM_FILE", "DEFAULT_LLM_PACKAGE", "HUB_CHECK_TIMEOUT_S", "default_llm_path", "hub_offline_reason",
            "import_hub", "looks_like_hub_id", "resolve_model_file"]

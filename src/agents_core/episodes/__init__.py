@@ -18,41 +18,23 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from .._lazy import lazy_exports
-from .buffer import PreBuffer, value_bytes
-from .hooks import EpisodeRecordingHooks
-from .recorder import (
-    EpisodeError,
-    EpisodeInfo,
-    EpisodeLimits,
-    EpisodeRecorder,
-    EpisodeRecorderStatistics,
-    load_episodes,
-)
+from ..support.lazy import lazy_facade
+from .buffer import PreBuffer as PreBuffer
+from .buffer import value_bytes as value_bytes
+from .hooks import EpisodeRecordingHooks as EpisodeRecordingHooks
+from .recorder import EpisodeError as EpisodeError
+from .recorder import EpisodeInfo as EpisodeInfo
+from .recorder import EpisodeLimits as EpisodeLimits
+from .recorder import EpisodeRecorder as EpisodeRecorder
+from .recorder import EpisodeRecorderStatistics as EpisodeRecorderStatistics
+from .recorder import load_episodes as load_episodes
 
 # The component pulls in the component runtime, the export pyarrow / PyAV: loaded when first used.
-_EXPORTS = {".component": ("EpisodeRecorderComponent", "EpisodeRecorderConfig"),
-            ".lerobot_export": ("ExportSummary", "LeRobotFeature", "export_lerobot_dataset")}
-
 if TYPE_CHECKING:
-    from .component import EpisodeRecorderComponent, EpisodeRecorderConfig
-    from .lerobot_export import ExportSummary, LeRobotFeature, export_lerobot_dataset
+    from .component import EpisodeRecorderComponent as EpisodeRecorderComponent
+    from .component import EpisodeRecorderConfig as EpisodeRecorderConfig
+    from .lerobot_export import ExportSummary as ExportSummary
+    from .lerobot_export import LeRobotFeature as LeRobotFeature
+    from .lerobot_export import export_lerobot_dataset as export_lerobot_dataset
 else:
-    __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
-
-__all__ = [
-    "EpisodeError",
-    "EpisodeInfo",
-    "EpisodeLimits",
-    "EpisodeRecorder",
-    "EpisodeRecorderComponent",
-    "EpisodeRecorderConfig",
-    "EpisodeRecorderStatistics",
-    "EpisodeRecordingHooks",
-    "ExportSummary",
-    "LeRobotFeature",
-    "PreBuffer",
-    "export_lerobot_dataset",
-    "load_episodes",
-    "value_bytes",
-]
+    __getattr__, __dir__ = lazy_facade(__name__)

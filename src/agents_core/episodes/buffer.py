@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING, Any
 import attrs
 from attrs import define
 
-from .._numpy import np
+from ..support.lazy_numpy import np
 
 if TYPE_CHECKING:
     from ..recording.encodings import Encoding

@@ -32,9 +32,9 @@ from typing import Any, cast
 
 from attrs import define, field
 
-from .._numpy import np, npt
 from ..errors import ConfigError
 from ..recording.reader import read_recording
+from ..support.lazy_numpy import np, npt
 from . import lerobot_format as fmt
 from .recorder import EpisodeInfo, load_episodes
 

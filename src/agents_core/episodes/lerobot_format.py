@@ -21,8 +21,8 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from .._numpy import np, npt
 from ..errors import ConfigError
+from ..support.lazy_numpy import np, npt
 
 __all__ = ["CODEBASE_VERSION", "DEFAULT_FEATURES", "QUANTILES", "StatsAccumulator", "data_path", "info_document",
            "require_pyarrow", "video_path", "write_episodes_table", "write_json", "write_tasks"]

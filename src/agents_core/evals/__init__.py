@@ -16,40 +16,29 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from .._lazy import lazy_facade
+from ..support.lazy import lazy_facade
 
 if TYPE_CHECKING:
-    from .compare import Comparison, RunSummary, compare_runs
-    from .evaluation import Evaluation
-    from .expect import expect_success_rate
-    from .progress import EpisodeProgress
-    from .report import write_comparison_report, write_report
-    from .results import EpisodeResult, EvaluationInfo, EvaluationResults, ResultsError, ResultsLimits, load_results
-    from .runner import EpisodeHooks, EvaluationRun, run_evaluation
-    from .stats import MeanInterval, compare_success, mean_interval, wilson_interval
+    from .compare import Comparison as Comparison
+    from .compare import RunSummary as RunSummary
+    from .compare import compare_runs as compare_runs
+    from .evaluation import Evaluation as Evaluation
+    from .expect import expect_success_rate as expect_success_rate
+    from .progress import EpisodeProgress as EpisodeProgress
+    from .report import write_comparison_report as write_comparison_report
+    from .report import write_report as write_report
+    from .results import EpisodeResult as EpisodeResult
+    from .results import EvaluationInfo as EvaluationInfo
+    from .results import EvaluationResults as EvaluationResults
+    from .results import ResultsError as ResultsError
+    from .results import ResultsLimits as ResultsLimits
+    from .results import load_results as load_results
+    from .runner import EpisodeHooks as EpisodeHooks
+    from .runner import EvaluationRun as EvaluationRun
+    from .runner import run_evaluation as run_evaluation
+    from .stats import MeanInterval as MeanInterval
+    from .stats import compare_success as compare_success
+    from .stats import mean_interval as mean_interval
+    from .stats import wilson_interval as wilson_interval
 else:
     __getattr__, __dir__ = lazy_facade(__name__)
-
-__all__ = [
-    "Comparison",
-    "EpisodeHooks",
-    "EpisodeProgress",
-    "EpisodeResult",
-    "Evaluation",
-    "EvaluationInfo",
-    "EvaluationResults",
-    "EvaluationRun",
-    "MeanInterval",
-    "ResultsError",
-    "ResultsLimits",
-    "RunSummary",
-    "compare_runs",
-    "compare_success",
-    "expect_success_rate",
-    "load_results",
-    "mean_interval",
-    "run_evaluation",
-    "wilson_interval",
-    "write_comparison_report",
-    "write_report",
-]

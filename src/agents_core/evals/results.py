@@ -3,7 +3,7 @@
 The files may come from anywhere (a colleague's run, a CI artifact), so reading them is bounded:
 each line of ``results.jsonl`` is read with a length cap (a line without a newline is never read
 whole), the number of lines and the total size are capped, every line is decoded by
-:func:`agents_core.bounded_json.loads` and every field is checked. A bad line is an error that names
+:func:`agents_core.support.bounded_json.loads` and every field is checked. A bad line is an error that names
 the file, the line and the field. The one exception is the last line when it has no newline and does
 not decode: the run was interrupted while writing it, so it is dropped and
 :attr:`EvaluationResults.partial_last_line` says so.
@@ -20,8 +20,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ..bounded_json import InvalidJsonError, JsonLimits, loads
 from ..errors import ConfigError
+from ..support.bounded_json import InvalidJsonError, JsonLimits, loads
 
 __all__ = [
     "ENDED_VALUES",

@@ -35,9 +35,9 @@ from typing import IO, Any, Protocol
 
 from attrs import define, field
 
-from .._version import package_version
 from ..errors import ConfigError
 from ..launch.launcher import Launcher
+from ..support.version import package_version
 from ..transport.registry import TRANSPORT_ENV_VAR
 from .evaluation import Evaluation
 

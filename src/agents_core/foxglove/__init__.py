@@ -13,7 +13,7 @@ JSON (see :mod:`agents_core.foxglove.feeds`). Needs the ``foxglove`` extra
 
 from __future__ import annotations
 
-from ..install_hint import install_hint
+from ..support.install_hint import install_hint
 from .settings import DEFAULT_PORT, FoxgloveSettings
 
 __all__ = ["DEFAULT_PORT", "FoxgloveBridge", "FoxgloveSettings"]

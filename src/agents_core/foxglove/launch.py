@@ -5,7 +5,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
-from ..install_hint import install_hint
+from ..support.install_hint import install_hint
 from ..topics import Topic
 from ..transport.core import status_topic
 from .settings import FoxgloveSettings

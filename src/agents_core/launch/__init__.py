@@ -15,13 +15,14 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from .._lazy import lazy_facade
+from ..support.lazy import lazy_facade
 
 if TYPE_CHECKING:
-    from .launcher import Launcher
-    from .spec import SPEC_VERSION, ComponentSpec, ValueCodec, register_value_codec
-    from .supervisor import Supervisor
+    from .launcher import Launcher as Launcher
+    from .spec import SPEC_VERSION as SPEC_VERSION
+    from .spec import ComponentSpec as ComponentSpec
+    from .spec import ValueCodec as ValueCodec
+    from .spec import register_value_codec as register_value_codec
+    from .supervisor import Supervisor as Supervisor
 else:
     __getattr__, __dir__ = lazy_facade(__name__)
-
-__all__ = ["SPEC_VERSION", "ComponentSpec", "Launcher", "Supervisor", "ValueCodec", "register_value_codec"]

@@ -26,11 +26,11 @@ from typing import TYPE_CHECKING, Any
 from .. import telemetry as _telemetry
 from ..actions import Action
 from ..components.component_base import Component
-from ..console import say
 from ..errors import ConfigError
 from ..events import Event
-from ..install_hint import install_hint
 from ..status import LifecycleState
+from ..support.console import say
+from ..support.install_hint import install_hint
 from ..transport.contract import Transport
 from ..transport.registry import DEFAULT_CROSS_PROCESS, TRANSPORT_ENV_VAR, cross_process_transports
 from ..transport.registry import describe_transport_kind as _describe

@@ -5,7 +5,7 @@ calls, attributes assigned after construction, fallbacks), the event -> action w
 settings (transport, multiprocessing, process start, config file, ``on_fail``, respawns) and the
 run's attachments (web UI, Foxglove, recording). It holds the live components the recipe built;
 what each one *is* is read from what it recorded (``Component.__new__`` keeps its constructor's
-arguments, :mod:`agents_core.setup_calls` the calls and assignments made since), never by building
+arguments, :mod:`agents_core.declarations.setup_calls` the calls and assignments made since), never by building
 it again: :meth:`Recipe.entries` gives one :class:`ComponentEntry` per component, and
 :meth:`Recipe.to_dict` the whole recipe as JSON-like data (what ``agentsctl recipe show`` prints,
 secrets redacted). Two recipes compare equal when that data does.
@@ -27,9 +27,9 @@ from typing import TYPE_CHECKING, Any
 import attrs
 
 from ..actions import Action
+from ..declarations.setup_calls import SetupCall, recorded_assignments, recorded_setup_calls
 from ..errors import ConfigError, WiringError
 from ..events import Event
-from ..setup_calls import SetupCall, recorded_assignments, recorded_setup_calls
 from ..topics import Topic
 from ..transport.process_values import TAG, encode_value
 

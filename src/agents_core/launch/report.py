@@ -11,7 +11,7 @@
 and, when something fails, which component and why (``✗ vision  failed to configure: ...``).
 The lines are coloured by ``rich`` when it is installed (the ``cli`` extra) and stderr is a
 terminal, plain text otherwise. ``Launcher(quiet=True)``, ``AGENTS_QUIET=1`` or a level above
-INFO on the ``agents_core`` logger silence them (see :mod:`agents_core.console`).
+INFO on the ``agents_core`` logger silence them (see :mod:`agents_core.support.console`).
 
 The transport line is the transport's own (its descriptor's ``describe``: Zenoh's mode and
 endpoints, ROS 2's domain id and discovery range); this module imports neither zenoh nor rclpy.
@@ -22,7 +22,7 @@ from __future__ import annotations
 import sys
 from typing import Any, TextIO
 
-from ..console import quiet_requested
+from ..support.console import quiet_requested
 
 __all__ = ["LaunchReport", "already_reported", "component_row", "describe_transport"]
 
@@ -47,7 +47,7 @@ def describe_transport(transport: Any) -> str:
 class LaunchReport:
     """The status lines of one launcher run (silent when quiet).
 
-    :param quiet: True silences it; None asks :func:`agents_core.console.quiet_requested`.
+    :param quiet: True silences it; None asks :func:`agents_core.support.console.quiet_requested`.
     :param stream: where the lines go (stderr by default).
     """
 

@@ -15,7 +15,7 @@ the same in the child whatever directory the recipe was started from.
 The spec is the encoding of one entry of the recipe (:class:`~agents_core.launch.recipe.ComponentEntry`,
 read from what the component recorded: nothing is built to learn what it is). What the recipe
 did to the component after building it travels as well: the calls of its setup methods
-(:mod:`agents_core.setup_calls`: ``register_tool``, ``set_topic_prompt``, processors, ...),
+(:mod:`agents_core.declarations.setup_calls`: ``register_tool``, ``set_topic_prompt``, processors, ...),
 replayed in order, and public attributes it assigned (an attribute named as a constructor
 parameter, such as ``additional_model_clients``, becomes that argument; another one is set again
 after construction). A function crosses by its qualified name (a module-level
@@ -42,9 +42,9 @@ from typing import TYPE_CHECKING, Any
 
 import attrs
 
+from ..declarations.setup_calls import SETUP_MARK, SetupCall, expected_state
 from ..errors import ConfigError
 from ..events import Event
-from ..setup_calls import SETUP_MARK, SetupCall, expected_state
 from ..topics import Topic
 from ..transport.process_values import (  # re-exported: the codecs moved below the launcher
     RECIPE_MODULE,
@@ -256,7 +256,7 @@ def _import_path() -> list[str]:
 def check_rebuild(component: Component, spec: ComponentSpec) -> None:
     """Refuse, naming it, state the child would lack: added past the component's methods since its construction.
 
-    Nothing is rebuilt: the component's record (:func:`~agents_core.setup_calls.expected_state`)
+    Nothing is rebuilt: the component's record (:func:`~agents_core.declarations.setup_calls.expected_state`)
     says what its constructor and its recorded setup calls made; the attributes assigned after
     construction are in ``spec`` already (:meth:`ComponentSpec.from_component`).
     """

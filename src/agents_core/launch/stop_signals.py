@@ -18,7 +18,7 @@ from collections.abc import Callable, Iterator
 from types import FrameType
 from typing import Any
 
-from ..console import say
+from ..support.console import say
 
 __all__ = ["stop_signals"]
 

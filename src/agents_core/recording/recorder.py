@@ -12,7 +12,7 @@ Discovery runs again every ``discover_every_s`` while recording, so topics and c
 appear later are picked up (a transport without discovery records only the ``Topic`` objects given).
 
 The path of one value: the middleware's thread calls the subscription inline, which stamps the
-receipt time and puts the value into a bounded :class:`~agents_core.concurrency.DrainQueue`
+receipt time and puts the value into a bounded :class:`~agents_core.support.concurrency.DrainQueue`
 (``queue_depth`` values, the newest dropped when full and counted, ``put`` never blocks); the
 queue's thread encodes (:mod:`.encodings`) and writes (:mod:`.writer`). A flusher closes the
 open chunk every ``flush_interval_s``, so a killed recorder loses at most that much.
@@ -29,8 +29,8 @@ from typing import TYPE_CHECKING, Any
 
 from attrs import define
 
-from ..concurrency import DrainQueue
 from ..errors import ConfigError, UnknownTypeError
+from ..support.concurrency import DrainQueue
 from ..topics import Topic
 from ..transport.contract import Subscription, Transport
 from ..transport.core import status_topic

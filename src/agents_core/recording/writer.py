@@ -35,7 +35,7 @@ from typing import Any, BinaryIO, Literal
 from attrs import define, field, validators
 
 from ..errors import ConfigError
-from ..install_hint import install_hint
+from ..support.install_hint import install_hint
 from .encodings import Encoding
 
 __all__ = ["Compression", "McapSeriesWriter", "RecordingLimits", "require_mcap"]

@@ -14,17 +14,16 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from .._lazy import lazy_facade
+from ..support.lazy import lazy_facade
 
 if TYPE_CHECKING:
-    from .component_runtime import ComponentRuntime
-    from .health import Health
-    from .lifecycle import LifecycleMachine
-    from .run_type import ComponentRunType
-    from .services import ComponentServices
-    from .worker import PeriodicTimer, StepWorker, WorkerStatistics
+    from .component_runtime import ComponentRuntime as ComponentRuntime
+    from .health import Health as Health
+    from .lifecycle import LifecycleMachine as LifecycleMachine
+    from .run_type import ComponentRunType as ComponentRunType
+    from .services import ComponentServices as ComponentServices
+    from .worker import PeriodicTimer as PeriodicTimer
+    from .worker import StepWorker as StepWorker
+    from .worker import WorkerStatistics as WorkerStatistics
 else:
     __getattr__, __dir__ = lazy_facade(__name__)
-
-__all__ = ["ComponentRunType", "ComponentRuntime", "ComponentServices", "Health", "LifecycleMachine",
-           "PeriodicTimer", "StepWorker", "WorkerStatistics"]

@@ -26,6 +26,7 @@ from concurrent.futures import Future
 from typing import TYPE_CHECKING, Any
 
 from ..config import configure_time_fields
+from ..declarations.setup_calls import freeze_record
 from ..errors import (
     AlgorithmFailure,
     ClientConnectionError,
@@ -38,7 +39,6 @@ from ..errors import (
     WiringError,
 )
 from ..events import Event
-from ..setup_calls import freeze_record
 from ..status import HealthStatus, LifecycleState
 from ..telemetry import switch as _telemetry
 from ..topics import FixedInput

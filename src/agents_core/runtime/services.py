@@ -12,7 +12,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
-from ..action_schema import bind_call
+from ..declarations.action_schema import bind_call
 from ..errors import ComponentError, ConfigError
 from ..guardrails import admit_call, with_caller
 from ..transport.requests import check_timeout

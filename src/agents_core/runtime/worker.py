@@ -22,8 +22,8 @@ from typing import Any
 
 from attrs import define
 
-from ..concurrency import DrainQueue, DropPolicy
 from ..errors import ComponentError
+from ..support.concurrency import DrainQueue, DropPolicy
 
 __all__ = ["MAX_TIMER_RATE_HZ", "PeriodicTimer", "StepWorker", "WorkerStatistics", "control_deadline_passed"]
 
@@ -78,7 +78,7 @@ class _WorkerQueue(DrainQueue[Callable[[], None]]):
 class StepWorker:
     """Runs submitted callables one at a time on a dedicated thread (``worker:<name>``).
 
-    Built on a :class:`~agents_core.concurrency.DrainQueue`: steps are its bounded lane, control
+    Built on a :class:`~agents_core.support.concurrency.DrainQueue`: steps are its bounded lane, control
     items its urgent lane.
     """
 

@@ -17,7 +17,7 @@ import logging
 import threading
 from typing import Any
 
-from ..install_hint import install_hint
+from ..support.install_hint import install_hint
 from . import switch
 from .settings import TelemetrySettings, settings_from_env, telemetry_settings
 

@@ -32,10 +32,10 @@ import time
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
-from ..concurrency import CloseOnce
 from ..errors import TransportClosedError, WiringError
 from ..messages import ComponentStatusMsg
 from ..status import HealthStatus, LifecycleState
+from ..support.concurrency import CloseOnce
 from ..supported_types import ComponentStatus
 from ..telemetry import switch as _telemetry
 from ..topics import QoSConfig, Topic, validate_topic_name

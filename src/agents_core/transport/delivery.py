@@ -25,7 +25,7 @@ from typing import Any
 
 from attrs import define
 
-from ..concurrency import CloseOnce, DrainQueue
+from ..support.concurrency import CloseOnce, DrainQueue
 from ..telemetry import switch as _telemetry
 from ..topics import Topic
 
@@ -137,7 +137,7 @@ class BoundedDelivery(_Counted):
 
     With ``counters``, every event is also added to the topic's totals there. Every value
     offered ends in exactly one of delivered, dropped, callback_errors or discarded (or is
-    still queued). The queue is a :class:`~agents_core.concurrency.DrainQueue` (drop oldest),
+    still queued). The queue is a :class:`~agents_core.support.concurrency.DrainQueue` (drop oldest),
     its thread named ``deliver:<topic>``.
     """
 

@@ -2,12 +2,14 @@
 
 A middleware adapter is a *driver*: a subclass of :class:`DriverBase` that implements the
 required primitives of :class:`TransportDriver` and, where its middleware can, the optional ones.
-:class:`~agents_core.transport.core.DriverTransport` puts the public transport surface on top of
-any driver and keeps the rest once, for every driver: validation against the topic's type, the
-closed state, duplicate names, one type per topic, statistics, the request lanes (one per
-component), the caller's deadline, the status topic of each component, the delivery of received
-values (a thread for user callbacks, straight to the component's worker for component inputs),
-and the goal bookkeeping (:mod:`agents_core.transport.goal_serving`).
+:class:`~agents_core.transport.core.DriverTransport` puts the public transport surface on top of any
+driver and keeps the rest once, for every driver: validation against the topic's type (of each value
+before the driver sends it; of each value it receives too, unless the driver declares
+``validates_incoming``, see :meth:`Sink.offer`), the closed state, duplicate names, one type per
+topic, statistics, the request lanes (one per component), the caller's deadline, the status topic of
+each component, the delivery of received values (a thread for user callbacks, straight to the
+component's worker for component inputs), and the goal bookkeeping
+(:mod:`agents_core.transport.goal_serving`).
 
 What a driver offers is data, derived from the class (:func:`capabilities_of`): ``actions`` when
 it overrides both goal primitives, ``discovery`` when it overrides :meth:`~TransportDriver.discover`;
@@ -83,7 +85,8 @@ class TransportCapabilities:
     #: service may be answered on the caller's thread (read by ``DriverTransport.request``).
     local_requests: bool = False
     #: The driver validates each received value against the topic's type before offering it (it
-    #: checks as it decodes); when False the core does (read by ``DriverTransport.create_subscription``).
+    #: checks as it decodes, and hands what does not validate to ``Sink.reject``, never to
+    #: ``Sink.offer``); when False the core does (read by ``DriverTransport.create_subscription``).
     validates_incoming: bool = False
 
 

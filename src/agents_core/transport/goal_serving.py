@@ -32,8 +32,8 @@ from typing import TYPE_CHECKING, Any
 
 from attrs import define
 
-from ..concurrency import CloseOnce
 from ..errors import ComponentError, TypeValidationError
+from ..support.concurrency import CloseOnce
 from ..telemetry import switch as _telemetry
 from .goal_threads import ReusedThreads
 from .goals import ActionType, GoalClient, GoalHandle, GoalStatus

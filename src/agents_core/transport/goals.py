@@ -30,7 +30,7 @@ from typing import Any
 from attrs import define, field
 
 from ..errors import ComponentError, ConfigError, RequestTimeoutError, TypeValidationError
-from ..registry import Registry
+from ..support.registry import Registry
 
 __all__ = [
     "ACTION_TYPES",

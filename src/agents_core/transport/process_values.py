@@ -4,7 +4,7 @@ What a component process is built from (:class:`~agents_core.launch.spec.Compone
 constructor's arguments, encoded here: topics, configs, models and other attrs data, model and
 database clients through their own ``serialize()``, enums, paths, tuples, plain JSON values,
 functions by their ``module:qualname``, another component's ``@component_action`` as a
-:class:`~agents_core.component_method.ComponentMethod`, and what a package registers with
+:class:`~agents_core.declarations.component_method.ComponentMethod`, and what a package registers with
 :func:`register_value_codec` (Cortex's actions: :mod:`agents_core.components.cortex.transfer`).
 A class defined in the recipe itself (the ``__main__`` module) is named ``RECIPE_MODULE:qualname``;
 the child imports the recipe file under that module name.
@@ -26,12 +26,12 @@ from typing import Any
 import attrs
 
 from ..actions import ACTION_MARK
-from ..component_method import ComponentMethod
 from ..config import BaseAttrs
+from ..declarations.component_method import ComponentMethod
+from ..declarations.event_transfer import decode_event, encode_event
 from ..errors import ConfigError
-from ..event_transfer import decode_event, encode_event
 from ..events import Event
-from ..registry import Registry
+from ..support.registry import Registry
 from ..topics import FixedInput, QoSConfig, Topic
 
 __all__ = [

@@ -30,7 +30,7 @@ import os
 from typing import Any
 
 from ..errors import ConfigError, TransportNotAvailableError
-from ..install_hint import install_hint
+from ..support.install_hint import install_hint
 from .contract import Transport
 from .descriptor import TransportDescriptor
 from .driver import DriverBase

@@ -21,9 +21,9 @@ import threading
 from collections.abc import Callable, Iterable
 from typing import Any, ClassVar
 
-from .._numpy import is_ndarray, is_np_bool, is_np_integer, is_np_number
 from ..errors import ConfigError, TypeValidationError, UnknownTypeError
-from ..registry import DuplicateNameError, Registry
+from ..support.lazy_numpy import is_ndarray, is_np_bool, is_np_integer, is_np_number
+from ..support.registry import DuplicateNameError, Registry
 
 __all__ = [
     "SupportedType",

@@ -17,8 +17,8 @@ from typing import Any, TypeVar
 import attrs
 from attrs import define, field
 
-from .._numpy import is_ndarray, is_np_bool, is_np_integer, is_np_number, np, npt
 from ..errors import TypeValidationError
+from ..support.lazy_numpy import is_ndarray, is_np_bool, is_np_integer, is_np_number, np, npt
 
 __all__ = [
     "FLOATS",

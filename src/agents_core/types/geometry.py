@@ -6,8 +6,8 @@ from typing import Any
 
 from attrs import define, field
 
-from .._numpy import is_ndarray, np, npt
 from ..errors import TypeValidationError
+from ..support.lazy_numpy import is_ndarray, np, npt
 from .base import SupportedType
 from .fields import Header, Message, header_field, instance_of, is_number, is_str, named, to_array, unstamped, wire
 

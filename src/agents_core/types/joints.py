@@ -6,8 +6,8 @@ from typing import Any
 
 from attrs import define, field
 
-from .._numpy import np, npt
 from ..errors import TypeValidationError
+from ..support.lazy_numpy import np, npt
 from .base import SupportedType
 from .fields import FLOATS, Header, Message, empty_f64, header_field, is_number, is_str_list, named, to_array, wire
 

@@ -6,7 +6,7 @@ from typing import Any
 
 from attrs import define, field
 
-from .._numpy import np, npt
+from ..support.lazy_numpy import np, npt
 from .base import SupportedType
 from .fields import Header, Message, header_field, instance_of, int_in, is_number, named, to_array, unstamped, wire
 from .geometry import PoseMsg

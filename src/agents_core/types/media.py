@@ -8,8 +8,8 @@ from typing import Any, ClassVar
 
 from attrs import define, field
 
-from .._numpy import is_ndarray, np, npt
 from ..errors import TypeValidationError
+from ..support.lazy_numpy import is_ndarray, np, npt
 from .base import SupportedType
 from .fields import Header, Message, as_numeric_array, check_holds, header_field, instance_of, is_str, named, wire
 

@@ -6,9 +6,9 @@ from typing import Any, ClassVar
 
 from attrs import define, field
 
-from .._numpy import np, npt
 from ..callbacks import DetectionsCallback
 from ..errors import TypeValidationError
+from ..support.lazy_numpy import np, npt
 from .base import SupportedType
 from .fields import Header, Message, header_field, instance_of, is_str_list, named, to_array, wire
 from .media import Image, ImageMsg

@@ -7,8 +7,8 @@ import math
 from collections.abc import Sequence
 from typing import Any, ClassVar
 
-from .._numpy import is_ndarray, is_np_bool, is_np_integer, is_np_number, np, npt, numpy_attribute
 from ..errors import TypeValidationError
+from ..support.lazy_numpy import is_ndarray, is_np_bool, is_np_integer, is_np_number, np, npt, numpy_attribute
 from .base import FLOAT32_MAX, SupportedType
 from .fields import as_numeric_array
 

@@ -14,7 +14,7 @@ Pillow). See ``docs/ui.md`` for the API.
 
 from __future__ import annotations
 
-from ..install_hint import install_hint
+from ..support.install_hint import install_hint
 from .recipe_view import LocalRecipe, RecipeView, RemoteRecipe
 from .settings import TOKEN_ENV, UISettings
 

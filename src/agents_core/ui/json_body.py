@@ -1,6 +1,6 @@
 """``parse_json_body``: a request body from the browser, decoded with the core's bounded JSON decoder.
 
-The UI has no JSON rules of its own: :func:`agents_core.bounded_json.loads` refuses deep nesting,
+The UI has no JSON rules of its own: :func:`agents_core.support.bounded_json.loads` refuses deep nesting,
 integers past 64 bits, floats that overflow, ``NaN`` and documents that would expand far beyond
 their size, before building anything large. Only the UI's bounds differ from the decoder's
 defaults (a body is at most ``max_bytes``; arrays may be as long as a body can make them, since an
@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from ..bounded_json import InvalidJsonError, JsonLimits, loads
+from ..support.bounded_json import InvalidJsonError, JsonLimits, loads
 
 __all__ = ["MAX_DEPTH", "BadJSON", "parse_json_body"]
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
-from ..install_hint import install_hint
+from ..support.install_hint import install_hint
 from .recipe_view import LocalRecipe
 from .settings import UISettings
 

@@ -12,18 +12,19 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from .._lazy import lazy_facade
+from ..support.lazy import lazy_facade
 
 if TYPE_CHECKING:
-    from ..components.vision.tracking import ObjectTracker, TrackedObject
-    from ..engines.audio import StreamResampler, to_mono_float
-    from ..engines.local_llm import LocalLLM, LocalVLM
-    from ..engines.local_stt import LocalSTT
-    from ..engines.local_tts import LocalTTS
-    from ..engines.local_vision import LocalVisionModel
-    from ..engines.model_files import default_llm_path, resolve_model_file
+    from ..components.vision.tracking import ObjectTracker as ObjectTracker
+    from ..components.vision.tracking import TrackedObject as TrackedObject
+    from ..engines.audio import StreamResampler as StreamResampler
+    from ..engines.audio import to_mono_float as to_mono_float
+    from ..engines.local_llm import LocalLLM as LocalLLM
+    from ..engines.local_llm import LocalVLM as LocalVLM
+    from ..engines.local_stt import LocalSTT as LocalSTT
+    from ..engines.local_tts import LocalTTS as LocalTTS
+    from ..engines.local_vision import LocalVisionModel as LocalVisionModel
+    from ..engines.model_files import default_llm_path as default_llm_path
+    from ..engines.model_files import resolve_model_file as resolve_model_file
 else:
     __getattr__, __dir__ = lazy_facade(__name__)
-
-__all__ = ["LocalLLM", "LocalSTT", "LocalTTS", "LocalVLM", "LocalVisionModel", "ObjectTracker", "StreamResampler",
-           "TrackedObject", "default_llm_path", "resolve_model_file", "to_mono_float"]

@@ -12,7 +12,7 @@ from typing import Any
 import attrs
 import numpy as np
 
-from agents_core.registry import NotRegisteredError, Registry
+from agents_core.support.registry import NotRegisteredError, Registry
 from agents_core.supported_types import SupportedType, get_type, shares_value_class
 
 from .base import RosConversion

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Any
 import attrs
 from attrs import define, field
 
-from agents_core.bounded_json import JsonLimits
+from agents_core.support.bounded_json import JsonLimits
 from agents_core.types import is_builtin_type
 
 from .errors import CodecError
@@ -178,7 +178,7 @@ def json_limits(limits: DecodeLimits) -> JsonLimits:
 
     Sizes and counts carry over one to one (a msgpack map is a JSON object); JSON adds a depth
     limit (msgpack's unpacker stops at 1024 levels by itself), a 64-bit integer range (all msgpack
-    can carry) and the refusal of NaN / Infinity (see :class:`~agents_core.bounded_json.JsonLimits`).
+    can carry) and the refusal of NaN / Infinity (see :class:`~agents_core.support.bounded_json.JsonLimits`).
     """
     return JsonLimits(max_bytes=limits.max_document_bytes, max_str_len=limits.max_str_len,
                       max_objects=limits.max_maps, max_arrays=limits.max_arrays,

@@ -20,7 +20,7 @@ from typing import Any
 import attrs
 
 from agents_core import messages as m
-from agents_core.registry import NotRegisteredError, Registry
+from agents_core.support.registry import NotRegisteredError, Registry
 from agents_core.supported_types import SupportedType, get_type, registered_types, shares_value_class
 from agents_core.types import is_builtin_type
 

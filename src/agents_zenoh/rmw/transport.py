@@ -36,7 +36,7 @@ from typing import Any
 import zenoh
 
 from agents_core import bounded_json
-from agents_core.bounded_json import REQUEST_JSON_LIMITS
+from agents_core.support.bounded_json import REQUEST_JSON_LIMITS
 from agents_core.errors import ConfigError, RemoteError, RequestTimeoutError, ServiceUnavailableError, TransportError
 from agents_core.messages import ComponentStatusMsg
 from agents_core.status import HealthStatus, LifecycleState

@@ -34,11 +34,9 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from ..._lazy import lazy_facade
+from ...support.lazy import lazy_facade
 
 if TYPE_CHECKING:
-    from .client import ChromaClient
+    from .client import ChromaClient as ChromaClient
 else:
     __getattr__, __dir__ = lazy_facade(__name__)
-
-__all__ = ["ChromaClient"]

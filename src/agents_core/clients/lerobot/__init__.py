@@ -10,11 +10,9 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from ..._lazy import lazy_facade
+from ...support.lazy import lazy_facade
 
 if TYPE_CHECKING:
-    from .client import LeRobotClient
+    from .client import LeRobotClient as LeRobotClient
 else:
     __getattr__, __dir__ = lazy_facade(__name__)
-
-__all__ = ["LeRobotClient"]

@@ -27,8 +27,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ...errors import ClientConnectionError, ConfigError, InferenceError, InferenceTimeoutError, ProtocolError
-from ...install_hint import install_hint
 from ...models import LeRobotPolicy, Model
+from ...support.install_hint import install_hint
 from ..policy_base import ActionChunkError, PolicyClient, action_chunk_array
 from .restricted_pickle import PayloadLimits
 

@@ -14,12 +14,10 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from ..._lazy import lazy_facade
+from ...support.lazy import lazy_facade
 
 if TYPE_CHECKING:
-    from .component import Cortex
-    from .config import CortexConfig
+    from .component import Cortex as Cortex
+    from .config import CortexConfig as CortexConfig
 else:
     __getattr__, __dir__ = lazy_facade(__name__)
-
-__all__ = ["Cortex", "CortexConfig"]

@@ -11,7 +11,7 @@ from typing import Any
 from attrs import define, field
 
 from ... import base_validators
-from ..._component_configs import LLMConfig
+from ..llm_config import LLMConfig
 
 __all__ = ["CortexConfig"]
 

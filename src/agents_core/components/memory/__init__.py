@@ -8,14 +8,12 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from ..._lazy import lazy_facade
+from ...support.lazy import lazy_facade
 
 if TYPE_CHECKING:
-    from .component import Memory
-    from .config import MemoryConfig
-    from .engine import MemoryStoreError
-    from .layers import MemLayer
+    from .component import Memory as Memory
+    from .config import MemoryConfig as MemoryConfig
+    from .engine import MemoryStoreError as MemoryStoreError
+    from .layers import MemLayer as MemLayer
 else:
     __getattr__, __dir__ = lazy_facade(__name__)
-
-__all__ = ["MemLayer", "Memory", "MemoryConfig", "MemoryStoreError"]

@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING, Any
 from attrs import define
 
 from ...errors import ComponentError, ModelClientError
-from ...install_hint import install_hint
+from ...support.install_hint import install_hint
 
 if TYPE_CHECKING:
     import numpy as np

@@ -1,7 +1,8 @@
 """The ``Vision`` component and the object tracker only it uses.
 
 :mod:`.component` holds :class:`Vision` (detection on camera frames, tracking, the model
-clients or the built-in local detector); :mod:`.tracking` the IoU tracker that follows the
+clients or the built-in local detector); :mod:`.config` its :class:`VisionConfig` (re-exported by
+``agents_core.config``); :mod:`.tracking` the IoU tracker that follows the
 detections of one camera between frames. ``Vision`` is imported on first use (PEP 562), so
 importing the tracker alone does not load the model component and its clients.
 """
@@ -10,11 +11,10 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from ..._lazy import lazy_facade
+from ...support.lazy import lazy_facade
 
 if TYPE_CHECKING:
-    from .component import Vision
+    from .component import Vision as Vision
+    from .config import VisionConfig as VisionConfig
 else:
     __getattr__, __dir__ = lazy_facade(__name__)
-
-__all__ = ["Vision"]

@@ -34,7 +34,6 @@ import numpy as np
 import numpy.typing as npt
 
 from ... import supported_types as st
-from ..._component_configs import VisionConfig
 from ...actions import component_action
 from ...clients.model_base import ModelClient
 from ...errors import AlgorithmFailure, ConfigError, WiringError
@@ -51,6 +50,7 @@ from ...supported_types import (
 from ...topics import Topic
 from ..component_base import TriggerType
 from ..model_component import ModelComponent
+from .config import VisionConfig
 from .recording import MAX_FPS, MAX_RECORDING_S, confined_folder, record_frames, recording_path, write_gif
 from .tracking import ObjectTracker
 

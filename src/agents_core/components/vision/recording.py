@@ -22,7 +22,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ...errors import AlgorithmFailure, ConfigError
-from ...install_hint import install_hint
+from ...support.install_hint import install_hint
 
 __all__ = ["MAX_FPS", "MAX_RECORDING_BYTES", "MAX_RECORDING_S", "RecordedFrame", "confined_folder",
            "record_frames", "recording_path", "write_gif"]

@@ -33,18 +33,18 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..._component_configs import VLAConfig
+from ...declarations.setup_calls import setup_method
 from ...errors import AlgorithmFailure, ComponentError, ConfigError, ModelClientError, WiringError
 from ...events import Event
 from ...messages import JointJogMsg, JointStateMsg, JointTrajectoryMsg, JointTrajectoryPointMsg
 from ...runtime.run_type import ComponentRunType
-from ...setup_calls import setup_method
 from ...status import HealthStatus, LifecycleState
 from ...supported_types import RGBD, Image, JointJog, JointState, JointTrajectory
 from ...topics import Topic
 from ..model_component import ModelComponent
 from ..wiring import AllowedTypes
 from .action_chunks import ActionChunkQueue, AggregationFunction, aggregation_function
+from .config import VLAConfig
 from .urdf import JointLimits, joint_limits_from_config, read_urdf_joint_limits
 
 if TYPE_CHECKING:

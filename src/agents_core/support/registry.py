@@ -26,7 +26,7 @@ import threading
 from collections.abc import Callable, Iterator
 from typing import Any, Generic, TypeVar
 
-from .errors import ConfigError, UnknownTypeError
+from ..errors import ConfigError, UnknownTypeError
 
 __all__ = ["DuplicateNameError", "NotRegisteredError", "Registry"]
 

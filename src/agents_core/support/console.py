@@ -5,7 +5,7 @@ components coming up, the web UI's address, a download in progress) even when th
 configured :mod:`logging`. These lines go to stderr, so a recipe's own stdout stays its own.
 
 They are silenced by ``AGENTS_QUIET=1`` (the test suite sets it), by ``Launcher(quiet=True)``, or by
-giving the ``agents_core`` logger (or ``agents_core.console``) an explicit level above INFO, as
+giving the ``agents_core`` logger (or ``agents_core.support.console``) an explicit level above INFO, as
 ``logging.getLogger("agents_core").setLevel(logging.WARNING)`` does.
 
 This module imports nothing from the package, so any module may use it.
@@ -34,7 +34,7 @@ def quiet_requested(quiet: bool | None = None) -> bool:
         return True
     # Only an explicit level counts: by default the root logger says WARNING, which would silence
     # every recipe of a user who never configured logging, the very case these lines are for.
-    for name in ("agents_core.console", "agents_core"):
+    for name in ("agents_core.support.console", "agents_core"):
         level = logging.getLogger(name).level
         if level != logging.NOTSET:
             return level > logging.INFO

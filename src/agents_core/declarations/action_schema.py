@@ -36,7 +36,7 @@ import typing
 from collections.abc import Callable, Mapping
 from typing import Any
 
-from .errors import ConfigError
+from ..errors import ConfigError
 
 __all__ = ["action_schema", "bind_call", "describe_action", "docstring_summary", "parameter_descriptions",
            "parameters_text"]

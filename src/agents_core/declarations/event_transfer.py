@@ -17,10 +17,10 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-from .conditions import Condition, FieldRef
-from .errors import ConfigError
-from .events import Event
-from .topics import Topic
+from ..conditions import Condition, FieldRef
+from ..errors import ConfigError
+from ..events import Event
+from ..topics import Topic
 
 __all__ = ["decode_event", "encode_event"]
 
@@ -75,7 +75,7 @@ def _decode_recipe(data: list[Any], decode: Callable[[Any], Any]) -> Condition:
 
 def encode_event(event: Event) -> dict[str, Any]:
     """``event`` as JSON-like data (topics and values through the process codecs of :mod:`agents_core.launch.spec`)."""
-    from .launch.spec import encode_value  # noqa: PLC0415  # the codecs live there; spec imports this module
+    from ..launch.spec import encode_value  # noqa: PLC0415  # the codecs live there; spec imports this module
 
     where = f"event {event.name!r}"
     cond = event.event_condition
@@ -93,7 +93,7 @@ def encode_event(event: Event) -> dict[str, Any]:
 
 def decode_event(data: dict[str, Any]) -> Event:
     """The event :func:`encode_event` encoded (a new object with the same name, condition and options)."""
-    from .launch.spec import decode_value  # noqa: PLC0415
+    from ..launch.spec import decode_value  # noqa: PLC0415
 
     condition = data.get("condition")
     if not isinstance(condition, dict):

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ._version import DISTRIBUTION, _source_tree_version
+from .version import DISTRIBUTION, _source_tree_version
 
 __all__ = ["install_hint"]
 

@@ -16,7 +16,7 @@ from typing import Any, Protocol
 
 import attrs
 
-from .errors import ComponentError
+from ..errors import ComponentError
 
 __all__ = ["ComponentMethod", "Requester"]
 

@@ -27,7 +27,7 @@ from typing import Any, Literal, Union
 
 import attrs
 
-from .errors import ConfigError, PositionalArgumentsError
+from ..errors import ConfigError, PositionalArgumentsError
 
 __all__ = ["CheckedFieldsMeta", "check_declared_type", "describe_annotation", "name_hints"]
 

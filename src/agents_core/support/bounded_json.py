@@ -32,7 +32,7 @@ from typing import Any
 
 from attrs import define, field
 
-from .errors import TypeValidationError
+from ..errors import TypeValidationError
 
 __all__ = ["DEFAULT_JSON_LIMITS", "REQUEST_JSON_LIMITS", "InvalidJsonError", "JsonLimitError", "JsonLimits", "loads"]
 

@@ -1,0 +1,3 @@
+"""What components and recipes declare, held as data."""
+
+from __future__ import annotations

@@ -1,0 +1,3 @@
+"""The base floor's helpers: no framework vocabulary, imported by every layer above."""
+
+from __future__ import annotations
