@@ -27,6 +27,8 @@ from pathlib import Path
 SRC = Path(__file__).resolve().parent.parent / "src"
 PACKAGES = ("agents_core", "agents_zenoh", "agents_ros2")
 MAX_LINES = 600
+#: The file that defines ``Launcher``: a thin façade over a recipe and a run (issue 35).
+LAUNCHER_MAX_LINES = 350
 #: Import circles that are part of the design (sorted module names).
 ALLOWED_CYCLES = {("agents_core.conditions", "agents_core.topics")}
 #: The layers of agents_core, lowest first: name -> the package-root modules / folders in it. A module
@@ -241,3 +243,8 @@ def test_no_module_writes_another_objects_private_attributes() -> None:
 def test_the_private_write_finder_finds_one() -> None:
     tree = ast.parse("def f(c):\n    c._worker = None\n    self._ok = 1\n")
     assert [what for what, _ in _private_writes("m", tree)] == ["c._worker"]
+
+
+def test_the_launcher_stays_a_thin_facade() -> None:
+    lines = (SRC / "agents_core" / "launch" / "launcher.py").read_text(encoding="utf-8").count("\n")
+    assert lines <= LAUNCHER_MAX_LINES, f"launch/launcher.py has {lines} lines (at most {LAUNCHER_MAX_LINES})"

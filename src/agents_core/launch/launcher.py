@@ -83,8 +83,7 @@ class Launcher:
     def __init__(self, transport: str | Transport | None = None, *,
                  transport_options: Mapping[str, Any] | None = None,
                  config_file: str | os.PathLike[str] | None = None, quiet: bool | None = None,
-                 process_start: str | None = None, telemetry: Any = None,
-                 namespace: str | None = None) -> None:
+                 process_start: str | None = None, telemetry: Any = None, namespace: str | None = None) -> None:
         self._quiet, self._telemetry = quiet, _telemetry.telemetry_settings(telemetry)  # on at start
         settings, self._component_sections = launch_settings(transport, transport_options, config_file, process_start)
         settings.set_namespace(namespace)
