@@ -35,11 +35,11 @@ from typing import Any
 
 import zenoh
 
-from agents_core import bounded_json
-from agents_core.support.bounded_json import REQUEST_JSON_LIMITS
 from agents_core.errors import ConfigError, RemoteError, RequestTimeoutError, ServiceUnavailableError, TransportError
 from agents_core.messages import ComponentStatusMsg
 from agents_core.status import HealthStatus, LifecycleState
+from agents_core.support import bounded_json
+from agents_core.support.bounded_json import REQUEST_JSON_LIMITS
 from agents_core.supported_types import ComponentStatus
 from agents_core.topics import Topic
 from agents_core.transport.core import DriverTransport, status_topic
