@@ -96,6 +96,9 @@ def test_two_robots_from_one_recipe_do_not_collide_and_an_operator_sees_each(
     assert reply["result"] == "robot2 charged to 42"
     assert wait_for(lambda: charges["robot2"][-1] < 42.0, timeout=10.0)
     assert charges["robot1"][-1] > 42.0  # robot1 was not touched
+    described = memory.request("robot1/battery/describe", {}, timeout=5.0)  # what an observer must use
+    assert described["name"] == "robot1/battery"
+    assert [t["name"] for t in described["outputs"]] == ["robot1/battery", "map"]
     state = memory.get_component_state("robot1/battery", timeout=2.0)
     assert state is not None and state.component == "robot1/battery" and state.lifecycle_state == "active"
     assert memory.request_transition("robot1/battery", "deactivate", timeout=5.0)
