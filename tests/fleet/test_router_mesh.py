@@ -120,7 +120,8 @@ def test_router_without_json_says_its_peers_in_words(tmp_path: Path) -> None:
     assert router.returncode == 0, log.read_text()  # a clean exit on SIGINT
 
 
-@pytest.mark.parametrize("command", [["call", "arm", "home"], ["topics", "echo", "camera"], ["run", "tests/fleet/fleet_recipe.py"]])
+@pytest.mark.parametrize("command", [["call", "arm", "home"], ["topics", "echo", "camera"],
+                                     ["run", "tests/fleet/fleet_recipe.py"]])
 def test_an_invalid_namespace_on_the_command_line_is_one_line_naming_the_option(command: list[str]) -> None:
     done = cli(*command, "--namespace", "robot-1")
     assert done.returncode != 0
