@@ -35,6 +35,7 @@ class Battery(Component):
 
     def __init__(self, **kwargs: Any) -> None:
         self.charge = 100.0
+        self.robot = "?"
         super().__init__(**kwargs)
 
     def _execution_step(self, **kwargs: Any) -> None:
@@ -50,7 +51,7 @@ class Battery(Component):
 
     @property
     def label(self) -> str:
-        return str(getattr(self, "robot", "?"))
+        return self.robot
 
 
 def robot(name: str, transport: Any) -> Launcher:
@@ -178,8 +179,12 @@ def test_a_component_process_runs_in_the_namespace_on_zenoh() -> None:
         try:
             got: list[float] = []
             done = threading.Event()
-            observer.create_subscription(Topic("robot1/battery", "Float32"),
-                                         lambda v: (got.append(v), done.set()))
+
+            def heard(value: Any) -> None:
+                got.append(value)
+                done.set()
+
+            observer.create_subscription(Topic("robot1/battery", "Float32"), heard)
             assert done.wait(30.0), "no robot1/battery sample from the component process"
             assert wait_for(lambda: "robot1/battery" in observer.discover(0.5).components, timeout=10.0)
             reply = observer.request("robot1/battery/execute_method",
