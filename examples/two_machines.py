@@ -16,6 +16,15 @@ host (the loopback) or on two (the router on the robot, ``192.168.1.10`` here)::
     python examples/two_machines.py operator --connect tcp/127.0.0.1:7447  # laptop: tcp/192.168.1.10:7447
 
 ``--once`` stops the operator after three readings; ``--seconds N`` stops any role after N seconds.
+
+A fleet: start the same robot several times under namespaces, and point the operator at one::
+
+    python examples/two_machines.py robot --connect tcp/127.0.0.1:7447 --namespace robot1
+    python examples/two_machines.py robot --connect tcp/127.0.0.1:7447 --namespace robot2
+    python examples/two_machines.py operator --connect tcp/127.0.0.1:7447 --robot robot2   # robot2/battery
+
+(``agentsctl components list --connect tcp/127.0.0.1:7447`` shows ``robot1/battery`` and ``robot2/battery``;
+see docs/fleet.md.)
 """
 
 from __future__ import annotations
@@ -58,10 +67,12 @@ class Monitor(Component):
         super().__init__(**kwargs)
 
     def _execution_step(self, **kwargs: Any) -> None:
-        charge = self.trig_callbacks["battery"].get_output()
+        watched = next(iter(self.trig_callbacks))
+        charge = self.trig_callbacks[watched].get_output()
         if charge is None:
             return
-        print(f"operator got battery {float(charge):.1f}%\n", end="", flush=True)
+        robot = f" from {watched.rsplit('/', 1)[0]}" if "/" in watched else ""
+        print(f"operator got battery {float(charge):.1f}%{robot}\n", end="", flush=True)
         if charge < LOW:
             self.publishers_dict["alerts"].publish(f"battery low: {float(charge):.0f}%")
         self.count += 1
@@ -89,6 +100,8 @@ def main(argv: list[str] | None = None) -> None:
     """Run one role: router, robot or operator."""
     p = parser(__doc__)
     p.add_argument("role", choices=["router", "robot", "operator"])
+    p.add_argument("--robot", default=None, metavar="NAMESPACE",
+                   help="operator: watch this robot's battery (<NAMESPACE>/battery; default: battery)")
     p.set_defaults(transport="zenoh")
     args = p.parse_args(argv)
     if args.transport != "zenoh":
@@ -98,12 +111,14 @@ def main(argv: list[str] | None = None) -> None:
         return
     # A client of the router: no listen endpoint, no multicast scouting; the router is the one way in.
     launcher = Launcher(transport="zenoh", transport_options={
-        "mode": "client", "connect": args.connect or ["tcp/127.0.0.1:7447"], "multicast_scouting": False})
+        "mode": "client", "connect": args.connect or ["tcp/127.0.0.1:7447"], "multicast_scouting": False},
+        namespace=args.namespace)
     readings = threading.Event()
     if args.role == "robot":
         launcher.add_pkg(components=[Battery(inputs=[], outputs=[BATTERY], trigger=5.0, component_name="battery")])
     else:
-        launcher.add_pkg(components=[Monitor(readings, inputs=[BATTERY], outputs=[ALERTS], trigger=BATTERY,
+        watched = Topic(f"{args.robot}/battery", "Float32") if args.robot else BATTERY
+        launcher.add_pkg(components=[Monitor(readings, inputs=[watched], outputs=[ALERTS], trigger=watched,
                                              component_name="monitor")])
     run(launcher, args, done=readings)
 

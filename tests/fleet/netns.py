@@ -106,11 +106,6 @@ class Lan:
         self._processes.append(process)
         return process
 
-    def reachable(self, host: str, other: str) -> bool:
-        """Whether ``host`` reaches ``other``'s address (one ping)."""
-        done = self.run(host, ["ping", "-c", "1", "-W", "2", self.address[other]], timeout=10.0)
-        return done.returncode == 0
-
     def close(self) -> None:
         """Stop every process (SIGINT, then SIGKILL by PID), then delete every namespace made; idempotent."""
         for process in self._processes:

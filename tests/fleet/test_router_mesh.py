@@ -19,7 +19,7 @@ import pytest
 from agents_core import Launcher, Topic
 from agents_core.testing.pairs import missing_requirement
 from agents_core.transport.registry import resolve_transport
-from tests.cli.helpers import cli_env, start, stop, wait_until
+from tests.cli.helpers import cli, cli_env, start, stop, wait_until
 from tests.conftest import free_tcp_port
 from tests.launch.test_namespace import BATTERY, MAP, Battery
 
@@ -82,6 +82,17 @@ def test_two_routers_form_a_mesh_and_report_each_other(tmp_path: Path) -> None:
                 reply = operator.request("robot1/battery/execute_method",
                                          {"method": "recharge", "args": [10], "kwargs": {}}, timeout=10.0)
                 assert reply["result"] == "? charged to 10"
+                # agentsctl behind router B addresses the robot behind router A, by its namespace.
+                via_b = ["--transport", "zenoh", "--connect", b, "--json"]
+                done = cli("components", "list", "--namespace", "robot1", *via_b)
+                assert done.returncode == 0, done.stderr
+                assert [c["name"] for c in json.loads(done.stdout)] == ["robot1/battery"]
+                done = cli("components", "status", "battery", "--namespace", "robot1", *via_b)
+                assert done.returncode == 0, done.stderr
+                assert [t["name"] for t in json.loads(done.stdout)["outputs"]] == ["robot1/battery", "map"]
+                done = cli("call", "battery", "recharge", "20", "--namespace", "robot1", *via_b)
+                assert done.returncode == 0, done.stderr
+                assert json.loads(done.stdout)["result"] == "? charged to 20"
                 assert wait_until(lambda: sum(p["kind"] == "client" for p in _peers(log_b)) == 1, 10.0, 0.1)
                 assert wait_until(lambda: sum(p["kind"] == "client" for p in _peers(log_a)) == 1, 10.0, 0.1)
             finally:
@@ -107,3 +118,11 @@ def test_router_without_json_says_its_peers_in_words(tmp_path: Path) -> None:
     finally:
         stop(router)
     assert router.returncode == 0, log.read_text()  # a clean exit on SIGINT
+
+
+@pytest.mark.parametrize("command", [["call", "arm", "home"], ["topics", "echo", "camera"],
+                                     ["run", "tests/fleet/fleet_recipe.py"]])
+def test_an_invalid_namespace_on_the_command_line_is_one_line_naming_the_option(command: list[str]) -> None:
+    done = cli(*command, "--namespace", "robot-1")
+    assert done.returncode != 0
+    assert "--namespace 'robot-1' is not a namespace" in done.stderr and "Traceback" not in done.stderr, done.stderr

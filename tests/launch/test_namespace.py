@@ -35,6 +35,7 @@ class Battery(Component):
 
     def __init__(self, **kwargs: Any) -> None:
         self.charge = 100.0
+        self.robot = "?"
         super().__init__(**kwargs)
 
     def _execution_step(self, **kwargs: Any) -> None:
@@ -50,7 +51,7 @@ class Battery(Component):
 
     @property
     def label(self) -> str:
-        return str(getattr(self, "robot", "?"))
+        return self.robot
 
 
 def robot(name: str, transport: Any) -> Launcher:
@@ -96,6 +97,9 @@ def test_two_robots_from_one_recipe_do_not_collide_and_an_operator_sees_each(
     assert reply["result"] == "robot2 charged to 42"
     assert wait_for(lambda: charges["robot2"][-1] < 42.0, timeout=10.0)
     assert charges["robot1"][-1] > 42.0  # robot1 was not touched
+    described = memory.request("robot1/battery/describe", {}, timeout=5.0)  # what an observer must use
+    assert described["name"] == "robot1/battery"
+    assert [t["name"] for t in described["outputs"]] == ["robot1/battery", "map"]
     state = memory.get_component_state("robot1/battery", timeout=2.0)
     assert state is not None and state.component == "robot1/battery" and state.lifecycle_state == "active"
     assert memory.request_transition("robot1/battery", "deactivate", timeout=5.0)
@@ -175,8 +179,12 @@ def test_a_component_process_runs_in_the_namespace_on_zenoh() -> None:
         try:
             got: list[float] = []
             done = threading.Event()
-            observer.create_subscription(Topic("robot1/battery", "Float32"),
-                                         lambda v: (got.append(v), done.set()))
+
+            def heard(value: Any) -> None:
+                got.append(value)
+                done.set()
+
+            observer.create_subscription(Topic("robot1/battery", "Float32"), heard)
             assert done.wait(30.0), "no robot1/battery sample from the component process"
             assert wait_for(lambda: "robot1/battery" in observer.discover(0.5).components, timeout=10.0)
             reply = observer.request("robot1/battery/execute_method",

@@ -22,7 +22,8 @@ and addresses each (``agentsctl call robot1/arm <method>``). The view works on e
 it maps names before they reach the driver (memory, Zenoh, ROS 2, a third party's); on ROS 2
 the component's node gets the real node namespace (the driver splits ``robot1/arm`` into
 namespace ``/robot1`` and node ``arm``). :meth:`~agents_core.transport.core.DriverTransport.discover`
-on a view shows the whole graph, as ``ros2 topic list`` does in a namespaced shell.
+on a view shows the whole graph, as ``ros2 topic list`` does in a namespaced shell; a component's
+``describe`` reply (``agentsctl components status``, ``agentsctl ui``) gives its wire names.
 
 A namespace is one or more ``/``-separated chunks of letters, digits and ``_`` (a leading or
 trailing ``/`` is dropped): :func:`validate_namespace` says what is wrong, naming the field.
@@ -54,7 +55,7 @@ from .goals import ActionType
 from .graph import Graph
 
 __all__ = ["NAMESPACE_ENV_VAR", "NamespacedDriver", "namespace_from_env", "namespaced", "resolve_name",
-           "validate_namespace"]
+           "validate_namespace", "wire_description"]
 
 #: Read by ``Launcher()`` when no ``namespace=`` is given (set by ``agentsctl run --namespace``).
 NAMESPACE_ENV_VAR = "AGENTS_NAMESPACE"
@@ -88,6 +89,21 @@ def resolve_name(namespace: str, name: str) -> str:
     if name.startswith("/"):
         return name.lstrip("/")
     return f"{namespace}/{name}" if namespace else name
+
+
+def wire_description(namespace: str, reply: Any) -> Any:
+    """A component's ``describe`` reply with its name and its topics' names as observers must use them (wire names)."""
+    if not isinstance(reply, dict):
+        return reply
+    described = dict(reply)
+    if isinstance(described.get("name"), str):
+        described["name"] = resolve_name(namespace, described["name"])
+    for key in ("inputs", "outputs"):
+        if isinstance(described.get(key), list):
+            described[key] = [{**t, "name": resolve_name(namespace, t["name"])}
+                              if isinstance(t, dict) and isinstance(t.get("name"), str) else t
+                              for t in described[key]]
+    return described
 
 
 class NamespacedDriver:
@@ -127,7 +143,13 @@ class NamespacedDriver:
         return self._driver.open_subscriber(self._topic(topic), sink, self._owner(owner))
 
     def serve(self, name: str, handler: ServiceHandler, owner: str | None, lane: Lane) -> Any:
-        """Serve the service's wire name."""
+        """Serve the service's wire name; a component's ``describe`` answers in wire names (see wire_description)."""
+        if owner is not None and name == f"{owner}/describe":
+            inner = handler
+
+            def handler(request: dict[str, Any]) -> dict[str, Any]:
+                described: dict[str, Any] = wire_description(self.namespace, inner(request))
+                return described
         return self._driver.serve(self._name(name), handler, self._owner(owner), lane)
 
     def call(self, name: str, payload: dict[str, Any], timeout: float) -> dict[str, Any]:
