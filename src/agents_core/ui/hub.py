@@ -6,12 +6,6 @@ bounded (:attr:`OutputHub.client_queue`); a client that lets it fill up is too s
 and is dropped (its WebSocket closed with code 1013), never buffered without bound. The hub also
 watches each component's status topic and keeps the latest status for ``/api/interfaces``.
 
-Status frames are *newest only*: a new client gets each component's newest status first, and
-never a status older than one it was already sent. The status topic keeps its last values for
-late joiners (transient local), but the hub reads it with a depth of one and drops any value
-older than the newest it knows (by the status's stamp), so a client that connects while that
-backlog is still arriving never sees an old state after the current one.
-
 A client of binary frames (``?frames=binary``, what the page opens) gets images as binary frames
 (:mod:`.binary_frames`), and its image and detections frames are *latest-wins* per topic: while one
 is waiting to be sent, a newer one replaces it (counted in :attr:`OutputHub.dropped_frames`) rather
@@ -29,15 +23,13 @@ import threading
 from collections.abc import Callable, Iterable
 from typing import TYPE_CHECKING, Any
 
-from attrs import evolve
-
 from ..messages import CompressedImageMsg, ImageMsg
-from ..topics import Topic
 from ..transport.core import status_topic
 from .binary_frames import pack_image
 from .frames import FrameRefused, error_frame, frame_for, image_bytes
 
 if TYPE_CHECKING:
+    from ..topics import Topic
     from ..transport.contract import Subscription, Transport
 
 __all__ = ["LATEST_WINS", "OutputClient", "OutputHub"]
@@ -110,17 +102,6 @@ class OutputClient:
         self.dropped = False
         #: Called on the event loop when the client is dropped (its handler stops a send that is stuck).
         self.on_drop: Callable[[], object] | None = None
-        #: component -> the stamp of the newest status sent to it (an older one is not sent after it).
-        self.status_sent: dict[str, int] = {}
-
-    def status_is_new(self, frame: dict[str, Any]) -> bool:
-        """Whether ``frame`` (a status) is newer than every status of its component sent to this client."""
-        stamp = int(frame.get("stamp_ns") or 0)
-        component = str(frame.get("component"))
-        if component in self.status_sent and stamp <= self.status_sent[component]:
-            return False
-        self.status_sent[component] = stamp
-        return True
 
     def wants(self, topic: str, kind: str) -> bool:
         return kind == "status" or self.topics is None or topic in self.topics
@@ -177,9 +158,7 @@ class OutputHub:
         for topic in self.outputs.values():
             self._subscriptions.append(self._transport.create_subscription(topic, self._receiver(topic)))
         for name in self.components:
-            # Depth one: of the status backlog kept for late joiners, only the newest is wanted.
-            known = status_topic(name)
-            topic = Topic(known.name, known.msg_type, qos_profile=evolve(known.qos_profile, depth=1))
+            topic = status_topic(name)
             self._subscriptions.append(self._transport.create_subscription(topic, self._receiver(topic)))
 
     def stop(self) -> None:
@@ -214,7 +193,6 @@ class OutputHub:
 
         def receive(value: Any) -> None:
             payload: str | _ImageFrames
-            status: dict[str, Any] | None = None
             if isinstance(value, ImageMsg | CompressedImageMsg):
                 kind, payload = "image", _ImageFrames(self, name, type_name, value)
                 # Encoded here, off the event loop, in the forms the clients connected now take.
@@ -226,31 +204,20 @@ class OutputHub:
                 frame, payload = self.encode(name, type_name, value)
                 kind = frame["kind"]
                 if kind == "status":
-                    status = frame
                     with self._lock:
-                        known = self._status.get(frame["component"])
-                        if known is not None and int(frame.get("stamp_ns") or 0) < int(known.get("stamp_ns") or 0):
-                            return  # older than the status shown (a late backlog value): not news
                         self._status[frame["component"]] = frame
             loop = self._loop
             if loop is not None:
                 with contextlib.suppress(RuntimeError):  # the loop closed while the server stops
-                    loop.call_soon_threadsafe(self._fan_out, name, kind, payload, status)
+                    loop.call_soon_threadsafe(self._fan_out, name, kind, payload)
 
         return receive
 
-    def _fan_out(self, topic: str, kind: str, payload: str | _ImageFrames,
-                 status: dict[str, Any] | None = None) -> None:
+    def _fan_out(self, topic: str, kind: str, payload: str | _ImageFrames) -> None:
         """On the event loop: queue the frame for every interested client; drop the ones that are full."""
-        if status is not None:
-            with self._lock:
-                if self._status.get(status["component"]) is not status:
-                    return  # a newer status came in meanwhile: its own fan-out follows
         for client in list(self._clients):
             if client.dropped or not client.wants(topic, kind):
                 continue
-            if status is not None and not client.status_is_new(status):
-                continue  # the client already has this status, or a newer one (sent when it connected)
             if isinstance(payload, str):
                 data: str | bytes = payload
             else:
@@ -294,8 +261,7 @@ class OutputHub:
             self._json_clients += 1
         with self._lock:
             known = list(self._status.values())
-        for frame in known[: client.depth]:  # the newest status of each component, first
-            client.status_is_new(frame)
+        for frame in known[: client.depth]:  # the current status of each component, first
             client.queue.put_nowait(json.dumps(frame, separators=(",", ":")))
         return client
 
