@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import io
 import json
-import time
 import wave
 from collections.abc import Iterator
 from typing import Any
@@ -203,33 +202,6 @@ def test_status_changes_reach_websocket_clients(running: Launcher) -> None:
             while states[-1] != "inactive" and len(states) < 5:  # bounded
                 states.append(_next_frame(ws, "status")["state"])
     assert states[-1] == "inactive"
-
-
-def test_a_status_older_than_the_one_shown_never_reaches_clients(running: Launcher) -> None:
-    """A late value of the status topic's backlog (older than the newest seen) is not news: no client
-    gets it, and a client that connects later gets the newest status first."""
-    from agents_core.messages import ComponentStatusMsg, Header  # noqa: PLC0415
-    from agents_core.transport.core import status_topic  # noqa: PLC0415
-
-    def status(state: str, message: str, stamp_ns: int) -> ComponentStatusMsg:
-        return ComponentStatusMsg(component="shouter", lifecycle_state=state, health="HEALTHY", message=message,
-                                  header=Header(stamp_ns=stamp_ns))
-
-    publisher = running.transport.create_publisher(status_topic("shouter"))
-    try:
-        with _client(running) as client, _ws(client, "/api/outputs?topics=shouts") as ws:
-            assert _next_frame(ws, "status")["state"] == "active"
-            now = time.time_ns()
-            publisher.publish(status("inactive", "stale", now - 10**9))  # older than the active one shown
-            publisher.publish(status("active", "newest", now))
-            frame = _next_frame(ws, "status")
-            assert (frame["state"], frame["message"]) == ("active", "newest")
-            with _ws(client, "/api/outputs?topics=shouts") as late:
-                first = _next_frame(late, "status")
-            assert (first["state"], first["message"]) == ("active", "newest")
-            assert client.get("/api/interfaces").json()["components"][0]["message"] == "newest"
-    finally:
-        publisher.close()
 
 
 def test_unknown_websocket_topics_are_refused(running: Launcher) -> None:

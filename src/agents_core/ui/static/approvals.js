@@ -43,10 +43,13 @@ function renderApprovals() {
   document.body.dataset.approvals = String(heldCalls.size);
 }
 
+let approvalsInFlight = false;   // one poll at a time: a slow answer never piles requests up
+
 async function pollApprovals() {
-  if ($("#main").hidden) return;   // not signed in yet
+  if ($("#main").hidden || approvalsInFlight) return;   // not signed in yet, or still waiting
   let reply;
-  try { reply = await api("/api/approvals"); } catch (e) { return; }
+  approvalsInFlight = true;
+  try { reply = await api("/api/approvals"); } catch (e) { return; } finally { approvalsInFlight = false; }
   const now = Date.now(), seen = new Set();
   for (const call of reply.pending || []) {
     seen.add(call.id);
