@@ -189,7 +189,8 @@ def test_a_value_kept_past_its_callback_is_a_copy_the_pool_cannot_overwrite(
     got = _send(bus, peer, Topic("shm/image", "Image"), images)
     assert [r["digest"] for r in got] == [_digest(v.data) for v in images]
     pool = bus.driver.context.shm
-    assert pool is not None and pool.shared + pool.fallbacks == 12 and pool.shared >= 8
+    # More values put from the pool than its 4 blocks: blocks were reused while the peer kept every array.
+    assert pool is not None and pool.shared + pool.fallbacks == 12 and pool.shared >= 6
     check = bus.create_publisher(Topic("shm/check", "String"))
     try:
         check.publish("check")
