@@ -204,6 +204,39 @@ def test_status_changes_reach_websocket_clients(running: Launcher) -> None:
     assert states[-1] == "inactive"
 
 
+def test_a_status_older_than_the_one_shown_never_reaches_clients(running: Launcher) -> None:
+    """A late value of the status topic's backlog (stamped before the newest seen) is not news: no client
+    gets it, and a client that connects later gets the newest status first."""
+    import time  # noqa: PLC0415
+
+    from agents_core.messages import ComponentStatusMsg, Header  # noqa: PLC0415
+    from agents_core.transport.core import status_topic  # noqa: PLC0415
+
+    def status(state: str, message: str, stamp_ns: int) -> ComponentStatusMsg:
+        return ComponentStatusMsg(component="shouter", lifecycle_state=state, health="HEALTHY", message=message,
+                                  header=Header(stamp_ns=stamp_ns))
+
+    publisher = running.transport.create_publisher(status_topic("shouter"))
+    state = UIState(LocalRecipe(running.components), running.transport, [WORDS], [SHOUTS], UISettings())
+    try:
+        with TestClient(create_app(state), base_url=BASE) as client:
+            assert wait_for(lambda: (state.hub.latest_status("shouter") or {}).get("state") == "active", 10.0)
+            with _ws(client, "/api/outputs?topics=shouts") as ws:
+                assert _next_frame(ws, "status")["state"] == "active"
+                now = time.time_ns()
+                publisher.publish(status("inactive", "stale", now - 10**9))  # older than the active one shown
+                time.sleep(0.3)  # delivered and fanned out, if the hub took it for news
+                assert state.hub.latest_status("shouter")["state"] == "active"
+                publisher.publish(status("active", "newest", now))
+                frame = _next_frame(ws, "status")
+                assert (frame["state"], frame["message"]) == ("active", "newest")
+                with _ws(client, "/api/outputs?topics=shouts") as late:
+                    first = _next_frame(late, "status")
+                assert (first["state"], first["message"]) == ("active", "newest")
+    finally:
+        publisher.close()
+
+
 def test_unknown_websocket_topics_are_refused(running: Launcher) -> None:
     from starlette.websockets import WebSocketDisconnect  # noqa: PLC0415
 

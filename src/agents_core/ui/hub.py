@@ -226,6 +226,10 @@ class OutputHub:
                 if kind == "status":
                     component = frame["component"]
                     with self._lock:
+                        known = self._status.get(component)
+                        stamp, shown = int(frame.get("stamp_ns") or 0), int((known or {}).get("stamp_ns") or 0)
+                        if stamp and shown and stamp < shown:
+                            return  # stamped before the status shown (a late backlog value): not news
                         self._status_count += 1
                         self._status[component] = frame
                         self._status_text[component] = (self._status_count, payload)
