@@ -18,6 +18,7 @@ pytest.importorskip("opentelemetry.exporter.otlp.proto.http")
 from agents_core import Component, Launcher, Topic, telemetry
 from agents_core.actions import Action
 from agents_core.errors import ConfigError
+from agents_core.launch.spec import ComponentSpec
 from agents_core.supported_types import String
 from agents_core.testing.helpers import wait_for
 
@@ -103,3 +104,15 @@ def test_bad_settings_are_refused_naming_the_field() -> None:
         Launcher(transport="memory", telemetry={"endpont": "http://127.0.0.1:4318"})
     with pytest.raises(ConfigError, match="telemetry must be"):
         Launcher(transport="memory", telemetry=4318)
+
+
+def test_component_processes_get_the_launchers_settings_in_their_spec() -> None:
+    component = Upper(IN, MID, "upper_spec")
+    assert ComponentSpec.from_component(component, "zenoh", {}, 0).telemetry is None  # off: nothing carried
+    with OtlpReceiver() as receiver:
+        assert telemetry.configure_from({"endpoint": receiver.endpoint, "sample_ratio": 0.5})
+        spec = ComponentSpec.from_component(component, "zenoh", {}, 0)
+        assert spec.telemetry == {"endpoint": receiver.endpoint, "protocol": None, "service_name": None,
+                                  "metrics_interval_s": None, "sample_ratio": 0.5}
+        assert ComponentSpec.from_dict(spec.to_dict()).telemetry == spec.telemetry  # as the child reads it
+        telemetry.shutdown()

@@ -18,6 +18,7 @@ import pytest
 from agents_core.cli.top_rows import MAX_STATS_BYTES, parse_stats, sort_rows
 from agents_core.errors import ConfigError
 from agents_core.runtime.figures import percentile
+from agents_core.supported_types import ComponentStatus
 from agents_core.telemetry.carrier import MAX_ATTACHMENT, append_traceparent, traceparent_of
 from agents_core.telemetry.settings import TelemetrySettings, settings_from_env, telemetry_settings
 from agents_core.telemetry.spans import SpanRecorder, parse_traceparent, sampling_ratio
@@ -168,3 +169,12 @@ def test_the_sampler_variables(monkeypatch: pytest.MonkeyPatch) -> None:
     assert sampling_ratio() == 0.0
     monkeypatch.delenv("OTEL_TRACES_SAMPLER")
     assert sampling_ratio() == 1.0
+
+
+def test_a_status_without_stats_from_an_older_peer_still_decodes() -> None:
+    codecs = pytest.importorskip("agents_zenoh.codecs")
+    before_stats = bytes.fromhex(  # the ComponentStatus document before issue 42 added "stats"
+        "85a9636f6d706f6e656e74a36c6c6daf6c6966656379636c655f7374617465a6616374697665a66865616c7468a74845414c5448"
+        "59a76d657373616765a0a668656164657282a87374616d705f6e73cf112210f47de98115a86672616d655f6964a0")
+    status = codecs.decode_value(ComponentStatus, before_stats)
+    assert (status.component, status.lifecycle_state, status.stats) == ("llm", "active", "")

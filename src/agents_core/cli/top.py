@@ -112,9 +112,11 @@ def top(transport: TransportOpt = None, connect: ConnectOpt = None, json_out: Js
 
 def _live(book: StatusBook, sort: str, interval: float, where: str) -> None:
     console = Console()
+    # A terminal that cannot redraw in place (TERM=dumb) or a pipe gets one table per refresh instead.
+    in_place = console.is_terminal and not console.is_dumb_terminal
     last_discovery = time.monotonic()
-    with _keys() as fd, Live(render(book.rows(sort), sort, where), console=console, auto_refresh=False,
-                             transient=False) as live:
+    with _keys() as fd, (Live(render(book.rows(sort), sort, where), console=console, auto_refresh=False)
+                         if in_place else contextlib.nullcontext()) as live:
         while True:
             key = _read_key(fd, interval)
             if key in ("q", "Q"):
@@ -124,4 +126,7 @@ def _live(book: StatusBook, sort: str, interval: float, where: str) -> None:
             if time.monotonic() - last_discovery >= REDISCOVER_S:
                 book.discover(0.3)
                 last_discovery = time.monotonic()
-            live.update(render(book.rows(sort), sort, where), refresh=True)
+            if live is not None:
+                live.update(render(book.rows(sort), sort, where), refresh=True)
+            else:
+                console.print(render(book.rows(sort), sort, where))

@@ -11,20 +11,18 @@ are kept from it.
 from __future__ import annotations
 
 import functools
-import json
 import threading
 import time
 from typing import Any
 
 from ..errors import AgentsError
+from ..runtime.figures import MAX_STATS_BYTES, parse_stats
 from ..topics import validate_topic_name
 from ..transport.contract import Subscription, Transport
 from ..transport.core import status_topic
 
 __all__ = ["COLUMNS", "MAX_STATS_BYTES", "SORT_KEYS", "StatusBook", "parse_stats", "sort_rows"]
 
-#: Longest ``stats`` document read from a status.
-MAX_STATS_BYTES = 4096
 #: (header, row key) of each column, in order.
 COLUMNS = (("component", "component"), ("state", "state"), ("health", "health"), ("steps/s", "rate_hz"),
            ("p50 ms", "p50_ms"), ("p99 ms", "p99_ms"), ("model ms", "model_ms"), ("drops", "drops"),
@@ -33,23 +31,6 @@ COLUMNS = (("component", "component"), ("state", "state"), ("health", "health"),
 SORT_KEYS = {"n": ("component", False), "r": ("rate_hz", True), "5": ("p50_ms", True), "9": ("p99_ms", True),
              "m": ("model_ms", True), "d": ("drops", True), "t": ("restarts", True), "c": ("cpu_pct", True),
              "s": ("rss_mb", True)}
-_NUMBERS = ("steps", "rate_hz", "p50_ms", "p99_ms", "model_ms", "drops", "restarts", "cpu", "rss_mb", "pid")
-
-
-def parse_stats(text: str) -> dict[str, float]:
-    """The numbers of a ``stats`` document; {} for one that is empty, too long or not a JSON object."""
-    if not text or len(text) > MAX_STATS_BYTES:
-        return {}
-    try:
-        doc = json.loads(text)
-    except (ValueError, RecursionError):
-        return {}
-    if not isinstance(doc, dict):
-        return {}
-    figures = {k: doc[k] for k in _NUMBERS if isinstance(doc.get(k), int | float) and not isinstance(doc[k], bool)}
-    if "cpu" in figures:
-        figures["cpu_pct"] = round(figures.pop("cpu") * 100.0, 1)
-    return figures
 
 
 def sort_rows(rows: list[dict[str, Any]], key: str) -> list[dict[str, Any]]:

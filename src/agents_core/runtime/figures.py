@@ -19,10 +19,12 @@ from typing import Any, Protocol
 from ..telemetry.process import CpuMeter, process_figures
 from .worker import WorkerStatistics
 
-__all__ = ["STATS_FIELDS", "StepFigures", "percentile"]
+__all__ = ["MAX_STATS_BYTES", "STATS_FIELDS", "StepFigures", "parse_stats", "percentile"]
 
 #: The keys of the ``stats`` document, in the order ``agentsctl top`` shows them.
 STATS_FIELDS = ("steps", "rate_hz", "p50_ms", "p99_ms", "model_ms", "drops", "restarts", "cpu", "rss_mb", "pid")
+#: Longest ``stats`` document read from a status (it comes from the network).
+MAX_STATS_BYTES = 4096
 #: Step durations kept for the percentiles (the most recent ones).
 WINDOW = 512
 #: The step rate is computed over at least this long (faster reports reuse the last rate).
@@ -37,6 +39,23 @@ class _Counted(Protocol):
     def input_statistics(self) -> Mapping[str, Any]: ...
 
     def model_latency_ms(self) -> float | None: ...
+
+
+def parse_stats(text: str) -> dict[str, float]:
+    """The numbers of a ``stats`` document (``cpu`` as ``cpu_pct``); {} for one empty, too long or not an object."""
+    if not text or len(text) > MAX_STATS_BYTES:
+        return {}
+    try:
+        doc = json.loads(text)
+    except (ValueError, RecursionError):
+        return {}
+    if not isinstance(doc, dict):
+        return {}
+    figures = {k: doc[k] for k in STATS_FIELDS
+               if isinstance(doc.get(k), int | float) and not isinstance(doc[k], bool)}
+    if "cpu" in figures:
+        figures["cpu_pct"] = round(figures.pop("cpu") * 100.0, 1)
+    return figures
 
 
 def percentile(sorted_values: list[float], q: float) -> float:

@@ -52,6 +52,7 @@ from ..messages import (
     StreamingStringMsg,
     TrackingsMsg,
 )
+from ..runtime.figures import parse_stats
 
 __all__ = ["JPEG_QUALITY", "MAX_AUDIO_CHANNELS", "MAX_JPEG_SIDE", "MAX_LIST_ITEMS", "RGB8_MIME", "FrameRefused",
            "encode_audio_wav", "encode_image", "encode_jpeg", "error_frame", "frame_for", "image_bytes", "jsonable"]
@@ -307,7 +308,7 @@ def frame_for(topic: str, msg_type: str, value: Any, image_format: str = "jpeg")
             frame.update(sanitized=bad, note=f"{bad} NaN or infinite samples were sent as silence")
     elif isinstance(value, ComponentStatusMsg):
         frame = {"kind": "status", "component": value.component, "state": value.lifecycle_state,
-                 "health": value.health, "message": value.message}
+                 "health": value.health, "message": value.message, "stats": parse_stats(value.stats)}
     else:
         frame = {"kind": "value", "value": jsonable(value)}
     header = getattr(value, "header", None)
