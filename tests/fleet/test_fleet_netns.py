@@ -201,6 +201,10 @@ def _operator_sees_and_addresses_each_robot(lan: Lan, via: list[str], env: dict[
     assert {"robot1/seq", "robot2/seq", "robot1/counter/status", "robot2/counter/status"} <= topics, topics
     assert run_cli("call", "robot1/counter", "identify")["result"].startswith("robot1 at seq ")
     assert run_cli("call", "counter", "identify", "--namespace", "robot2")["result"].startswith("robot2 at seq ")
+    # agentsctl top through the router: a row for each robot's component, with its state and step figures.
+    rows = {r["component"]: r for r in run_cli("top")}
+    assert set(rows) == {"robot1/counter", "robot2/counter"}, rows
+    assert all(r["state"] == "active" for r in rows.values()), rows
 
 
 def _only_the_outage_was_lost(received: Received, tmp_path: Path, killed_at: float, resumed: dict[str, float],
