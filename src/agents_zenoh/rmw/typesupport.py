@@ -182,7 +182,8 @@ class RosTypes:
         return cls(**{name: self._field(getattr(message, name), desc) for name, desc in fields})
 
     def _is_plain(self, typename: str) -> bool:
-        for _name, (kind, rest) in self._store.fielddefs[typename][1]:
+        fields: list[tuple[str, Any]] = list(self._store.fielddefs[typename][1])
+        for _name, (kind, rest) in fields:
             if kind == Nodetype.NAME and not self._is_plain(rest):
                 return False
             if kind == Nodetype.BASE and rest[0] in ("byte", "char"):
