@@ -71,9 +71,9 @@ def test_session_configured_from_rmw_zenohs_environment(router: str, tmp_path: P
         second.create_subscription(Topic("env_topic", get_type("String")), got.append)
         pub = first.create_publisher(Topic("env_topic", get_type("String")))
         assert _wait(lambda: pub.publish("x") or bool(got))
-        tokens = [str(r.ok.key_expr) for r in second.driver._session.liveliness().get("@ros2_lv/21/**", timeout=1)
-                  if r.ok is not None]
-        assert any("/MP/" in t and "%env_topic" in t for t in tokens)
+        # The publisher's token, in domain 21, as the second session's graph cache (a liveliness subscriber) saw it.
+        assert _wait(lambda: any(t.startswith("@ros2_lv/21/") and "/MP/" in t and "%env_topic" in t
+                                 for t in second.driver._graph.tokens(0)))
     finally:
         first.close()
         second.close()
@@ -166,3 +166,28 @@ def test_agentsctl_topics_list_on_rmw_zenoh(router: str, pair: tuple[Any, Any]) 
     listed = json.loads(done.stdout)
     topics = listed["topics"] if isinstance(listed, dict) else listed
     assert {"name": "cli_topic", "msg_type": "Float64", "publishers": 1, "subscribers": 0} in topics
+
+
+def test_agentsctl_record_on_rmw_zenoh(router: str, pair: tuple[Any, Any], tmp_path: Path) -> None:
+    a, _b = pair
+    pub = a.create_publisher(Topic("rec_topic", get_type("String")))
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path), "ROS_DOMAIN_ID": "21"}
+    out = tmp_path / "rec.mcap"
+    proc = subprocess.Popen([sys.executable, "-m", "agents_core.cli", "record", str(out), "--transport", "rmw_zenoh",
+                             "--connect", router, "--topic", "rec_topic", "--duration", "6", "--no-status"],
+                            env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 60
+        while proc.poll() is None and time.monotonic() < deadline:
+            pub.publish("recorded")
+            time.sleep(0.1)
+        stdout, stderr = proc.communicate(timeout=30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    assert proc.returncode == 0, stderr[-2000:]
+    from agents_core.recording.reader import read_recording  # noqa: PLC0415  # the record extra
+
+    values = [r.value for r in read_recording(out) if r.topic.lstrip("/") == "rec_topic"]
+    assert values and set(values) == {"recorded"}, stdout

@@ -134,10 +134,10 @@ def test_collects_the_suite_for_every_installed_transport(tmp_path: Path, site: 
     out = _pytest(project, site, "--collect-only", "-q")
     ids = [line for line in out.splitlines() if "::" in line]
     per_transport = {name: sum(f"[{name}]" in i or f"[{name}-" in i for i in ids)
-                     for name in ("memory", "zenoh", "ros2", "loopmem", "solomem")}
+                     for name in ("memory", "zenoh", "ros2", "rmw_zenoh", "loopmem", "solomem")}
     # Every transport, built in or installed, is a parameter, whether or not its extra is here.
     assert per_transport == dict.fromkeys(per_transport, SUITE_TESTS), per_transport
-    assert len(ids) == 5 * SUITE_TESTS + PAIRLESS_TESTS, "the suite must be collected exactly once"
+    assert len(ids) == 6 * SUITE_TESTS + PAIRLESS_TESTS, "the suite must be collected exactly once"
     assert all(i.startswith("conftest.py::test_") for i in ids), ids[:3]
 
 
@@ -146,7 +146,8 @@ def test_marker_selects_the_entry_point_transport_only(tmp_path: Path, site: Pat
     out = _pytest(project, site, "--collect-only", "-q", "-m", "loopmem")
     ids = [line for line in out.splitlines() if "::" in line]
     assert len(ids) == SUITE_TESTS and all("loopmem" in i for i in ids), ids[:3]
-    total, deselected = 5 * SUITE_TESTS + PAIRLESS_TESTS, 4 * SUITE_TESTS + PAIRLESS_TESTS
+    # memory, zenoh, ros2, rmw_zenoh and the two entry-point transports
+    total, deselected = 6 * SUITE_TESTS + PAIRLESS_TESTS, 5 * SUITE_TESTS + PAIRLESS_TESTS
     assert f"{SUITE_TESTS}/{total} tests collected ({deselected} deselected)" in out, _summary(out)
 
 

@@ -238,11 +238,13 @@ class RmwZenohDriver(DriverBase):
         return None
 
     def _served(self, client_token: str) -> bool:
-        """Whether a service server's token for the client's service and type is live."""
-        parts = client_token.split("/")
-        pattern = "/".join([*parts[:2], "*", "*", "*", "SS", "*", "*", "*", *parts[9:11], "**"])
-        replies: Any = self._session.liveliness().get(pattern, timeout=0.5)
-        return any(reply.ok is not None for reply in replies)
+        """Whether the graph cache holds a service server token for the client's service and type."""
+        wanted = client_token.split("/")[9:11]
+        for token in self._graph.tokens(0):
+            parts = token.split("/")
+            if len(parts) == 13 and parts[5] == "SS" and parts[9:11] == wanted:
+                return True
+        return False
 
     def call(self, name: str, payload: dict[str, Any], timeout: float) -> dict[str, Any]:
         request = ros_types().message_class(f"{JSON_CALL}_Request")(request_json=json.dumps(payload))

@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from rosbags.interfaces import Nodetype
 
 from agents_core.errors import TypeValidationError
 
@@ -63,6 +64,8 @@ class RosTypes:
             self._store.fielddefs[typename] = _char_as_uint8(self._store.fielddefs[typename])
         self._lock = threading.RLock()
         self._hashes: dict[str, str] = {}
+        #: Type name -> whether it has no field that needs adapting (numeric arrays, bytes, chars).
+        self._plain: dict[str, bool] = {}
 
     # -- definitions ------------------------------------------------------------------------
 
@@ -75,6 +78,8 @@ class RosTypes:
 
     def ensure(self, typename: str) -> None:
         """Load ``pkg/msg/Type`` or ``pkg/srv/Type`` (and what it uses) if the store lacks it."""
+        if typename in self._store.fielddefs:
+            return
         with self._lock:
             if typename in self._store.fielddefs:
                 return
@@ -106,8 +111,6 @@ class RosTypes:
         self._store.register(types)
 
     def _ensure_service(self, pkg: str, name: str) -> None:
-        from rosbags.interfaces import Nodetype  # noqa: PLC0415
-
         path = self._find(pkg, "srv", name)
         if path is None:
             raise TypeValidationError(f"ROS service type {pkg}/srv/{name} is unknown: no share/{pkg}/srv/{name}.srv")
@@ -162,16 +165,39 @@ class RosTypes:
             raise TypeValidationError(f"{typename}: malformed CDR ({type(exc).__name__}: {exc})") from exc
 
     def adapt(self, message: Any, typename: str) -> Any:
-        """``message`` as the rosbags dataclass of ``typename``, field by field (numeric sequences as numpy)."""
+        """``message`` as the rosbags dataclass of ``typename``, field by field (numeric sequences as numpy).
+
+        A type without numeric arrays, bytes or chars anywhere is written from ``message`` as it is (rosbags
+        reads fields by name).
+        """
         cls = self._store.types[typename]
         if type(message) is cls:
+            return message
+        plain = self._plain.get(typename)
+        if plain is None:
+            plain = self._plain[typename] = self._is_plain(typename)
+        if plain:
             return message
         _consts, fields = self._store.fielddefs[typename]
         return cls(**{name: self._field(getattr(message, name), desc) for name, desc in fields})
 
-    def _field(self, value: Any, desc: Any) -> Any:
-        from rosbags.interfaces import Nodetype  # noqa: PLC0415
+    def _is_plain(self, typename: str) -> bool:
+        fields: list[tuple[str, Any]] = list(self._store.fielddefs[typename][1])
+        for _name, (kind, rest) in fields:
+            if kind == Nodetype.NAME and not self._is_plain(rest):
+                return False
+            if kind == Nodetype.BASE and rest[0] in ("byte", "char"):
+                return False
+            if kind in (Nodetype.ARRAY, Nodetype.SEQUENCE):
+                (item_kind, item_rest), _count = rest
+                if item_kind == Nodetype.NAME:
+                    if not self._is_plain(item_rest):
+                        return False
+                elif item_rest[0] != "string":
+                    return False
+        return True
 
+    def _field(self, value: Any, desc: Any) -> Any:
         kind, rest = desc
         if kind == Nodetype.NAME:
             return self.adapt(value, rest)
@@ -212,8 +238,6 @@ def _char_as_uint8(definition: Any) -> Any:
 
 
 def _references(desc: Any) -> list[str]:
-    from rosbags.interfaces import Nodetype  # noqa: PLC0415
-
     kind, rest = desc
     if kind == Nodetype.NAME:
         return [rest]
