@@ -164,6 +164,24 @@ def test_a_client_back_after_a_failed_configure_is_set_up_by_the_next_step() -> 
             assert wait_for(lambda: llm.health_status == HealthStatus.HEALTHY)
 
 
+def test_a_connection_pool_reopened_by_a_late_step_is_closed_at_shutdown() -> None:
+    """A step still running when the component deactivates can reconnect after the release closed the pool
+    (a client reconnects on next use); shutdown closes it again, so no socket is left to the collector."""
+    with OllamaTestServer(models=["llama3.2:1b"]) as server:
+        llm = LLM(inputs=[QUESTION], outputs=[ANSWER], model_client=_ollama(server.port), trigger=QUESTION,
+                  component_name="brain", config=LLMConfig(warmup=False))
+        client = llm.model_client
+        with running(llm) as launcher:
+            answers = _collect(launcher, ANSWER)
+            launcher.transport.create_publisher(QUESTION).publish("hello")
+            assert wait_for(lambda: bool(answers))
+            llm.deactivate()
+            assert client._http is None  # released: the pool is closed
+            client.inference({"query": [{"role": "user", "content": "late"}]})  # the late step's request
+            assert client._http is not None  # reopened
+        assert client._http is None
+
+
 def test_a_vla_whose_policy_server_is_down_at_start_comes_up_unhealthy_and_aborts_goals() -> None:
     from ..components.test_vla import rig  # noqa: PLC0415  (its rig needs the grpc extra)
 

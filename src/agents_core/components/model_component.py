@@ -267,6 +267,14 @@ class ModelComponent(Component):
         self._ws_streaming.stop()
         if self.model_client is not None:
             self._release_client(self.model_client)
+            # A step still running at deactivate may have reopened the connection pool after the release
+            # closed it (a client reconnects on next use): close it for good, or its sockets outlive us.
+            close = getattr(self.model_client, "close", None)
+            if callable(close):
+                try:
+                    close()
+                except Exception as exc:
+                    self._logger.debug("closing model client %r: %s", self.model_client, exc)
         if self.db_client is not None:
             try:
                 self.db_client.deinitialize()
