@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import io
 import pickle
+import re
 import struct
 from collections.abc import Callable, Mapping
 from dataclasses import replace
@@ -64,6 +65,11 @@ def _arg_kinds() -> list[int]:
 
 _KINDS = _arg_kinds()
 _STOP = pickle.STOP[0]
+#: A run of opcodes with a fixed argument length (STOP excepted), matched by the regex engine in one
+#: call: where the payload has no more bytes than opcodes left in the budget, nothing needs counting.
+_RUN = re.compile(b"(?:[" + re.escape(bytes(op for op in range(256) if _KINDS[op] == 0 and op != _STOP)) + b"]"
+                  + b"|[" + re.escape(bytes(op for op in range(256) if _KINDS[op] == 1)) + b"].|M..|[Jj]....|G.{8})*+",
+                  re.DOTALL)
 
 
 def scan(data: bytes, start: int, ops_left: int) -> tuple[int, int]:
@@ -72,8 +78,14 @@ def scan(data: bytes, start: int, ops_left: int) -> tuple[int, int]:
     past the end and on a memo index beyond the opcodes seen."""
     kinds, end, i, ops = _KINDS, len(data), start, 0
     unpack = struct.unpack_from
+    # Every opcode is at least a byte: with no more bytes than opcodes left, runs need no counting
+    # (the count returned is then the bytes read, a bound), and a memo index is bounded by the position.
+    run = _RUN.match if end - start <= ops_left else None
     try:
         while True:
+            if run is not None:
+                i = run(data, i).end()  # type: ignore[union-attr]  # the pattern matches the empty run
+                ops = i - start
             op = data[i]
             kind = kinds[op]
             i += 1
