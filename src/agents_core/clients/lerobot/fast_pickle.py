@@ -26,10 +26,15 @@ from __future__ import annotations
 
 import io
 import pickle
+import re
 import struct
 from collections.abc import Callable, Mapping
-from typing import Any
+from dataclasses import replace
+from typing import Any, cast
 
+import numpy as np
+
+from ...errors import ProtocolError
 from . import restricted_pickle as rp
 
 __all__ = ["DECLINED", "fast_loads", "scan"]
@@ -46,11 +51,11 @@ def _arg_kinds() -> list[int]:
     # >= 0: a fixed argument length; -1/-4/-8: a 1/4/8-byte length first; -10: one line; -11: two
     # lines; -12: a memo index (checked); -13: declined.
     kinds = [-13] * 256
-    for code in (b"(.01", b"2NRabd}el]stu)Q", b"\x81\x85\x86\x87\x88\x89\x8f\x90\x91\x93\x94"):
-        for op in code:
+    for plain in (b"(.01", b"2NRabd}el]stu)Q", b"\x81\x85\x86\x87\x88\x89\x8f\x90\x91\x93\x94"):
+        for op in plain:
             kinds[op] = 0
-    for op, size in ((b"J", 4), (b"K", 1), (b"M", 2), (b"G", 8), (b"h", 1), (b"j", 4), (b"q", 1), (b"\x80", 1)):
-        kinds[op[0]] = size
+    for fixed, size in ((b"J", 4), (b"K", 1), (b"M", 2), (b"G", 8), (b"h", 1), (b"j", 4), (b"q", 1), (b"\x80", 1)):
+        kinds[fixed[0]] = size
     for ops, kind in ((b"CU\x8c\x8a", -1), (b"BXT\x8b", -4), (b"\x8e\x8d\x96", -8), (b"ILFSVg", -10),
                       (b"c", -11), (b"rp\x95", -12)):
         for op in ops:
@@ -60,6 +65,11 @@ def _arg_kinds() -> list[int]:
 
 _KINDS = _arg_kinds()
 _STOP = pickle.STOP[0]
+#: A run of opcodes with a fixed argument length (STOP excepted), matched by the regex engine in one
+#: call: where the payload has no more bytes than opcodes left in the budget, nothing needs counting.
+_RUN = re.compile(b"(?:[" + re.escape(bytes(op for op in range(256) if _KINDS[op] == 0 and op != _STOP)) + b"]"
+                  + b"|[" + re.escape(bytes(op for op in range(256) if _KINDS[op] == 1)) + b"].|M..|[Jj]....|G.{8})*+",
+                  re.DOTALL)
 
 
 def scan(data: bytes, start: int, ops_left: int) -> tuple[int, int]:
@@ -68,20 +78,26 @@ def scan(data: bytes, start: int, ops_left: int) -> tuple[int, int]:
     past the end and on a memo index beyond the opcodes seen."""
     kinds, end, i, ops = _KINDS, len(data), start, 0
     unpack = struct.unpack_from
+    # Every opcode is at least a byte: with no more bytes than opcodes left, runs need no counting
+    # (the count returned is then the bytes read, a bound), and a memo index is bounded by the position.
+    run = _RUN.match if end - start <= ops_left else None
     try:
         while True:
+            if run is not None:
+                i = run(data, i).end()  # type: ignore[union-attr]  # the pattern matches the empty run
+                ops = i - start
             op = data[i]
             kind = kinds[op]
             i += 1
             ops += 1
             if kind >= 0:
                 i += kind
-                if op == _STOP:
+                if op == _STOP and ops <= ops_left:
                     return i, ops
             elif kind == -1:
                 i += 1 + data[i]
             elif kind == -4:
-                i += 4 + unpack("<i", data, i)[0]
+                i += 4 + unpack("<I", data, i)[0]  # a negative signed length: past the end
             elif kind == -8:
                 i += 8 + unpack("<Q", data, i)[0]
             elif kind == -10:
@@ -115,6 +131,8 @@ class _Call:
     """An allow-listed function (or class called by REDUCE), bound to the reader where it needs one."""
 
     __slots__ = ("_function", "_reader")
+    _function: Callable[..., Any]
+    _reader: rp._Reader | None
 
     def __init__(self, function: Callable[..., Any], reader: rp._Reader | None = None) -> None:
         object.__setattr__(self, "_function", function)
@@ -141,6 +159,12 @@ class _SealedMeta(type):
     def __delattr__(cls, name: str) -> None:
         raise rp.UnsafePayloadError(f"a payload may not delete {name!r} from a class")
 
+    def __call__(cls, *args: Any, **kwargs: Any) -> Any:
+        # REDUCE calls the class (its __init__ takes the arguments); NEWOBJ goes to __new__ directly.
+        made: Any = object.__new__(cast(type, cls))
+        made.__init__(*args, **kwargs)
+        return made
+
 
 def _sealed_new(cls: type, *args: Any, **kwargs: Any) -> Any:
     if args or kwargs:
@@ -149,8 +173,8 @@ def _sealed_new(cls: type, *args: Any, **kwargs: Any) -> Any:
 
 
 def _sealed_setstate(self: Any, state: Any) -> None:
-    names = type(self)._fields  # the real class's declared fields
-    if not isinstance(state, dict) or not all(type(k) is str and k in names for k in state):
+    names = type(self)._fields  # the real class's declared fields (only a str equals one of them)
+    if type(state) is not dict or not state.keys() <= names:
         raise rp.UnsafePayloadError(f"BUILD of a {type(self).__name__} with fields other than {sorted(names)}")
     vars(self).update(state)
 
@@ -183,7 +207,19 @@ class _FastBuilder(rp._ArrayBuilder):
         self.reader = reader
 
     def __setstate__(self, state: Any) -> None:
-        self.reader.build_array(self, state)
+        # numpy's (version, shape, dtype, is_fortran, rawdata) of a 1-D array, checked here as
+        # build_array checks it (one Python call instead of four); any other state goes there.
+        if (type(state) is tuple and len(state) == 5 and state[0] == 1 and type(state[1]) is tuple
+                and len(state[1]) == 1 and type(state[1][0]) is int and state[1][0] >= 0
+                and type(state[2]) is _FastDType and state[3] is False and type(state[4]) is bytes
+                and self.result is None):
+            shape, spec, raw = state[1], state[2], state[4]
+            count = self.reader.charge(shape, spec.native())
+            if len(raw) != count * spec.itemsize:
+                raise rp.UnsafePayloadError(f"array data of {len(raw)} bytes for shape {shape} of {spec.code!r}")
+            self.result = np.frombuffer(raw, dtype=spec.wire(), count=count).astype(spec.native())
+        else:
+            self.reader.build_array(self, state)
 
 
 class _FastMarker(rp._Marker):
@@ -316,15 +352,57 @@ def _settle(root: Any) -> Any:
     return root
 
 
+def _flat_chunk(root: Any, reader: rp._Reader) -> bool:
+    """Settles and checks a list of payload objects whose fields hold only leaves and arrays (a chunk of
+    actions, depth 2) in one pass; False for anything else (then :func:`_settle` and the full check)."""
+    if type(root) is not list or reader.limits.max_depth < 2:
+        return False
+    leaves = rp._LEAVES
+    for item in root:
+        sealed = type(item)
+        if type(sealed) is not _SealedMeta:
+            return False
+        state = cast("dict[str, Any]", vars(item))
+        if state.keys() != sealed._fields:  # every declared field set (BUILD allowed no others)
+            return False
+        for key, value in state.items():
+            if type(value) is _FastBuilder:
+                if value.result is None:
+                    return False
+                state[key] = value.result
+            elif type(value) not in leaves:
+                return False
+        object.__setattr__(item, "__class__", sealed._real)
+    return True
+
+
 def fast_loads(data: bytes, allowed: Mapping[tuple[str, str], Any], *, max_bytes: int, what: str,
                limits: rp.PayloadLimits) -> Any:
     """``data`` read under the rules of :func:`~agents_core.clients.lerobot.restricted_pickle.restricted_loads`,
     or :data:`DECLINED` when the full reader must read it (a hostile payload, a form this path does not
-    handle, any error)."""
+    handle, any error). ``limits.check_array`` may then see an array twice (here and in the full reader);
+    the :class:`~agents_core.errors.ProtocolError` it raises is raised at once."""
+    # A caller's shape check may keep state (the first action's width): one it refused is final
+    # (the full reader would present it the same shapes in the same order), not asked again.
+    refused: list[ProtocolError] = []
+    if limits.check_array is not None:
+        check = limits.check_array
+
+        def checked(shape: tuple[int, ...], dtype: np.dtype[Any]) -> None:
+            try:
+                check(shape, dtype)
+            except ProtocolError as exc:
+                refused.append(exc)
+                raise
+        limits = replace(limits, check_array=checked)
     reader = _FastReader(allowed, what, limits, max_bytes)
     try:
-        result = _settle(reader.load(data))
-        rp._check_result(result, reader)
-    except Exception:  # any refusal or error: the full reader gives the verdict and the message
+        result = reader.load(data)
+        if not _flat_chunk(result, reader):
+            result = _settle(result)
+            rp._check_result(result, reader)
+    except Exception:  # any other refusal or error: the full reader gives the verdict and the message
+        if refused:
+            raise refused[0] from None
         return DECLINED
     return result
