@@ -163,3 +163,33 @@ def test_newobj_with_arguments_and_a_bare_class_are_declined() -> None:
     with pytest.raises(rp.UnsafePayloadError, match="NEWOBJ"):
         rp.restricted_loads(hp.payload(newobj_args), wire._ALLOWED, max_bytes=1 << 24)
     assert fast(hp.payload(hp.glob(hp.HELPERS, "TimedAction"))) is fp.DECLINED
+
+
+def storage_with_flat(n: int) -> bytes:
+    """A torch storage BUILT with ``{"flat": <a (2, n) float32 array>}``, then a tensor of 2n - 1 elements
+    from element 1: on a 2-D ``flat`` the storage's bounds check (on ``flat.size``) would pass and the
+    view (from row 1) would read n - 1 elements past the array's end."""
+    storage = hp.call(hp.glob("torch.storage", "_load_from_bytes"), hp.raw(hp.torch_storage_bytes(b"\0" * 4, 1)))
+    rows = hp.call(hp.glob("numpy.core.numeric", "_frombuffer"), hp.raw(np.arange(2 * n, dtype=np.float32).tobytes()),
+                   hp.call(hp.glob("numpy", "dtype"), hp.text("f4"), pickle.NEWFALSE, pickle.NEWTRUE),
+                   hp.tup(hp.integer(2), hp.integer(n)), hp.text("C"))
+    swapped = storage + pickle.EMPTY_DICT + hp.text("flat") + rows + pickle.SETITEM + pickle.BUILD
+    return hp.payload(hp.call(hp.glob("torch._utils", "_rebuild_tensor_v2"), swapped, hp.integer(1),
+                              hp.tup(hp.integer(2 * n - 1)), hp.tup(hp.integer(1))))
+
+
+def test_build_on_a_torch_storage_is_declined_then_refused() -> None:
+    data = storage_with_flat(4096)
+    assert fast(data) is fp.DECLINED
+    with pytest.raises(rp.UnsafePayloadError, match="BUILD on a _TorchStorage"):
+        rp.restricted_loads(data, wire._ALLOWED, max_bytes=1 << 24)
+
+
+def test_build_on_an_ordered_dict_is_declined_then_refused() -> None:
+    """The C unpickler sets a BUILD's state in an OrderedDict's instance __dict__ (here a bare global,
+    which no result check walks into); the full reader refuses BUILD on it."""
+    attrs = pickle.EMPTY_DICT + hp.text("keys") + hp.glob("collections", "OrderedDict") + pickle.SETITEM
+    data = hp.payload(hp.call(hp.glob("collections", "OrderedDict")) + attrs + pickle.BUILD)
+    assert fast(data) is fp.DECLINED
+    with pytest.raises(rp.UnsafePayloadError, match="BUILD on a OrderedDict"):
+        rp.restricted_loads(data, wire._ALLOWED, max_bytes=1 << 24)

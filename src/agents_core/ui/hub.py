@@ -89,6 +89,10 @@ class _ImageFrames:
         return packed if packed is not None else self.text()  # e.g. a CompressedImage in another format
 
 
+#: How much older than the status shown a status may be stamped and still be taken for a late backlog value.
+_STALE_STATUS_NS = 5_000_000_000
+
+
 class OutputClient:
     """One WebSocket client's bounded queue of encoded frames (None: the client was dropped)."""
 
@@ -228,8 +232,11 @@ class OutputHub:
                     with self._lock:
                         known = self._status.get(component)
                         stamp, shown = int(frame.get("stamp_ns") or 0), int((known or {}).get("stamp_ns") or 0)
-                        if stamp and shown and stamp < shown:
-                            return  # stamped before the status shown (a late backlog value): not news
+                        # Stamped shortly before the status shown: a late backlog value, not news. Only shortly:
+                        # a sender whose clock stepped back must not be silenced until it catches up (statuses
+                        # come again every second or so, so an older stale one is replaced at once).
+                        if stamp and shown and 0 < shown - stamp < _STALE_STATUS_NS:
+                            return
                         self._status_count += 1
                         self._status[component] = frame
                         self._status_text[component] = (self._status_count, payload)

@@ -1,9 +1,11 @@
 """The restricted reader's fast path: the same rules, with the opcodes run by Python's C unpickler.
 
 :func:`~agents_core.clients.lerobot.restricted_pickle.restricted_loads` tries this first. It either
-returns a result the full reader would return too, or *declines* (:data:`DECLINED`), and the full
+returns a result the full reader would return too (one exception, below), or *declines* (:data:`DECLINED`), and the full
 (pure-Python) reader then reads the payload and gives the verdict. Declining costs one extra read of a
-payload that is hostile or unusual; it never changes what is accepted.
+payload that is hostile or unusual. It accepts nothing the full reader's rules would not let through
+as a value, with one difference of order: an array handed to a payload class before its BUILD (which
+the full reader refuses) is accepted, and still checked in full when it is built.
 
 How the rules hold without the pure-Python opcode loop:
 
@@ -236,6 +238,19 @@ class _FastStorageType(rp._StorageType):
         raise rp.UnsafePayloadError("BUILD on a torch storage type; refused")
 
 
+class _FastTorchStorage(rp._TorchStorage):
+    """What ``_load_from_bytes`` gives on the fast path: the C unpickler's BUILD on a frozen dataclass
+    would write its state into ``__dict__`` (a 2-D ``flat``, whose ``size`` bound lets a tensor read past
+    it); the full reader refuses that BUILD, and so does this."""
+
+    def __setstate__(self, state: Any) -> None:
+        raise rp.UnsafePayloadError("BUILD on a torch storage; refused")
+
+
+def _fast_load_torch_storage(reader: rp._Reader, data: Any) -> _FastTorchStorage:
+    return _FastTorchStorage(rp._load_torch_storage(reader, data).flat)
+
+
 def _fast_reconstruct(reader: rp._Reader, subtype: Any, shape: Any, typecode: Any) -> _FastBuilder:
     if subtype is not _FAST_NDARRAY:
         raise rp.UnsafePayloadError("_reconstruct of something other than numpy.ndarray; refused")
@@ -245,6 +260,8 @@ def _fast_reconstruct(reader: rp._Reader, subtype: Any, shape: Any, typecode: An
 def _hand_out(value: Any, reader: rp._Reader) -> Any:
     """What ``find_class`` returns for an allow-listed ``value``."""
     if isinstance(value, rp._ReaderFunction):
+        if value.function is rp._load_torch_storage:
+            return _Call(_fast_load_torch_storage, reader)
         return _Call(value.function, reader)
     if value is rp._reconstruct:
         return _Call(_fast_reconstruct, reader)
@@ -335,6 +352,8 @@ def _settle(root: Any) -> Any:
             for index, item in enumerate(value):
                 value[index] = resolved(item)
         elif isinstance(value, dict):
+            if getattr(value, "__dict__", None):  # an OrderedDict given attributes by BUILD (the full reader
+                raise _Declined                     # refuses BUILD on it; the C unpickler sets its __dict__)
             for key, item in value.items():
                 if type(key) is _FastBuilder:
                     raise _Declined
