@@ -2,8 +2,8 @@
 
 Every example takes::
 
-    --transport memory|zenoh|ros2   (default: AGENTS_TRANSPORT, else memory)
-    --listen / --connect ENDPOINT    (Zenoh endpoints; default: the loopback rendezvous)
+    --transport memory|zenoh|ros2|rmw_zenoh   (default: AGENTS_TRANSPORT, else memory)
+    --listen / --connect ENDPOINT    (Zenoh / rmw_zenoh endpoints; default: the transport's rendezvous)
     --namespace NAME                 (run under a robot's namespace, e.g. robot1; default: AGENTS_NAMESPACE)
     --seconds N                      (stop after N seconds)
     --once                           (stop after the example's first complete result)
@@ -23,6 +23,8 @@ from collections.abc import Callable
 from pathlib import Path
 
 from agents_core import Launcher
+from agents_core.transport import describe_transport_kind
+from agents_core.transport.registry import known_transports
 
 __all__ = ["SHARED", "make_launcher", "parser", "run", "servers"]
 
@@ -33,7 +35,7 @@ SHARED = Path(os.environ.get("AGENTS_SHARED", str(Path(__file__).resolve().paren
 def parser(doc: str | None) -> argparse.ArgumentParser:
     """An argument parser with the options every example takes."""
     p = argparse.ArgumentParser(description=doc, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--transport", choices=["memory", "zenoh", "ros2"], default=None,
+    p.add_argument("--transport", choices=known_transports(), default=None,
                    help="default: AGENTS_TRANSPORT, else memory")
     p.add_argument("--listen", action="append", default=None, metavar="ENDPOINT", help="zenoh: listen here")
     p.add_argument("--connect", action="append", default=None, metavar="ENDPOINT", help="zenoh: connect here")
@@ -45,9 +47,10 @@ def parser(doc: str | None) -> argparse.ArgumentParser:
 
 
 def make_launcher(args: argparse.Namespace) -> Launcher:
-    """A launcher on the chosen transport (Zenoh: on the given endpoints, if any)."""
+    """A launcher on the chosen transport (one reached at endpoints, Zenoh or rmw_zenoh: on the given ones, if any)."""
     options: dict[str, object] = {}
-    if args.transport == "zenoh" and (args.listen or args.connect):
+    name = args.transport or os.environ.get("AGENTS_TRANSPORT") or "memory"
+    if (args.listen or args.connect) and describe_transport_kind(name).endpoints:
         options = {"listen": args.listen or [], "connect": args.connect or []}
     return Launcher(transport=args.transport, transport_options=options, namespace=getattr(args, "namespace", None))
 
