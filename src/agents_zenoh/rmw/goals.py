@@ -1,0 +1,341 @@
+"""Long-running goals on rmw_zenoh: a ROS 2 action server and a goal client, as rcl_action speaks them.
+
+The names and types are in :mod:`.actions`. The server (:class:`RmwActionServer`):
+
+- ``send_goal``: the goal is decoded and handed to the core (``hooks.on_goal``, on the server's lane,
+  since it may run the ``accept`` callback); an accepted goal is listed in the status array
+  (ACCEPTED), answered, then started (``hooks.on_accepted``);
+- ``cancel_goal``: the core decides (``hooks.on_cancel``); a zero goal id cancels every running
+  goal (as in rcl_action); the return code is NONE, REJECTED, UNKNOWN_GOAL_ID or GOAL_TERMINATED;
+- ``get_result``: answered at once for an ended goal, else kept and answered when the goal ends
+  (the query's reply is sent from the goal's thread);
+- feedback and status changes are published on the two topics; a terminal status other than
+  SUCCEEDED, CANCELED or ABORTED travels as ABORTED.
+
+The client (:class:`RmwGoal`) subscribes to feedback and status before it sends the goal, then
+follows the goal with ``get_result`` queries of :data:`RESULT_QUERY_S` each; one that finds no
+server (its token gone) ends the goal ABORTED with that reason.
+"""
+
+from __future__ import annotations
+
+import collections
+import threading
+import time
+from collections.abc import Callable
+from types import SimpleNamespace
+from typing import TYPE_CHECKING, Any
+
+from agents_core.errors import RequestTimeoutError, ServiceUnavailableError, TransportError
+from agents_core.transport.driver import GoalEvents, GoalServerHooks, Lane
+from agents_core.transport.goals import ActionType, GoalStatus
+
+from .actions import (
+    CANCEL_GOAL,
+    FEEDBACK_QOS,
+    STATUS_ARRAY,
+    STATUS_QOS,
+    ActionNames,
+    RawPublisher,
+    RawSubscription,
+    goal_uuid,
+    stamp_now,
+    to_dict,
+    uuid_hex,
+)
+from .entities import ServiceServer
+
+if TYPE_CHECKING:
+    from .transport import RmwZenohDriver
+
+__all__ = ["RESULT_QUERY_S", "RmwActionServer", "RmwGoal"]
+
+#: How long one get_result query of a client waits (it asks again while the server is there).
+RESULT_QUERY_S = 2.0
+#: Ended goals kept in the status array.
+KEPT_STATUSES = 32
+#: Results kept for get_result queries that come after the end.
+KEPT_RESULTS = 256
+#: After the result, how long a client waits for feedback that may still be on its way (it travels on a topic).
+FEEDBACK_SETTLE_S = 0.05
+_WIRE_TERMINAL = (GoalStatus.SUCCEEDED, GoalStatus.CANCELED, GoalStatus.ABORTED)
+#: action_msgs/srv/CancelGoal return codes.
+CANCEL_NONE, CANCEL_REJECTED, CANCEL_UNKNOWN, CANCEL_TERMINATED = 0, 1, 2, 3
+_ZERO_ID = "0" * 32
+
+Answer = Callable[[Any], None]
+
+
+class RmwActionServer:
+    """The driver side of one action server on a component's node (see the module docstring)."""
+
+    def __init__(self, driver: RmwZenohDriver, name: str, definition: ActionType, hooks: GoalServerHooks,
+                 owner: str | None, lane: Lane) -> None:
+        self.name = name
+        self._definition = definition
+        self._hooks = hooks
+        self._lane = lane
+        self._names = names = ActionNames(name, definition)
+        self._lock = threading.Lock()
+        #: goal id -> [stamp, wire status], oldest first (the status array).
+        self._goals: collections.OrderedDict[str, list[Any]] = collections.OrderedDict()
+        self._results: collections.OrderedDict[str, tuple[int, dict[str, Any]]] = collections.OrderedDict()
+        self._waiting: dict[str, list[Answer]] = {}
+        node = driver.node_for(owner)
+        self._feedback = RawPublisher(node, names.feedback, names.feedback_type, FEEDBACK_QOS)
+        self._status = RawPublisher(node, names.status, STATUS_ARRAY, STATUS_QOS)
+        self._servers = [
+            ServiceServer(node, names.send_goal, names.send_goal_type, self._on_send_goal, hooks.reject),
+            ServiceServer(node, names.cancel_goal, CANCEL_GOAL, self._on_cancel, hooks.reject),
+            ServiceServer(node, names.get_result, names.get_result_type, self._on_get_result, hooks.reject)]
+
+    # -- the three services (Zenoh's threads) -----------------------------------------------------
+
+    def _on_send_goal(self, request: Any, answer: Answer) -> None:
+        stamp = stamp_now()
+        try:
+            goal_id = uuid_hex(request.goal_id)
+            goal = to_dict(request.goal, self._definition.goal)
+        except Exception as exc:
+            self._hooks.reject(f"send_goal: {exc}")
+            answer(SimpleNamespace(accepted=False, stamp=stamp))
+            return
+
+        def decide() -> None:
+            reason = self._hooks.on_goal(goal_id, goal)
+            if reason is not None:
+                answer(SimpleNamespace(accepted=False, stamp=stamp))
+                return
+            with self._lock:
+                self._goals[goal_id] = [stamp, int(GoalStatus.ACCEPTED)]
+            self._publish_status()
+            answer(SimpleNamespace(accepted=True, stamp=stamp))
+            self._hooks.on_accepted(goal_id)
+
+        self._lane(decide)
+
+    def _on_cancel(self, request: Any, answer: Answer) -> None:
+        response = SimpleNamespace(return_code=CANCEL_UNKNOWN, goals_canceling=[])
+        try:
+            goal_id = uuid_hex(request.goal_info.goal_id)
+            with self._lock:
+                running = [g for g, (_s, status) in self._goals.items() if status not in _WIRE_TERMINAL]
+                ended = goal_id in self._results
+            targets = running if goal_id == _ZERO_ID else [g for g in running if g == goal_id]
+            canceling = [g for g in targets if self._hooks.on_cancel(g)]
+            with self._lock:
+                response.goals_canceling = [SimpleNamespace(goal_id=goal_uuid(g), stamp=self._goals[g][0])
+                                            for g in canceling if g in self._goals]
+            if canceling:
+                response.return_code = CANCEL_NONE
+            elif targets:
+                response.return_code = CANCEL_REJECTED
+            elif ended:
+                response.return_code = CANCEL_TERMINATED
+        finally:
+            answer(response)
+
+    def _on_get_result(self, request: Any, answer: Answer) -> None:
+        try:
+            goal_id = uuid_hex(request.goal_id)
+        except TransportError as exc:
+            self._hooks.reject(f"get_result: {exc}")
+            answer(None)
+            return
+        with self._lock:
+            done = self._results.get(goal_id)
+            if done is None and goal_id in self._goals:
+                self._waiting.setdefault(goal_id, []).append(answer)
+                return
+        if done is None:
+            found = self._hooks.wait_result(goal_id, 0.0)
+            done = (int(found[0]), found[1]) if found is not None and found[0] in _WIRE_TERMINAL else None
+        if done is None:
+            answer(SimpleNamespace(status=int(GoalStatus.UNKNOWN), result=self._message("result", {})))
+            return
+        answer(self._result_response(*done))
+
+    def _message(self, part: str, value: dict[str, Any]) -> SimpleNamespace:
+        return SimpleNamespace(**{**self._definition.defaults(part), **value})
+
+    def _result_response(self, status: int, result: dict[str, Any]) -> SimpleNamespace:
+        return SimpleNamespace(status=status, result=self._message("result", result))
+
+    def _publish_status(self) -> None:
+        with self._lock:
+            entries = [SimpleNamespace(goal_info=SimpleNamespace(goal_id=goal_uuid(g), stamp=stamp), status=status)
+                       for g, (stamp, status) in self._goals.items()]
+        try:
+            self._status.put(SimpleNamespace(status_list=entries))
+        except TransportError as exc:
+            self._hooks.reject(f"status of {self.name!r} not published: {exc}")
+
+    # -- DriverActionServer (the goal's thread) -----------------------------------------------------
+
+    def feedback(self, goal_id: str, feedback: dict[str, Any]) -> None:
+        self._feedback.put(SimpleNamespace(goal_id=goal_uuid(goal_id), feedback=self._message("feedback", feedback)))
+
+    def status(self, goal_id: str, status: GoalStatus) -> None:
+        if status.is_terminal:
+            return  # finish() sets and publishes it with the result
+        with self._lock:
+            entry = self._goals.get(goal_id)
+            if entry is None:
+                return
+            entry[1] = int(status)
+        self._publish_status()
+
+    def finish(self, goal_id: str, status: GoalStatus, result: dict[str, Any]) -> None:
+        wire = int(status) if status in _WIRE_TERMINAL else int(GoalStatus.ABORTED)
+        with self._lock:
+            self._results[goal_id] = (wire, dict(result))
+            while len(self._results) > KEPT_RESULTS:
+                self._results.popitem(last=False)
+            entry = self._goals.get(goal_id)
+            if entry is not None:
+                entry[1] = wire
+            ended = [g for g, (_s, st) in self._goals.items() if st in _WIRE_TERMINAL]
+            for old in ended[:max(0, len(ended) - KEPT_STATUSES)]:
+                del self._goals[old]
+            waiting = self._waiting.pop(goal_id, [])
+        self._publish_status()
+        response = self._result_response(wire, result)
+        for answer in waiting:
+            answer(response)
+
+    def close(self) -> None:
+        for server in self._servers:
+            server.close()
+        with self._lock:
+            waiting = [a for answers in self._waiting.values() for a in answers]
+            self._waiting.clear()
+        for answer in waiting:
+            answer(None)  # no reply: the client's query ends, and it sees the server gone
+        self._feedback.close()
+        self._status.close()
+
+    def __repr__(self) -> str:
+        return f"<RmwActionServer {self.name!r} {self._definition.ros_type}>"
+
+
+class RmwGoal:
+    """A sent goal (see the module docstring)."""
+
+    def __init__(self, driver: RmwZenohDriver, name: str, definition: ActionType, goal_id: str,
+                 events: GoalEvents) -> None:
+        self.accepted = False
+        self.reason = ""
+        self._driver = driver
+        self._name = name
+        self._definition = definition
+        self._goal_id = goal_id
+        self._events = events
+        self._names = names = ActionNames(name, definition)
+        self._done = threading.Event()
+        self._last_feedback = 0.0
+        self._last_status = -1
+        node = driver.node_for(None)
+        self._subs = [
+            RawSubscription(node, names.feedback, names.feedback_type, FEEDBACK_QOS, self._on_feedback, events.reject),
+            RawSubscription(node, names.status, STATUS_ARRAY, STATUS_QOS, self._on_status, events.reject)]
+
+    def _on_feedback(self, message: Any) -> None:
+        try:
+            if uuid_hex(message.goal_id) != self._goal_id:
+                return
+            feedback = to_dict(message.feedback, self._definition.feedback)
+        except Exception as exc:
+            self._events.reject(exc)
+            return
+        self._last_feedback = time.monotonic()
+        self._events.feedback(feedback)
+
+    def _on_status(self, message: Any) -> None:
+        for entry in message.status_list:
+            try:
+                if uuid_hex(entry.goal_info.goal_id) != self._goal_id:
+                    continue
+            except TransportError as exc:
+                self._events.reject(exc)
+                continue
+            status = int(entry.status)
+            if status != self._last_status and status in (GoalStatus.EXECUTING, GoalStatus.CANCELING):
+                self._last_status = status
+                self._events.status(GoalStatus(status))
+
+    def send(self, goal: dict[str, Any], timeout: float) -> None:
+        """Send the goal and wait for the server's decision; then follow it on a thread of its own."""
+        names = self._names
+        request = SimpleNamespace(goal_id=goal_uuid(self._goal_id), goal=SimpleNamespace(**goal))
+        try:
+            response = self._driver.ros_request(names.send_goal, names.send_goal_type, request, timeout)
+        except RequestTimeoutError:
+            if not self._driver.served(names.send_goal, names.send_goal_type):
+                raise ServiceUnavailableError(f"no action server {self._name!r} on rmw_zenoh") from None
+            raise
+        except ServiceUnavailableError:
+            raise ServiceUnavailableError(f"no action server {self._name!r} on rmw_zenoh") from None
+        self.accepted = bool(response.accepted)
+        if not self.accepted:
+            self.reason = f"action server {self._name!r} did not accept the goal"
+            return
+        threading.Thread(target=self._follow, daemon=True, name=f"{self._name}:result:{self._goal_id[:8]}").start()
+
+    def _follow(self) -> None:
+        names = self._names
+        request = SimpleNamespace(goal_id=goal_uuid(self._goal_id))
+        while not self._done.is_set():
+            try:
+                response = self._driver.ros_request(names.get_result, names.get_result_type, request, RESULT_QUERY_S)
+            except RequestTimeoutError:
+                continue  # still running
+            except ServiceUnavailableError:
+                self._events.finished(GoalStatus.ABORTED, {"message": f"action server {self._name!r} went away "
+                                                           "before the goal ended"})
+                return
+            except TransportError as exc:
+                if not self._done.is_set():
+                    self._events.finished(GoalStatus.ABORTED, {"message": f"goal on {self._name!r}: {exc}"})
+                return
+            self._deliver(response)
+            return
+
+    def _deliver(self, response: Any) -> None:
+        status = int(response.status)
+        if status not in _WIRE_TERMINAL:
+            self._events.finished(GoalStatus.ABORTED, {"message": f"action server {self._name!r} does not know "
+                                                       f"the goal (status {status})"})
+            return
+        try:
+            result = to_dict(response.result, self._definition.result)
+        except Exception as exc:
+            self._events.reject(exc)
+            result = {}
+        # Feedback travels on a topic, the result as a reply: let feedback still on its way arrive first.
+        settle_until = time.monotonic() + 6 * FEEDBACK_SETTLE_S
+        while time.monotonic() - self._last_feedback < FEEDBACK_SETTLE_S and time.monotonic() < settle_until:
+            time.sleep(FEEDBACK_SETTLE_S / 5)
+        self._events.finished(GoalStatus(status), result)
+
+    def cancel(self, timeout: float) -> bool:
+        """Ask the server to cancel the goal; whether it is now canceling."""
+        names = self._names
+        request = SimpleNamespace(goal_info=SimpleNamespace(goal_id=goal_uuid(self._goal_id),
+                                                            stamp=SimpleNamespace(sec=0, nanosec=0)))
+        try:
+            response = self._driver.ros_request(names.cancel_goal, CANCEL_GOAL, request, timeout)
+        except (RequestTimeoutError, ServiceUnavailableError):
+            return False
+        canceling = []
+        for info in response.goals_canceling:
+            try:
+                canceling.append(uuid_hex(info.goal_id))
+            except TransportError as exc:
+                self._events.reject(exc)
+        return self._goal_id in canceling
+
+    def close(self) -> None:
+        """Stop following the goal."""
+        self._done.set()
+        for sub in self._subs:
+            sub.close()
