@@ -40,8 +40,16 @@ __all__ = [
     "ActionNames",
     "RawPublisher",
     "RawSubscription",
+    "cancel_request",
+    "cancel_response",
+    "feedback_message",
     "goal_uuid",
+    "result_request",
+    "result_response",
+    "send_goal_request",
+    "send_goal_response",
     "stamp_now",
+    "status_array",
     "to_dict",
     "uuid_hex",
 ]
@@ -104,6 +112,49 @@ def stamp_now() -> SimpleNamespace:
     """A ``builtin_interfaces/msg/Time`` of now."""
     ns = time.time_ns()
     return SimpleNamespace(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
+
+
+def send_goal_request(goal_id: str, goal: dict[str, Any]) -> SimpleNamespace:
+    """``<A>_SendGoal_Request``: the goal id and the goal's fields."""
+    return SimpleNamespace(goal_id=goal_uuid(goal_id), goal=SimpleNamespace(**goal))
+
+
+def send_goal_response(accepted: bool, stamp: SimpleNamespace) -> SimpleNamespace:
+    """``<A>_SendGoal_Response``."""
+    return SimpleNamespace(accepted=accepted, stamp=stamp)
+
+
+def result_request(goal_id: str) -> SimpleNamespace:
+    """``<A>_GetResult_Request``."""
+    return SimpleNamespace(goal_id=goal_uuid(goal_id))
+
+
+def result_response(status: int, result: dict[str, Any]) -> SimpleNamespace:
+    """``<A>_GetResult_Response``: the wire status (``action_msgs/msg/GoalStatus``) and the result's fields."""
+    return SimpleNamespace(status=status, result=SimpleNamespace(**result))
+
+
+def feedback_message(goal_id: str, feedback: dict[str, Any]) -> SimpleNamespace:
+    """``<A>_FeedbackMessage``."""
+    return SimpleNamespace(goal_id=goal_uuid(goal_id), feedback=SimpleNamespace(**feedback))
+
+
+def status_array(goals: list[tuple[str, SimpleNamespace, int]]) -> SimpleNamespace:
+    """``action_msgs/msg/GoalStatusArray`` of ``(goal id, stamp, status)``."""
+    return SimpleNamespace(status_list=[SimpleNamespace(goal_info=SimpleNamespace(goal_id=goal_uuid(g), stamp=stamp),
+                                                        status=status) for g, stamp, status in goals])
+
+
+def cancel_request(goal_id: str) -> SimpleNamespace:
+    """``action_msgs/srv/CancelGoal_Request`` for one goal (stamp zero: that goal only)."""
+    return SimpleNamespace(goal_info=SimpleNamespace(goal_id=goal_uuid(goal_id), stamp=SimpleNamespace(sec=0,
+                                                                                                      nanosec=0)))
+
+
+def cancel_response(return_code: int, canceling: list[tuple[str, SimpleNamespace]]) -> SimpleNamespace:
+    """``action_msgs/srv/CancelGoal_Response`` with the goals now canceling, ``(goal id, stamp)``."""
+    return SimpleNamespace(return_code=return_code,
+                           goals_canceling=[SimpleNamespace(goal_id=goal_uuid(g), stamp=s) for g, s in canceling])
 
 
 def to_dict(message: Any, fields: dict[str, Any]) -> dict[str, Any]:

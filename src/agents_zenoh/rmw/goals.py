@@ -38,8 +38,15 @@ from .actions import (
     ActionNames,
     RawPublisher,
     RawSubscription,
-    goal_uuid,
+    cancel_request,
+    cancel_response,
+    feedback_message,
+    result_request,
+    result_response,
+    send_goal_request,
+    send_goal_response,
     stamp_now,
+    status_array,
     to_dict,
     uuid_hex,
 )
@@ -98,24 +105,24 @@ class RmwActionServer:
             goal = to_dict(request.goal, self._definition.goal)
         except Exception as exc:
             self._hooks.reject(f"send_goal: {exc}")
-            answer(SimpleNamespace(accepted=False, stamp=stamp))
+            answer(send_goal_response(False, stamp))
             return
 
         def decide() -> None:
             reason = self._hooks.on_goal(goal_id, goal)
             if reason is not None:
-                answer(SimpleNamespace(accepted=False, stamp=stamp))
+                answer(send_goal_response(False, stamp))
                 return
             with self._lock:
                 self._goals[goal_id] = [stamp, int(GoalStatus.ACCEPTED)]
             self._publish_status()
-            answer(SimpleNamespace(accepted=True, stamp=stamp))
+            answer(send_goal_response(True, stamp))
             self._hooks.on_accepted(goal_id)
 
         self._lane(decide)
 
     def _on_cancel(self, request: Any, answer: Answer) -> None:
-        response = SimpleNamespace(return_code=CANCEL_UNKNOWN, goals_canceling=[])
+        code, infos = CANCEL_UNKNOWN, []
         try:
             goal_id = uuid_hex(request.goal_info.goal_id)
             with self._lock:
@@ -124,16 +131,15 @@ class RmwActionServer:
             targets = running if goal_id == _ZERO_ID else [g for g in running if g == goal_id]
             canceling = [g for g in targets if self._hooks.on_cancel(g)]
             with self._lock:
-                response.goals_canceling = [SimpleNamespace(goal_id=goal_uuid(g), stamp=self._goals[g][0])
-                                            for g in canceling if g in self._goals]
+                infos = [(g, self._goals[g][0]) for g in canceling if g in self._goals]
             if canceling:
-                response.return_code = CANCEL_NONE
+                code = CANCEL_NONE
             elif targets:
-                response.return_code = CANCEL_REJECTED
+                code = CANCEL_REJECTED
             elif ended:
-                response.return_code = CANCEL_TERMINATED
+                code = CANCEL_TERMINATED
         finally:
-            answer(response)
+            answer(cancel_response(code, infos))
 
     def _on_get_result(self, request: Any, answer: Answer) -> None:
         try:
@@ -151,29 +157,25 @@ class RmwActionServer:
             found = self._hooks.wait_result(goal_id, 0.0)
             done = (int(found[0]), found[1]) if found is not None and found[0] in _WIRE_TERMINAL else None
         if done is None:
-            answer(SimpleNamespace(status=int(GoalStatus.UNKNOWN), result=self._message("result", {})))
+            answer(self._result_response(int(GoalStatus.UNKNOWN), {}))
             return
         answer(self._result_response(*done))
 
-    def _message(self, part: str, value: dict[str, Any]) -> SimpleNamespace:
-        return SimpleNamespace(**{**self._definition.defaults(part), **value})
-
     def _result_response(self, status: int, result: dict[str, Any]) -> SimpleNamespace:
-        return SimpleNamespace(status=status, result=self._message("result", result))
+        return result_response(status, {**self._definition.defaults("result"), **result})
 
     def _publish_status(self) -> None:
         with self._lock:
-            entries = [SimpleNamespace(goal_info=SimpleNamespace(goal_id=goal_uuid(g), stamp=stamp), status=status)
-                       for g, (stamp, status) in self._goals.items()]
+            entries = [(g, stamp, status) for g, (stamp, status) in self._goals.items()]
         try:
-            self._status.put(SimpleNamespace(status_list=entries))
+            self._status.put(status_array(entries))
         except TransportError as exc:
             self._hooks.reject(f"status of {self.name!r} not published: {exc}")
 
     # -- DriverActionServer (the goal's thread) -----------------------------------------------------
 
     def feedback(self, goal_id: str, feedback: dict[str, Any]) -> None:
-        self._feedback.put(SimpleNamespace(goal_id=goal_uuid(goal_id), feedback=self._message("feedback", feedback)))
+        self._feedback.put(feedback_message(goal_id, {**self._definition.defaults("feedback"), **feedback}))
 
     def status(self, goal_id: str, status: GoalStatus) -> None:
         if status.is_terminal:
@@ -266,7 +268,7 @@ class RmwGoal:
     def send(self, goal: dict[str, Any], timeout: float) -> None:
         """Send the goal and wait for the server's decision; then follow it on a thread of its own."""
         names = self._names
-        request = SimpleNamespace(goal_id=goal_uuid(self._goal_id), goal=SimpleNamespace(**goal))
+        request = send_goal_request(self._goal_id, goal)
         try:
             response = self._driver.ros_request(names.send_goal, names.send_goal_type, request, timeout)
         except RequestTimeoutError:
@@ -283,7 +285,7 @@ class RmwGoal:
 
     def _follow(self) -> None:
         names = self._names
-        request = SimpleNamespace(goal_id=goal_uuid(self._goal_id))
+        request = result_request(self._goal_id)
         while not self._done.is_set():
             try:
                 response = self._driver.ros_request(names.get_result, names.get_result_type, request, RESULT_QUERY_S)
@@ -320,8 +322,7 @@ class RmwGoal:
     def cancel(self, timeout: float) -> bool:
         """Ask the server to cancel the goal; whether it is now canceling."""
         names = self._names
-        request = SimpleNamespace(goal_info=SimpleNamespace(goal_id=goal_uuid(self._goal_id),
-                                                            stamp=SimpleNamespace(sec=0, nanosec=0)))
+        request = cancel_request(self._goal_id)
         try:
             response = self._driver.ros_request(names.cancel_goal, CANCEL_GOAL, request, timeout)
         except (RequestTimeoutError, ServiceUnavailableError):
