@@ -1,0 +1,89 @@
+"""ROS 2 actions between our rmw_zenoh transport and a peer that shares none of our code (``raw_action_peer.py``:
+zenoh-python + rosbags + xxhash, the action's types written from its ``.action`` file), both ways."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from .conftest import rmw_options
+
+pytest.importorskip("rosbags", reason="needs the rmw_zenoh extra")
+
+from agents_core.errors import ServiceUnavailableError
+from agents_core.transport.goals import GoalHandle, GoalStatus
+from agents_zenoh.rmw.transport import RmwZenohTransport
+
+pytestmark = pytest.mark.zenoh
+
+PEER = Path(__file__).parent / "raw_action_peer.py"
+
+
+def _env() -> dict[str, str]:
+    return {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
+
+
+def test_a_raw_ros_client_drives_our_action_server(router: str) -> None:
+    transport = RmwZenohTransport(**rmw_options(router))
+    try:
+        def execute(handle: GoalHandle) -> dict[str, Any]:
+            for step in range(handle.goal["max_steps"]):
+                handle.publish_feedback({"step": step, "action": [float(step)], "status": "ours"})
+                time.sleep(0.05)
+            return {"success": True, "message": f"did {handle.goal['task']}", "steps": handle.goal["max_steps"]}
+
+        server = transport.create_action_server("arm/raw_client", "VisionLanguageAction", execute)
+        done = subprocess.run([sys.executable, str(PEER), router, "21", "client", "arm/raw_client"],
+                              capture_output=True, text=True, timeout=90, env=_env(), check=False)
+        assert done.returncode == 0, done.stderr[-2000:]
+        out = json.loads(done.stdout.strip().splitlines()[-1])
+        assert out == {"accepted": True, "send_echoed": True, "status": 4, "success": True, "message": "did raw",
+                       "steps": 3, "result_echoed": True, "feedback": [0, 1, 2]}
+        stats = server.statistics()
+        assert (stats.accepted, stats.succeeded, stats.decode_errors) == (1, 1, 0)
+        server.close()
+    finally:
+        transport.close()
+
+
+def test_our_goal_client_on_a_raw_ros_action_server(router: str) -> None:
+    proc = subprocess.Popen([sys.executable, str(PEER), router, "21", "serve", "arm/raw_server"],
+                            stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, env=_env())
+    transport = RmwZenohTransport(**rmw_options(router))
+    try:
+        assert proc.stdout is not None and proc.stdout.readline().strip() == "ready"
+        feedback: list[dict[str, Any]] = []
+        deadline = time.monotonic() + 10.0
+        while True:
+            try:
+                goal = transport.send_goal("arm/raw_server", "VisionLanguageAction", {"task": "wave"},
+                                           feedback=feedback.append, timeout=5.0)
+                break
+            except ServiceUnavailableError:
+                if time.monotonic() > deadline:
+                    raise
+                time.sleep(0.1)
+        assert goal.accepted
+        status, result = goal.result(10.0)
+        assert status == GoalStatus.SUCCEEDED
+        assert result == {"success": True, "message": "raw did wave", "steps": 3}
+        assert [f["step"] for f in feedback] == [0, 1, 2]
+        assert feedback[1] == {"step": 1, "action": [1.0, 0.5], "status": "raw moving"}
+    finally:
+        transport.close()
+        assert proc.stdin is not None
+        proc.stdin.close()
+        try:
+            proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+        if proc.stdout is not None:
+            proc.stdout.close()
