@@ -24,7 +24,7 @@ import threading
 import time
 from collections.abc import Callable
 from types import SimpleNamespace
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 from agents_core.errors import RequestTimeoutError, ServiceUnavailableError, TransportError
 from agents_core.transport.driver import GoalEvents, GoalServerHooks, Lane
@@ -50,12 +50,9 @@ from .actions import (
     to_dict,
     uuid_hex,
 )
-from .entities import ServiceServer
+from .entities import Node, ServiceServer
 
-if TYPE_CHECKING:
-    from .transport import RmwZenohDriver
-
-__all__ = ["RESULT_QUERY_S", "RmwActionServer", "RmwGoal"]
+__all__ = ["RESULT_QUERY_S", "ActionDriver", "RmwActionServer", "RmwGoal"]
 
 #: How long one get_result query of a client waits (it asks again while the server is there).
 RESULT_QUERY_S = 2.0
@@ -73,10 +70,26 @@ _ZERO_ID = "0" * 32
 Answer = Callable[[Any], None]
 
 
+class ActionDriver(Protocol):
+    """What goals need of :class:`~agents_zenoh.rmw.transport.RmwZenohDriver`."""
+
+    def node_for(self, owner: str | None) -> Node:
+        """The node of component ``owner``, or the transport's own."""
+        ...
+
+    def ros_request(self, name: str, service_type: str, request: Any, timeout: float) -> Any:
+        """Call a ROS service; the response message."""
+        ...
+
+    def served(self, name: str, service_type: str) -> bool:
+        """Whether a server of the service is seen."""
+        ...
+
+
 class RmwActionServer:
     """The driver side of one action server on a component's node (see the module docstring)."""
 
-    def __init__(self, driver: RmwZenohDriver, name: str, definition: ActionType, hooks: GoalServerHooks,
+    def __init__(self, driver: ActionDriver, name: str, definition: ActionType, hooks: GoalServerHooks,
                  owner: str | None, lane: Lane) -> None:
         self.name = name
         self._definition = definition
@@ -223,7 +236,7 @@ class RmwActionServer:
 class RmwGoal:
     """A sent goal (see the module docstring)."""
 
-    def __init__(self, driver: RmwZenohDriver, name: str, definition: ActionType, goal_id: str,
+    def __init__(self, driver: ActionDriver, name: str, definition: ActionType, goal_id: str,
                  events: GoalEvents) -> None:
         self.accepted = False
         self.reason = ""
