@@ -12,14 +12,17 @@ The names and types are in :mod:`.actions`. The server (:class:`RmwActionServer`
 - feedback and status changes are published on the two topics; a terminal status other than
   SUCCEEDED, CANCELED or ABORTED travels as ABORTED.
 
-The client (:class:`RmwGoal`) subscribes to feedback and status before it sends the goal, then
-follows the goal with ``get_result`` queries of :data:`RESULT_QUERY_S` each; one that finds no
-server (its token gone) ends the goal ABORTED with that reason.
+The client side is one :class:`RmwActionClient` per action (its feedback and status subscriptions,
+declared before the first goal is sent, shared by the goals sent to it, as rclpy's ``ActionClient``)
+and one :class:`RmwGoal` per goal, which follows the goal with ``get_result`` queries of
+:data:`RESULT_QUERY_S` each; one that finds no server (its token gone) ends the goal ABORTED with
+that reason. A running goal keeps at most :data:`MAX_WAITING` result queries.
 """
 
 from __future__ import annotations
 
 import collections
+import logging
 import threading
 import time
 from collections.abc import Callable
@@ -52,7 +55,9 @@ from .actions import (
 )
 from .entities import Node, ServiceServer
 
-__all__ = ["RESULT_QUERY_S", "ActionDriver", "RmwActionServer", "RmwGoal"]
+__all__ = ["RESULT_QUERY_S", "ActionDriver", "RmwActionClient", "RmwActionServer", "RmwGoal"]
+
+logger = logging.getLogger(__name__)
 
 #: How long one get_result query of a client waits (it asks again while the server is there).
 RESULT_QUERY_S = 2.0
@@ -60,6 +65,8 @@ RESULT_QUERY_S = 2.0
 KEPT_STATUSES = 32
 #: Results kept for get_result queries that come after the end.
 KEPT_RESULTS = 256
+#: Result queries kept per running goal (older ones are dropped unanswered: their clients have timed out).
+MAX_WAITING = 16
 #: After the result, how long a client waits for feedback that may still be on its way (it travels on a topic).
 FEEDBACK_SETTLE_S = 0.05
 _WIRE_TERMINAL = (GoalStatus.SUCCEEDED, GoalStatus.CANCELED, GoalStatus.ABORTED)
@@ -161,11 +168,19 @@ class RmwActionServer:
             self._hooks.reject(f"get_result: {exc}")
             answer(None)
             return
+        stale: list[Answer] = []
         with self._lock:
             done = self._results.get(goal_id)
-            if done is None and goal_id in self._goals:
-                self._waiting.setdefault(goal_id, []).append(answer)
-                return
+            kept = done is None and goal_id in self._goals
+            if kept:
+                waiting = self._waiting.setdefault(goal_id, [])
+                waiting.append(answer)
+                # A client asks again when its query times out: the oldest queries are the given-up ones.
+                stale, waiting[:] = waiting[:-MAX_WAITING], waiting[-MAX_WAITING:]
+        for old in stale:
+            old(None)
+        if kept:
+            return  # answered by finish()
         if done is None:
             found = self._hooks.wait_result(goal_id, 0.0)
             done = (int(found[0]), found[1]) if found is not None and found[0] in _WIRE_TERMINAL else None
@@ -233,50 +248,104 @@ class RmwActionServer:
         return f"<RmwActionServer {self.name!r} {self._definition.ros_type}>"
 
 
-class RmwGoal:
-    """A sent goal (see the module docstring)."""
+class RmwActionClient:
+    """The client side of one action (name and type): the feedback and status subscriptions its goals share.
 
-    def __init__(self, driver: ActionDriver, name: str, definition: ActionType, goal_id: str,
-                 events: GoalEvents) -> None:
-        self.accepted = False
-        self.reason = ""
-        self._driver = driver
-        self._name = name
-        self._definition = definition
-        self._goal_id = goal_id
-        self._events = events
-        self._names = names = ActionNames(name, definition)
-        self._done = threading.Event()
-        self._last_feedback = 0.0
-        self._last_status = -1
+    Samples are handed to the goal they name; samples of goals sent by others are skipped, and what does
+    not decode is counted in :attr:`decode_errors`.
+    """
+
+    def __init__(self, driver: ActionDriver, name: str, definition: ActionType) -> None:
+        self.name = name
+        self.definition = definition
+        self.names = names = ActionNames(name, definition)
+        self.decode_errors = 0
+        self._lock = threading.Lock()
+        self._goals: dict[str, RmwGoal] = {}
         node = driver.node_for(None)
         self._subs = [
-            RawSubscription(node, names.feedback, names.feedback_type, FEEDBACK_QOS, self._on_feedback, events.reject),
-            RawSubscription(node, names.status, STATUS_ARRAY, STATUS_QOS, self._on_status, events.reject)]
+            RawSubscription(node, names.feedback, names.feedback_type, FEEDBACK_QOS, self._on_feedback, self._reject),
+            RawSubscription(node, names.status, STATUS_ARRAY, STATUS_QOS, self._on_status, self._reject)]
+
+    def add(self, goal: RmwGoal) -> None:
+        """Hand ``goal`` its feedback and status from now on."""
+        with self._lock:
+            self._goals[goal.goal_id] = goal
+
+    def remove(self, goal: RmwGoal) -> None:
+        """Stop handing ``goal`` anything."""
+        with self._lock:
+            if self._goals.get(goal.goal_id) is goal:
+                del self._goals[goal.goal_id]
+
+    def _goal(self, uuid_msg: Any) -> RmwGoal | None:
+        goal_id = uuid_hex(uuid_msg)
+        with self._lock:
+            return self._goals.get(goal_id)
+
+    def _reject(self, reason: object) -> None:
+        self.decode_errors += 1
+        logger.debug("action %r: a feedback or status sample did not decode: %s", self.name, reason)
 
     def _on_feedback(self, message: Any) -> None:
         try:
-            if uuid_hex(message.goal_id) != self._goal_id:
-                return
-            feedback = to_dict(message.feedback, self._definition.feedback)
+            goal = self._goal(message.goal_id)
+        except TransportError as exc:
+            self._reject(exc)
+            return
+        if goal is not None:
+            goal.on_feedback(message.feedback)
+
+    def _on_status(self, message: Any) -> None:
+        for entry in message.status_list:
+            try:
+                goal = self._goal(entry.goal_info.goal_id)
+            except TransportError as exc:
+                self._reject(exc)
+                continue
+            if goal is not None:
+                goal.on_status(int(entry.status))
+
+    def close(self) -> None:
+        """Undeclare the subscriptions."""
+        for sub in self._subs:
+            sub.close()
+
+
+class RmwGoal:
+    """A sent goal (see the module docstring)."""
+
+    def __init__(self, driver: ActionDriver, client: RmwActionClient, goal_id: str, events: GoalEvents) -> None:
+        self.accepted = False
+        self.reason = ""
+        self.goal_id = goal_id
+        self._driver = driver
+        self._client = client
+        self._name = client.name
+        self._definition = client.definition
+        self._goal_id = goal_id
+        self._events = events
+        self._names = client.names
+        self._done = threading.Event()
+        self._last_feedback = 0.0
+        self._last_status = -1
+        client.add(self)
+
+    def on_feedback(self, feedback_msg: Any) -> None:
+        """Feedback for this goal arrived (Zenoh's thread)."""
+        try:
+            feedback = to_dict(feedback_msg, self._definition.feedback)
         except Exception as exc:
             self._events.reject(exc)
             return
         self._last_feedback = time.monotonic()
         self._events.feedback(feedback)
 
-    def _on_status(self, message: Any) -> None:
-        for entry in message.status_list:
-            try:
-                if uuid_hex(entry.goal_info.goal_id) != self._goal_id:
-                    continue
-            except TransportError as exc:
-                self._events.reject(exc)
-                continue
-            status = int(entry.status)
-            if status != self._last_status and status in (GoalStatus.EXECUTING, GoalStatus.CANCELING):
-                self._last_status = status
-                self._events.status(GoalStatus(status))
+    def on_status(self, status: int) -> None:
+        """The status array listed this goal with ``status`` (Zenoh's thread)."""
+        if status != self._last_status and status in (GoalStatus.EXECUTING, GoalStatus.CANCELING):
+            self._last_status = status
+            self._events.status(GoalStatus(status))
 
     def send(self, goal: dict[str, Any], timeout: float) -> None:
         """Send the goal and wait for the server's decision; then follow it on a thread of its own."""
@@ -351,5 +420,4 @@ class RmwGoal:
     def close(self) -> None:
         """Stop following the goal."""
         self._done.set()
-        for sub in self._subs:
-            sub.close()
+        self._client.remove(self)

@@ -59,7 +59,7 @@ from agents_core.transport.graph import Graph
 from .codec import codec_for
 from .discovery import GraphCache, graph_of
 from .entities import SERVICE_QOS, Entity, Node, Publisher, ServiceServer, Subscription, absolute
-from .goals import RmwActionServer, RmwGoal
+from .goals import RmwActionClient, RmwActionServer, RmwGoal
 from .session import domain_from_environment, open_rmw_session, session_config
 from .typesupport import ros_types
 from .wire import decode_attachment
@@ -146,6 +146,7 @@ class RmwZenohDriver(DriverBase):
         self._lock = threading.Lock()
         self._nodes: dict[str, Node] = {}
         self._clients: dict[tuple[str, str], Entity] = {}
+        self._action_clients: dict[tuple[str, str], RmwActionClient] = {}
         self._status: dict[str, tuple[Subscription, _Latest]] = {}
         self.refused_requests = 0
         self._closed = False
@@ -290,7 +291,15 @@ class RmwZenohDriver(DriverBase):
         """Send a goal to the ROS 2 action ``name`` and wait for its acceptance."""
         if self._closed:
             raise TransportError(f"send a goal to {name!r}: the rmw_zenoh transport is closed")
-        sent = RmwGoal(self, name, definition, goal_id, events)
+        with self._lock:
+            client = self._action_clients.get((name, definition.ros_type))
+        if client is None:
+            made = RmwActionClient(self, name, definition)
+            with self._lock:
+                client = self._action_clients.setdefault((name, definition.ros_type), made)
+            if client is not made:
+                made.close()
+        sent = RmwGoal(self, client, goal_id, events)
         try:
             sent.send(goal, timeout)
         except BaseException:
@@ -351,6 +360,8 @@ class RmwZenohDriver(DriverBase):
             sub.close()
         for client in self._clients.values():
             client.close()
+        for action_client in self._action_clients.values():
+            action_client.close()
         for node in [*self._nodes.values(), self._own]:
             node.close()
         try:
