@@ -7,7 +7,7 @@ Usage: ``python raw_action_peer.py ROUTER DOMAIN MODE ACTION``:
 - ``client``: send one goal ``{"task": "raw", "max_steps": 3}`` to ``/ACTION``, read its feedback, ask for its result;
   print one JSON line (accepted, the result's status and fields, the feedback steps seen, whether seq/GID were echoed);
 - ``serve``: serve ``/ACTION`` until stdin closes: accept every goal, publish feedback steps 0..2, succeed with
-  ``{"success": true, "message": "raw did <task>", "steps": 3}``.
+  ``{"success": true, "message": "raw did <task>", "steps": 3}``; a goal with task ``"hang"`` never ends.
 """
 
 from __future__ import annotations
@@ -153,6 +153,8 @@ elif MODE == "serve":
     seq = iter(range(1, 1000))
 
     def run(goal_id: bytes, task: str) -> None:
+        if task == "hang":  # never ends: the test kills this peer mid-goal
+            return
         for step in range(3):
             fb = T[P + "FeedbackMsg"](goal_id=uuid_msg(goal_id), feedback=T[P + "Feedback"](
                 step=step, action=np.array([float(step), 0.5]), status="raw moving"))

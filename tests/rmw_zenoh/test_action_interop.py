@@ -8,6 +8,8 @@ import os
 import subprocess
 import sys
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -19,6 +21,7 @@ pytest.importorskip("rosbags", reason="needs the rmw_zenoh extra")
 
 from agents_core.errors import ServiceUnavailableError
 from agents_core.transport.goals import GoalHandle, GoalStatus
+from agents_zenoh.rmw.goals import RESULT_QUERY_S
 from agents_zenoh.rmw.transport import RmwZenohTransport
 
 pytestmark = pytest.mark.zenoh
@@ -53,31 +56,26 @@ def test_a_raw_ros_client_drives_our_action_server(router: str) -> None:
         transport.close()
 
 
-def test_our_goal_client_on_a_raw_ros_action_server(router: str) -> None:
-    proc = subprocess.Popen([sys.executable, str(PEER), router, "21", "serve", "arm/raw_server"],
+def _send(transport: RmwZenohTransport, name: str, task: str, feedback: list[dict[str, Any]]) -> Any:
+    deadline = time.monotonic() + 10.0
+    while True:
+        try:
+            return transport.send_goal(name, "VisionLanguageAction", {"task": task}, feedback=feedback.append,
+                                       timeout=5.0)
+        except ServiceUnavailableError:
+            if time.monotonic() > deadline:
+                raise
+            time.sleep(0.1)
+
+
+@contextmanager
+def _raw_server(router: str, name: str) -> Iterator[subprocess.Popen[str]]:
+    proc = subprocess.Popen([sys.executable, str(PEER), router, "21", "serve", name],
                             stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, env=_env())
-    transport = RmwZenohTransport(**rmw_options(router))
     try:
         assert proc.stdout is not None and proc.stdout.readline().strip() == "ready"
-        feedback: list[dict[str, Any]] = []
-        deadline = time.monotonic() + 10.0
-        while True:
-            try:
-                goal = transport.send_goal("arm/raw_server", "VisionLanguageAction", {"task": "wave"},
-                                           feedback=feedback.append, timeout=5.0)
-                break
-            except ServiceUnavailableError:
-                if time.monotonic() > deadline:
-                    raise
-                time.sleep(0.1)
-        assert goal.accepted
-        status, result = goal.result(10.0)
-        assert status == GoalStatus.SUCCEEDED
-        assert result == {"success": True, "message": "raw did wave", "steps": 3}
-        assert [f["step"] for f in feedback] == [0, 1, 2]
-        assert feedback[1] == {"step": 1, "action": [1.0, 0.5], "status": "raw moving"}
+        yield proc
     finally:
-        transport.close()
         assert proc.stdin is not None
         proc.stdin.close()
         try:
@@ -87,3 +85,49 @@ def test_our_goal_client_on_a_raw_ros_action_server(router: str) -> None:
             proc.wait()
         if proc.stdout is not None:
             proc.stdout.close()
+
+
+def test_our_goal_client_on_a_raw_ros_action_server(router: str) -> None:
+    transport = RmwZenohTransport(**rmw_options(router))
+    try:
+        with _raw_server(router, "arm/raw_server"):
+            feedback: list[dict[str, Any]] = []
+            goal = _send(transport, "arm/raw_server", "wave", feedback)
+            assert goal.accepted
+            status, result = goal.result(10.0)
+            assert status == GoalStatus.SUCCEEDED
+            assert result == {"success": True, "message": "raw did wave", "steps": 3}
+            assert [f["step"] for f in feedback] == [0, 1, 2]
+            assert feedback[1] == {"step": 1, "action": [1.0, 0.5], "status": "raw moving"}
+    finally:
+        transport.close()
+
+
+def test_a_raw_server_killed_mid_goal_aborts_our_goal(router: str) -> None:
+    transport = RmwZenohTransport(**rmw_options(router))
+    try:
+        with _raw_server(router, "arm/raw_dies") as proc:
+            goal = _send(transport, "arm/raw_dies", "hang", [])
+            assert goal.accepted
+            time.sleep(RESULT_QUERY_S + 0.5)  # past one result query: the goal is still followed
+            assert not goal.done
+            proc.kill()
+            status, result = goal.result(15.0)
+            assert status == GoalStatus.ABORTED and "went away" in result["message"], (status, result)
+    finally:
+        transport.close()
+
+
+def test_a_goal_longer_than_one_result_query_gets_its_result(router: str) -> None:
+    server_side = RmwZenohTransport(**rmw_options(router))
+    client_side = RmwZenohTransport(**rmw_options(router))
+    try:
+        server = server_side.create_action_server(
+            "arm/slow", "VisionLanguageAction",
+            lambda handle: (time.sleep(RESULT_QUERY_S * 1.5), {"success": True, "message": "slow", "steps": 1})[1])
+        goal = _send(client_side, "arm/slow", "slow", [])
+        assert goal.result(15.0) == (GoalStatus.SUCCEEDED, {"success": True, "message": "slow", "steps": 1})
+        server.close()
+    finally:
+        client_side.close()
+        server_side.close()
