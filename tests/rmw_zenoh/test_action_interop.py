@@ -131,3 +131,41 @@ def test_a_goal_longer_than_one_result_query_gets_its_result(router: str) -> Non
     finally:
         client_side.close()
         server_side.close()
+
+
+def test_cancel_codes_and_status_as_rcl_action_has_them(router: str) -> None:
+    from agents_zenoh.rmw import actions  # noqa: PLC0415
+
+    server_side = RmwZenohTransport(**rmw_options(router))
+    client_side = RmwZenohTransport(**rmw_options(router))
+    try:
+        def execute(handle: GoalHandle) -> dict[str, Any]:
+            if handle.goal["task"] == "quick":
+                return {"success": True}
+            handle.wait_for_cancel(20.0)
+            return {"success": False, "message": "canceled"}
+
+        server = server_side.create_action_server("arm/cancels", "VisionLanguageAction", execute)
+        quick = _send(client_side, "arm/cancels", "quick", [])
+        assert quick.result(10.0)[0] == GoalStatus.SUCCEEDED
+        goals = [_send(client_side, "arm/cancels", "long", []) for _ in range(2)]
+        deadline = time.monotonic() + 5.0
+        while any(g.status != GoalStatus.EXECUTING for g in goals) and time.monotonic() < deadline:
+            time.sleep(0.02)
+        assert [g.status for g in goals] == [GoalStatus.EXECUTING] * 2  # read from the status topic
+
+        def cancel(goal_id: str) -> Any:
+            return client_side.driver.ros_request("/arm/cancels/_action/cancel_goal", actions.CANCEL_GOAL,
+                                                  actions.cancel_request(goal_id), 5.0)
+
+        assert cancel(quick.goal_id).return_code == 3  # GOAL_TERMINATED
+        assert cancel("12" * 16).return_code == 2  # UNKNOWN_GOAL_ID
+        everything = cancel("0" * 32)  # the zero id: every running goal
+        assert everything.return_code == 0
+        assert sorted(actions.uuid_hex(info.goal_id) for info in everything.goals_canceling) == sorted(
+            g.goal_id for g in goals)
+        assert [g.result(10.0)[0] for g in goals] == [GoalStatus.CANCELED] * 2
+        server.close()
+    finally:
+        client_side.close()
+        server_side.close()
