@@ -125,3 +125,40 @@ def test_bad_queries_are_refused_and_counted_without_a_state_change(ours: Any, a
     assert ours.driver.refused_requests == len(cases)
     assert transitions == []
     assert ours.request("victim_srv", {}, timeout=3.0) == {"ok": True}
+
+
+def test_bad_action_requests_are_refused_and_counted(ours: Any, attacker: Any) -> None:
+    from agents_zenoh.rmw import actions  # noqa: PLC0415
+
+    server = ours.create_action_server("victim_arm", "VisionLanguageAction",
+                                       lambda handle: (handle.wait_for_cancel(2.0), {"success": True})[1])
+    types = ros_types()
+    vla = "agents_interfaces/action/VisionLanguageAction"
+
+    def key(part: str, ros_type: str) -> str:
+        return data_key(21, f"/victim_arm/_action/{part}", ros_type, types.type_hash(ros_type))
+
+    send = key("send_goal", f"{vla}_SendGoal")
+    att = encode_attachment(1, time.time_ns(), bytes(16))
+    good = types.serialize(actions.send_goal_request("ab" * 16, {"task": "t", "max_steps": 1}),
+                           f"{vla}_SendGoal_Request")
+    cases = [(send, b"garbage", att), (send, good[:9], att), (send, good, None),
+             (key("get_result", f"{vla}_GetResult"), b"\x00\x01\x00\x00\x01", att),
+             (key("cancel_goal", "action_msgs/srv/CancelGoal"), b"", att)]
+    time.sleep(0.3)
+    for k, payload, attachment in cases:
+        replies = list(attacker.get(k, payload=payload, timeout=2.0,
+                                    **({"attachment": attachment} if attachment is not None else {})))
+        assert all(r.ok is None for r in replies)
+    assert server.statistics().decode_errors == len(cases)
+
+    def accepted(body: bytes) -> bool:
+        replies = [r for r in attacker.get(send, payload=body, attachment=att, timeout=3.0) if r.ok is not None]
+        assert len(replies) == 1
+        return bool(types.deserialize(replies[0].ok.payload.to_bytes(), f"{vla}_SendGoal_Response").accepted)
+
+    assert accepted(good)  # still serving
+    assert not accepted(good)  # the same goal id again: rejected
+    stats = server.statistics()
+    assert (stats.accepted, stats.rejected, stats.decode_errors) == (1, 1, len(cases))
+    server.close()

@@ -34,5 +34,5 @@ DESCRIPTOR = TransportDescriptor(
     name="rmw_zenoh", factory="agents_zenoh.rmw.transport:RmwZenohTransport", title="ROS 2 on rmw_zenoh",
     extra="rmw-zenoh", requires=("zenoh", "rosbags", "xxhash", "std_msgs"), needs_router=True,
     rendezvous="tcp/localhost:7447", endpoints=True,
-    carries=frozenset({"values", "requests", "discovery", "cross-process", "attach"}),
+    carries=frozenset({"values", "requests", "goals", "discovery", "cross-process", "attach"}),
     observer_options=observer_options, describe=describe, pair="agents_zenoh.rmw.testing:rmw_zenoh_pair")

@@ -16,7 +16,8 @@ its topics and services; the rest belong to one node of the transport (``agents_
 QoS: reliability (Zenoh reliable + block / best effort + drop) and transient_local (Zenoh's advanced
 publisher cache and subscriber history, as rmw_zenoh does) are honoured; depth bounds the cache and the
 core's delivery queue; deadline, lifespan and liveliness other than automatic are not (rmw_zenoh has none
-either). Long-running goals (ROS actions) are not carried yet.
+either). Long-running goals are ROS 2 actions of the action type's ``ros_type``
+(``<name>/_action/send_goal`` ... as rcl_action names them, see :mod:`.goals`).
 
 Options: ``domain_id`` (default ``ROS_DOMAIN_ID``), ``connect`` / ``listen`` / ``mode`` (default: as
 rmw_zenoh, see :mod:`.session`), ``router_timeout`` (seconds to wait for a router, default 3; 0: none),
@@ -43,12 +44,22 @@ from agents_core.support.bounded_json import REQUEST_JSON_LIMITS
 from agents_core.supported_types import ComponentStatus
 from agents_core.topics import Topic
 from agents_core.transport.core import DriverTransport, status_topic
-from agents_core.transport.driver import DriverBase, Lane, ServiceHandler, Sink, TransitionHandler
+from agents_core.transport.driver import (
+    DriverBase,
+    GoalEvents,
+    GoalServerHooks,
+    Lane,
+    ServiceHandler,
+    Sink,
+    TransitionHandler,
+)
+from agents_core.transport.goals import ActionType
 from agents_core.transport.graph import Graph
 
 from .codec import codec_for
 from .discovery import GraphCache, graph_of
 from .entities import SERVICE_QOS, Entity, Node, Publisher, ServiceServer, Subscription, absolute
+from .goals import RmwActionClient, RmwActionServer, RmwGoal
 from .session import domain_from_environment, open_rmw_session, session_config
 from .typesupport import ros_types
 from .wire import decode_attachment
@@ -135,6 +146,7 @@ class RmwZenohDriver(DriverBase):
         self._lock = threading.Lock()
         self._nodes: dict[str, Node] = {}
         self._clients: dict[tuple[str, str], Entity] = {}
+        self._action_clients: dict[tuple[str, str], RmwActionClient] = {}
         self._status: dict[str, tuple[Subscription, _Latest]] = {}
         self.refused_requests = 0
         self._closed = False
@@ -237,6 +249,14 @@ class RmwZenohDriver(DriverBase):
             raise TransportError(f"request to {name!r} failed: {exc}") from exc
         return None
 
+    def ros_request(self, name: str, service_type: str, request: Any, timeout: float) -> Any:
+        """Call the ROS service ``name`` (absolute) of ``service_type`` with ``request`` (an object with its fields)."""
+        return self._request(name, service_type, request, timeout)
+
+    def served(self, name: str, service_type: str) -> bool:
+        """Whether a server of the ROS service ``name`` (absolute) and ``service_type`` is seen in the graph."""
+        return self._served(self._client(name, service_type).token)
+
     def _served(self, client_token: str) -> bool:
         """Whether the graph cache holds a service server token for the client's service and type."""
         wanted = client_token.split("/")[9:11]
@@ -258,6 +278,34 @@ class RmwZenohDriver(DriverBase):
         if not isinstance(reply, dict):
             raise RemoteError(f"{name!r} replied with a {type(reply).__name__}, not a JSON object")
         return reply
+
+    def serve_goals(self, name: str, definition: ActionType, hooks: GoalServerHooks, owner: str | None,
+                    lane: Lane) -> RmwActionServer:
+        """A ROS 2 action server for ``name`` on the owner's node (the core runs the goals)."""
+        if self._closed:
+            raise TransportError(f"serve the action {name!r}: the rmw_zenoh transport is closed")
+        return RmwActionServer(self, name, definition, hooks, owner, lane)
+
+    def send_goal(self, name: str, definition: ActionType, goal_id: str, goal: dict[str, Any], events: GoalEvents,
+                  timeout: float) -> RmwGoal:
+        """Send a goal to the ROS 2 action ``name`` and wait for its acceptance."""
+        if self._closed:
+            raise TransportError(f"send a goal to {name!r}: the rmw_zenoh transport is closed")
+        with self._lock:
+            client = self._action_clients.get((name, definition.ros_type))
+        if client is None:
+            made = RmwActionClient(self, name, definition)
+            with self._lock:
+                client = self._action_clients.setdefault((name, definition.ros_type), made)
+            if client is not made:
+                made.close()
+        sent = RmwGoal(self, client, goal_id, events)
+        try:
+            sent.send(goal, timeout)
+        except BaseException:
+            sent.close()
+            raise
+        return sent
 
     def declare_presence(self, name: str, on_transition: TransitionHandler, lane: Lane) -> _Presence:
         return _Presence(self, name, on_transition, lane)
@@ -312,6 +360,8 @@ class RmwZenohDriver(DriverBase):
             sub.close()
         for client in self._clients.values():
             client.close()
+        for action_client in self._action_clients.values():
+            action_client.close()
         for node in [*self._nodes.values(), self._own]:
             node.close()
         try:

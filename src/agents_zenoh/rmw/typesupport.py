@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import array
 import os
+import re
 import sys
 import threading
 from pathlib import Path
@@ -28,6 +29,12 @@ from rosbags.interfaces import Nodetype
 from agents_core.errors import TypeValidationError
 
 __all__ = ["RosTypes", "ros_type_name", "ros_types"]
+
+#: The generated types of an action ``pkg/action/<Name>``: ``<Name>`` followed by one of these (or nothing).
+_ACTION_PART = re.compile(r"(.+?)(_SendGoal(?:_Request|_Response|_Event)?|_GetResult(?:_Request|_Response|_Event)?"
+                          r"|_FeedbackMessage|_Goal|_Result|_Feedback)?")
+_UUID = "unique_identifier_msgs/msg/UUID"
+_TIME = "builtin_interfaces/msg/Time"
 
 _DTYPES: dict[str, Any] = {
     "bool": np.bool_, "byte": np.uint8, "char": np.uint8, "int8": np.int8, "uint8": np.uint8,
@@ -89,6 +96,10 @@ class RosTypes:
                     name = name.removesuffix(suffix)
                 self._ensure_service(pkg, name)
                 return
+            if kind == "action":
+                match = _ACTION_PART.fullmatch(name)
+                self._ensure_action(pkg, match.group(1) if match else name)
+                return
             path = self._find(pkg, kind, name)
             if path is None:
                 raise TypeValidationError(f"ROS type {typename} is unknown: no rosbags definition and no "
@@ -121,6 +132,50 @@ class RosTypes:
         base = f"{pkg}/srv/{name}"
         self._register_text("\n".join(lines[:cut]) + "\n", f"{base}_Request")
         self._register_text("\n".join(lines[cut + 1:]) + "\n", f"{base}_Response")
+        self._register_service(base)
+
+    def _ensure_action(self, pkg: str, name: str) -> None:
+        """Register the types rosidl generates for ``share/<pkg>/action/<name>.action``."""
+        path = self._find(pkg, "action", name)
+        if path is None:
+            raise TypeValidationError(f"ROS action type {pkg}/action/{name} is unknown: no "
+                                      f"share/{pkg}/action/{name}.action under {_share_dirs()}")
+        parts: list[list[str]] = [[]]
+        for line in path.read_text().splitlines():
+            if line.strip() == "---":
+                parts.append([])
+            else:
+                parts[-1].append(line)
+        if len(parts) != 3:
+            raise TypeValidationError(f"{path} must have goal, result and feedback separated by two '---' lines")
+        base = f"{pkg}/action/{name}"
+        for part, lines in zip(("_Goal", "_Result", "_Feedback"), parts, strict=True):
+            self._register_text("\n".join(lines) + "\n", base + part)
+        self.ensure(_UUID)
+        self.ensure(_TIME)
+
+        def ref(typename: str) -> tuple[Any, str]:
+            return (Nodetype.NAME, typename)
+
+        made: dict[str, Any] = {
+            f"{base}_SendGoal_Request": ([], [("goal_id", ref(_UUID)), ("goal", ref(f"{base}_Goal"))]),
+            f"{base}_SendGoal_Response": ([], [("accepted", (Nodetype.BASE, ("bool", 0))), ("stamp", ref(_TIME))]),
+            f"{base}_GetResult_Request": ([], [("goal_id", ref(_UUID))]),
+            f"{base}_GetResult_Response": ([], [("status", (Nodetype.BASE, ("int8", 0))),
+                                                ("result", ref(f"{base}_Result"))]),
+            f"{base}_FeedbackMessage": ([], [("goal_id", ref(_UUID)), ("feedback", ref(f"{base}_Feedback"))]),
+        }
+        self._store.register(made)
+        self._register_service(f"{base}_SendGoal")
+        self._register_service(f"{base}_GetResult")
+        whole = [("goal", ref(f"{base}_Goal")), ("result", ref(f"{base}_Result")),
+                 ("feedback", ref(f"{base}_Feedback")), ("send_goal_service", ref(f"{base}_SendGoal")),
+                 ("get_result_service", ref(f"{base}_GetResult")),
+                 ("feedback_message", ref(f"{base}_FeedbackMessage"))]
+        self._store.register({base: ([], whole)})  # type: ignore[dict-item]
+
+    def _register_service(self, base: str) -> None:
+        """The event message and the service itself (its hash covers request, response and event)."""
         event = [("info", (Nodetype.NAME, "service_msgs/msg/ServiceEventInfo")),
                  ("request", (Nodetype.SEQUENCE, ((Nodetype.NAME, f"{base}_Request"), 1))),
                  ("response", (Nodetype.SEQUENCE, ((Nodetype.NAME, f"{base}_Response"), 1)))]
