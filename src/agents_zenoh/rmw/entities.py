@@ -222,7 +222,11 @@ class ServiceServer:
             finally:
                 query.drop()  # type: ignore[no-untyped-call]
 
-        self._serve(request, answer)
+        try:
+            self._serve(request, answer)
+        except Exception as exc:  # the handler failed before it took the query: the caller must not wait it out
+            self._on_refused(exc)
+            query.drop()  # type: ignore[no-untyped-call]
 
     def close(self) -> None:
         """Undeclare queryable and token."""

@@ -150,8 +150,12 @@ class RmwZenohDriver(DriverBase):
         self._status: dict[str, tuple[Subscription, _Latest]] = {}
         self.refused_requests = 0
         self._closed = False
-        self._graph = GraphCache(self._session, self.domain_id)
-        self._own = Node(self._session, self.domain_id, f"agents_core_{os.getpid()}", self._ids)
+        try:
+            self._graph = GraphCache(self._session, self.domain_id)
+            self._own = Node(self._session, self.domain_id, f"agents_core_{os.getpid()}", self._ids)
+        except BaseException:
+            self._session.close()  # not left open behind a transport that never was
+            raise
 
     # -- nodes --------------------------------------------------------------------------------
 

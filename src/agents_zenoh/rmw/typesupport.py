@@ -85,10 +85,12 @@ class RosTypes:
 
     def ensure(self, typename: str) -> None:
         """Load ``pkg/msg/Type`` or ``pkg/srv/Type`` (and what it uses) if the store lacks it."""
-        if typename in self._store.fielddefs:
+        # ``types`` is filled after ``fielddefs`` when rosbags registers a type: a reader that finds it
+        # there outside the lock sees the type complete.
+        if typename in self._store.types:
             return
         with self._lock:
-            if typename in self._store.fielddefs:
+            if typename in self._store.types:
                 return
             pkg, kind, name = typename.split("/")
             if kind == "srv":
