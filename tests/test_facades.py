@@ -23,8 +23,15 @@ from agents_core.support.lazy import facade_table
 SRC = Path(__file__).resolve().parent.parent / "src"
 FACADES = sorted(
     ".".join(path.relative_to(SRC).with_suffix("").parts).removesuffix(".__init__")
-    for path in (SRC / "agents_core").rglob("*.py")
+    for package in ("agents_core", "agents_ros2", "agents_zenoh") for path in (SRC / package).rglob("*.py")
     if path != SRC / "agents_core/support/lazy.py" and "lazy_facade(__name__" in path.read_text(encoding="utf-8"))
+
+#: Package ``__init__``s that were written imports + ``__all__`` (each name twice) and are façades now:
+#: one of them going back to an ``__all__`` list drops it from FACADES and fails the test below.
+PACKAGE_FACADES = {
+    "agents_ros2.conversions", "agents_zenoh", "agents_zenoh.rmw", "agents_zenoh.codecs", "agents_core.types",
+    "agents_core.ui", "agents_core.telemetry", "agents_core.foxglove", "agents_core.sim", "agents_core.recording",
+    "agents_core.cli", "agents_core.transport", "agents_core.testing", "agents_core.mcp"}
 
 
 def _source(name: str) -> str:
@@ -58,6 +65,21 @@ def _ast_reexports(tree: ast.Module) -> tuple[dict[str, tuple[str, str]], list[s
 def test_the_facades_are_found() -> None:
     assert {"agents_core", "agents_core.components", "agents_core.ros", "agents_core.clients",
             "agents_core.config", "agents_core.episodes"} <= set(FACADES)
+    missing = sorted(PACKAGE_FACADES - set(FACADES))
+    assert not missing, f"no longer façades (an __all__ list back?): {missing}"
+
+
+def test_no_package_init_writes_all() -> None:
+    """No package ``__init__`` of the three packages writes ``__all__``: each is a façade (or exports nothing)."""
+    written = []
+    for package in ("agents_core", "agents_ros2", "agents_zenoh"):
+        for path in (SRC / package).rglob("__init__.py"):
+            tree = ast.parse(path.read_text(encoding="utf-8"))
+            targets = [t for node in tree.body if isinstance(node, ast.Assign) for t in node.targets]
+            targets += [node.target for node in tree.body if isinstance(node, ast.AnnAssign)]
+            if any(isinstance(t, ast.Name) and t.id == "__all__" for t in targets):
+                written.append(str(path.relative_to(SRC)))
+    assert not written, f"package __init__s that write __all__ (write the façade form instead): {sorted(written)}"
 
 
 @pytest.mark.parametrize("name", FACADES)
@@ -88,7 +110,8 @@ def test_each_name_is_written_once(name: str) -> None:
                      and isinstance(node, ast.Constant) and isinstance(node.value, str) and node.value in exported)
     assert not strings, f"{name}: re-exported names written again as strings (an __all__?): {strings}"
     assigned = [t.id for node in tree.body if isinstance(node, ast.Assign) for t in node.targets
-                if isinstance(t, ast.Name)]
+                if isinstance(t, ast.Name)] + [node.target.id for node in tree.body if isinstance(node, ast.AnnAssign)
+                                               and isinstance(node.target, ast.Name)]
     assert "__all__" not in assigned, f"{name}: writes __all__ (the façade answers it from its imports)"
 
 
@@ -102,7 +125,8 @@ def test_every_name_resolves_and_star_import_and_dir_agree(name: str) -> None:
     assert set(lazy) | set(eager) <= set(names)
     own = set(names) - set(lazy) - set(eager)
     defined = {node.name for node in tree.body if isinstance(node, ast.FunctionDef | ast.ClassDef)} | {
-        node.target.id for node in tree.body if isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name)}
+        node.target.id for node in tree.body if isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name)
+    } | {t.id for node in tree.body if isinstance(node, ast.Assign) for t in node.targets if isinstance(t, ast.Name)}
     assert own <= defined, f"{name}: own= names {sorted(own - defined)} the module does not define"
     for export in names:
         assert getattr(module, export) is not None, f"{name}.{export}"
@@ -203,4 +227,29 @@ def test_a_name_is_resolved_on_first_use_only() -> None:
             "assert r.base_validators is sys.modules['agents_core.base_validators']\n"
             "assert cfg.LLMConfig is sys.modules['agents_core.components.llm_config'].LLMConfig\n")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=False)
+    assert done.returncode == 0, done.stderr
+
+
+@pytest.mark.parametrize(("facade", "name", "blocked", "hint"), [
+    ("agents_core.ui", "UIServer", "starlette", "the web UI needs the ui extra"),
+    ("agents_core.foxglove", "FoxgloveBridge", "foxglove", "the Foxglove bridge needs the foxglove extra"),
+    ("agents_zenoh", "ZenohTransport", "zenoh", None),
+])
+def test_an_optional_extras_name_loads_on_first_use_with_the_install_line(
+        facade: str, name: str, blocked: str, hint: str | None) -> None:
+    """The façade's import loads not the extra; asking for the name without it names the install line."""
+    lazy = (f"import sys, {facade} as f\n"
+            f"assert {blocked!r} not in sys.modules, sorted(m for m in sys.modules if m.startswith({blocked!r}))\n"
+            f"assert {name!r} in f.__all__ and {name!r} not in vars(f)\n")
+    done = subprocess.run([sys.executable, "-c", lazy], capture_output=True, text=True, timeout=120, check=False)
+    assert done.returncode == 0, done.stderr
+    if hint is None:
+        return
+    missing = f"import sys\nsys.modules[{blocked!r}] = None\nimport {facade} as f\nf.{name}\n"
+    done = subprocess.run([sys.executable, "-c", missing], capture_output=True, text=True, timeout=120, check=False)
+    assert done.returncode != 0 and f"ImportError: {hint}" in done.stderr and "pip install" in done.stderr, done.stderr
+    # Any other name still answers AttributeError, not the install line.
+    other = (f"import {facade} as f\ntry:\n    f.NoSuchName\nexcept AttributeError:\n    pass\n"
+             "else:\n    raise SystemExit(1)\n")
+    done = subprocess.run([sys.executable, "-c", other], capture_output=True, text=True, timeout=120, check=False)
     assert done.returncode == 0, done.stderr

@@ -11,20 +11,17 @@ is documented in ``docs/zenoh-wire-format.md``.
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
-from .codecs import CodecError, describe_schemas, register_codec
-from .config import ZenohConfig
+from agents_core.support.lazy import lazy_facade
+
+from .codecs import CodecError as CodecError
+from .codecs import describe_schemas as describe_schemas
+from .codecs import register_codec as register_codec
+from .config import ZenohConfig as ZenohConfig
 
 if TYPE_CHECKING:
-    from .transport import ZenohTransport
-
-__all__ = ["CodecError", "ZenohConfig", "ZenohTransport", "describe_schemas", "register_codec"]
-
-
-def __getattr__(name: str) -> Any:
-    # ZenohTransport imports zenoh; load it only when asked for.
-    if name == "ZenohTransport":
-        return importlib.import_module(".transport", __name__).ZenohTransport
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    # ZenohTransport imports zenoh: loaded on first access.
+    from .transport import ZenohTransport as ZenohTransport
+else:
+    __getattr__, __dir__ = lazy_facade(__name__)

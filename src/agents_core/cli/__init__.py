@@ -7,7 +7,12 @@ speaks through the same :class:`~agents_core.transport.contract.Transport` as re
 
 from __future__ import annotations
 
-__all__ = ["main"]
+from typing import TYPE_CHECKING
+
+from ..support.lazy import lazy_facade
+
+if not TYPE_CHECKING:
+    __getattr__, __dir__ = lazy_facade(__name__, own=("main",))
 
 
 def main() -> None:

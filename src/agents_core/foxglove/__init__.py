@@ -13,19 +13,22 @@ JSON (see :mod:`agents_core.foxglove.feeds`). Needs the ``foxglove`` extra
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from ..support.install_hint import install_hint
-from .settings import DEFAULT_PORT, FoxgloveSettings
+from ..support.lazy import lazy_facade
+from .settings import DEFAULT_PORT as DEFAULT_PORT
+from .settings import FoxgloveSettings as FoxgloveSettings
 
-__all__ = ["DEFAULT_PORT", "FoxgloveBridge", "FoxgloveSettings"]
-
-
-def __getattr__(name: str) -> object:
+if TYPE_CHECKING:
     # The bridge pulls foxglove-sdk in: only when asked for, with a clear error without the extra.
-    if name == "FoxgloveBridge":
+    from .bridge import FoxgloveBridge as FoxgloveBridge
+else:
+    _facade_getattr, __dir__ = lazy_facade(__name__)
+
+    def __getattr__(name: str) -> object:
         try:
-            from .bridge import FoxgloveBridge  # noqa: PLC0415
-        except ImportError as exc:
-            raise ImportError(f"the Foxglove bridge needs the foxglove extra: {install_hint('foxglove')} ({exc})") \
-                from exc
-        return FoxgloveBridge
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+            return _facade_getattr(name)
+        except ImportError as exc:  # what it loads lazily (the name above, its modules) needs the extra
+            raise ImportError(f"the Foxglove bridge needs the foxglove extra: {install_hint('foxglove')} "
+                              f"({exc})") from exc

@@ -7,7 +7,15 @@ elsewhere over stdio (what desktop AI clients start). See :mod:`agents_core.mcp.
 
 from __future__ import annotations
 
-from .catalog import McpTool, RecipeCatalog, tool_name
-from .server import DEFAULT_MCP_PORT, McpBridge, McpHttpServer
+from typing import TYPE_CHECKING
 
-__all__ = ["DEFAULT_MCP_PORT", "McpBridge", "McpHttpServer", "McpTool", "RecipeCatalog", "tool_name"]
+from ..support.lazy import lazy_facade
+from .catalog import McpTool as McpTool
+from .catalog import RecipeCatalog as RecipeCatalog
+from .catalog import tool_name as tool_name
+from .server import DEFAULT_MCP_PORT as DEFAULT_MCP_PORT
+from .server import McpBridge as McpBridge
+from .server import McpHttpServer as McpHttpServer
+
+if not TYPE_CHECKING:
+    __getattr__, __dir__ = lazy_facade(__name__)

@@ -15,19 +15,18 @@ The test helper that turns a recording into a regression test is
 
 from __future__ import annotations
 
-from .player import PlaybackStatistics, Player
-from .reader import ReadSummary, RecordedMessage, RecordingError, read_recording
-from .recorder import Recorder, RecorderStatistics
-from .writer import RecordingLimits
+from typing import TYPE_CHECKING
 
-__all__ = [
-    "PlaybackStatistics",
-    "Player",
-    "ReadSummary",
-    "RecordedMessage",
-    "Recorder",
-    "RecorderStatistics",
-    "RecordingError",
-    "RecordingLimits",
-    "read_recording",
-]
+from ..support.lazy import lazy_facade
+from .player import PlaybackStatistics as PlaybackStatistics
+from .player import Player as Player
+from .reader import ReadSummary as ReadSummary
+from .reader import RecordedMessage as RecordedMessage
+from .reader import RecordingError as RecordingError
+from .reader import read_recording as read_recording
+from .recorder import Recorder as Recorder
+from .recorder import RecorderStatistics as RecorderStatistics
+from .writer import RecordingLimits as RecordingLimits
+
+if not TYPE_CHECKING:
+    __getattr__, __dir__ = lazy_facade(__name__)

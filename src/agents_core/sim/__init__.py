@@ -14,12 +14,20 @@ it is configured.
 
 from __future__ import annotations
 
-from .agents import RandomAgent
-from .rules import DistanceBelow, EnvSuccess, Predicate, SuccessRule, reacher_success
-from .world import GymWorld, GymWorldConfig
+from typing import TYPE_CHECKING
 
-__all__ = ["DistanceBelow", "EnvSuccess", "GymWorld", "GymWorldConfig", "Predicate", "RandomAgent", "SuccessRule",
-           "action_space_bounds", "reacher_success"]
+from ..support.lazy import lazy_facade
+from .agents import RandomAgent as RandomAgent
+from .rules import DistanceBelow as DistanceBelow
+from .rules import EnvSuccess as EnvSuccess
+from .rules import Predicate as Predicate
+from .rules import SuccessRule as SuccessRule
+from .rules import reacher_success as reacher_success
+from .world import GymWorld as GymWorld
+from .world import GymWorldConfig as GymWorldConfig
+
+if not TYPE_CHECKING:
+    __getattr__, __dir__ = lazy_facade(__name__, own=("action_space_bounds",))
 
 
 def action_space_bounds(env_id: str, env_kwargs: dict[str, object] | None = None) -> tuple[list[float], list[float]]:

@@ -15,14 +15,18 @@ from __future__ import annotations
 import atexit
 import logging
 import threading
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ..support.install_hint import install_hint
+from ..support.lazy import lazy_facade
 from . import switch
-from .settings import TelemetrySettings, settings_from_env, telemetry_settings
+from .settings import TelemetrySettings as TelemetrySettings
+from .settings import settings_from_env as settings_from_env
+from .settings import telemetry_settings as telemetry_settings
 
-__all__ = ["TelemetrySettings", "active_settings", "configure", "configure_from", "enabled", "flush",
-           "settings_from_env", "shutdown", "telemetry_settings"]
+if not TYPE_CHECKING:
+    __getattr__, __dir__ = lazy_facade(__name__, own=("active_settings", "configure", "configure_from", "enabled",
+                                                      "flush", "shutdown"))
 
 logger = logging.getLogger(__name__)
 _lock = threading.Lock()

@@ -51,25 +51,20 @@ import sys
 import types
 from collections.abc import Generator, Iterator
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import pytest
 
 from ..errors import TransportNotAvailableError
+from ..support.lazy import lazy_facade
 from ..transport.contract import Transport
-from .pairs import BUILTIN_PAIRS, PAIR_ENTRY_POINT_GROUP, conformance_transports, missing_requirement, pair_factory
+from .pairs import BUILTIN_PAIRS, conformance_transports, missing_requirement, pair_factory
+from .pairs import PAIR_ENTRY_POINT_GROUP as PAIR_ENTRY_POINT_GROUP
 
-__all__ = [
-    "CONFORMANCE_MARKER",
-    "PAIR_ENTRY_POINT_GROUP",
-    "SUITE_MODULE",
-    "ConformanceSuite",
-    "pytest_collect_file",
-    "pytest_configure",
-    "pytest_generate_tests",
-    "pytest_make_collect_report",
-    "transport_pair",
-]
+if not TYPE_CHECKING:
+    __getattr__, __dir__ = lazy_facade(__name__, own=(
+        "CONFORMANCE_MARKER", "SUITE_MODULE", "ConformanceSuite", "pytest_collect_file", "pytest_configure",
+        "pytest_generate_tests", "pytest_make_collect_report", "transport_pair"))
 
 #: The module that holds the suite's ``test_*`` functions.
 SUITE_MODULE = f"{__name__}.suite"

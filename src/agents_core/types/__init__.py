@@ -23,10 +23,9 @@ import importlib
 import threading
 from typing import TYPE_CHECKING, Any
 
+from ..support.lazy import lazy_facade
 from . import base
 from .base import SupportedType, add_additional_datatypes
-
-__all__ = ["BUILTIN_TYPES", "is_builtin_type"]
 
 #: The framework's own message types, in registration order (the order predates the families:
 #: types added later come last, whatever their family), each with its family module.
@@ -47,9 +46,9 @@ _BUILTINS: tuple[tuple[str, str], ...] = (
 _builtin_types: tuple[type[SupportedType], ...] | None = None
 _builtin_lock = threading.RLock()
 
-if TYPE_CHECKING:
-    #: The framework's own message types, in registration order (imports every family module when read).
-    BUILTIN_TYPES: tuple[type[SupportedType], ...]
+#: The framework's own message types, in registration order (imports every family module when read);
+#: declared, not assigned, so that the module ``__getattr__`` below answers it.
+BUILTIN_TYPES: tuple[type[SupportedType], ...]
 
 
 def _builtins() -> tuple[type[SupportedType], ...]:
@@ -62,10 +61,13 @@ def _builtins() -> tuple[type[SupportedType], ...]:
     return _builtin_types
 
 
-def __getattr__(name: str) -> Any:
-    if name == "BUILTIN_TYPES":
-        return _builtins()
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+if not TYPE_CHECKING:
+    _facade_getattr, __dir__ = lazy_facade(__name__, own=("BUILTIN_TYPES", "is_builtin_type"))
+
+    def __getattr__(name: str) -> Any:
+        if name == "BUILTIN_TYPES":
+            return _builtins()
+        return _facade_getattr(name)
 
 
 def is_builtin_type(msg_type: type) -> bool:

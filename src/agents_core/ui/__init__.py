@@ -14,19 +14,24 @@ Pillow). See ``docs/ui.md`` for the API.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from ..support.install_hint import install_hint
-from .recipe_view import LocalRecipe, RecipeView, RemoteRecipe
-from .settings import TOKEN_ENV, UISettings
+from ..support.lazy import lazy_facade
+from .recipe_view import LocalRecipe as LocalRecipe
+from .recipe_view import RecipeView as RecipeView
+from .recipe_view import RemoteRecipe as RemoteRecipe
+from .settings import TOKEN_ENV as TOKEN_ENV
+from .settings import UISettings as UISettings
 
-__all__ = ["TOKEN_ENV", "LocalRecipe", "RecipeView", "RemoteRecipe", "UIServer", "UISettings"]
-
-
-def __getattr__(name: str) -> object:
+if TYPE_CHECKING:
     # The server pulls Starlette and uvicorn in: only when asked for, with a clear error without the extra.
-    if name == "UIServer":
+    from .server import UIServer as UIServer
+else:
+    _facade_getattr, __dir__ = lazy_facade(__name__)
+
+    def __getattr__(name: str) -> object:
         try:
-            from .server import UIServer  # noqa: PLC0415
-        except ImportError as exc:
+            return _facade_getattr(name)
+        except ImportError as exc:  # what it loads lazily (the name above, its modules) needs the extra
             raise ImportError(f"the web UI needs the ui extra: {install_hint('ui')} ({exc})") from exc
-        return UIServer
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

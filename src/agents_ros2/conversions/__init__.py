@@ -28,32 +28,27 @@ To add a built-in conversion: put it in its family's ``CONVERSIONS``.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
+from agents_core.support.lazy import lazy_facade
 from agents_core.supported_types import registered_types
 
 from . import component_status, geometry, joints, maps, media, perception, scalars, sensors, text
-from .base import RosConversion
-from .derive import derive_conversion
+from .base import RosConversion as RosConversion
+from .derive import derive_conversion as derive_conversion
+from .registry import MissingConversionError as MissingConversionError
 from .registry import (
-    MissingConversionError,
     _conversions,  # noqa: F401  # the table itself, for tests that unregister what they registered
-    conversion_for,
-    from_ros,
     register_builtin,
-    register_conversion,
-    registered_conversions,
-    to_ros,
 )
+from .registry import conversion_for as conversion_for
+from .registry import from_ros as from_ros
+from .registry import register_conversion as register_conversion
+from .registry import registered_conversions as registered_conversions
+from .registry import to_ros as to_ros
 
-__all__ = [
-    "MissingConversionError",
-    "RosConversion",
-    "conversion_for",
-    "derive_conversion",
-    "from_ros",
-    "register_conversion",
-    "registered_conversions",
-    "to_ros",
-]
+if not TYPE_CHECKING:
+    __getattr__, __dir__ = lazy_facade(__name__)
 
 
 def _builtin_table() -> dict[str, RosConversion]:

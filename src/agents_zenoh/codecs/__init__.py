@@ -20,48 +20,34 @@ Each module imports only the ones listed before it (errors first), so there is n
 
 from __future__ import annotations
 
-from .derivation import Codec, schema_name
-from .errors import CodecError
-from .framing import MSGPACK, REUSE_ABOVE, pack, unpack
-from .limits import DEFAULT_DECODE_LIMITS, DecodeLimits
-from .registry import (
-    MissingCodecError,
-    codec_for,
-    decode_limits,
-    decode_value,
-    decoder_for,
-    derive_codec,
-    encode_value,
-    encoder_for,
-    plain_codec,
-    register_codec,
-    set_decode_limits,
-)
-from .schema_doc import builtin_schema_names, describe_schemas, schema_list, update_schema_doc
+from typing import TYPE_CHECKING
 
-__all__ = [
-    "DEFAULT_DECODE_LIMITS",
-    "MSGPACK",
-    "REUSE_ABOVE",
-    "Codec",
-    "CodecError",
-    "DecodeLimits",
-    "MissingCodecError",
-    "builtin_schema_names",
-    "codec_for",
-    "decode_limits",
-    "decode_value",
-    "decoder_for",
-    "derive_codec",
-    "describe_schemas",
-    "encode_value",
-    "encoder_for",
-    "pack",
-    "plain_codec",
-    "register_codec",
-    "schema_list",
-    "schema_name",
-    "set_decode_limits",
-    "unpack",
-    "update_schema_doc",
-]
+from agents_core.support.lazy import lazy_facade
+
+from .derivation import Codec as Codec
+from .derivation import schema_name as schema_name
+from .errors import CodecError as CodecError
+from .framing import MSGPACK as MSGPACK
+from .framing import REUSE_ABOVE as REUSE_ABOVE
+from .framing import pack as pack
+from .framing import unpack as unpack
+from .limits import DEFAULT_DECODE_LIMITS as DEFAULT_DECODE_LIMITS
+from .limits import DecodeLimits as DecodeLimits
+from .registry import MissingCodecError as MissingCodecError
+from .registry import codec_for as codec_for
+from .registry import decode_limits as decode_limits
+from .registry import decode_value as decode_value
+from .registry import decoder_for as decoder_for
+from .registry import derive_codec as derive_codec
+from .registry import encode_value as encode_value
+from .registry import encoder_for as encoder_for
+from .registry import plain_codec as plain_codec
+from .registry import register_codec as register_codec
+from .registry import set_decode_limits as set_decode_limits
+from .schema_doc import builtin_schema_names as builtin_schema_names
+from .schema_doc import describe_schemas as describe_schemas
+from .schema_doc import schema_list as schema_list
+from .schema_doc import update_schema_doc as update_schema_doc
+
+if not TYPE_CHECKING:
+    __getattr__, __dir__ = lazy_facade(__name__)

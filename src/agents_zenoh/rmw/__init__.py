@@ -7,4 +7,9 @@ RIHS01 hashes and CDR from rosbags), :mod:`.codec` (the ``ros2`` transport's con
 
 from __future__ import annotations
 
-__all__: list[str] = []
+from typing import TYPE_CHECKING
+
+from agents_core.support.lazy import lazy_facade
+
+if not TYPE_CHECKING:  # nothing re-exported yet: __all__ is empty
+    __getattr__, __dir__ = lazy_facade(__name__)
