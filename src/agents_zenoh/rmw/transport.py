@@ -154,7 +154,7 @@ class RmwZenohDriver(DriverBase):
             self._graph = GraphCache(self._session, self.domain_id)
             self._own = Node(self._session, self.domain_id, f"agents_core_{os.getpid()}", self._ids)
         except BaseException:
-            self._session.close()  # not left open behind a transport that never was
+            self._session.close()  # type: ignore[no-untyped-call]  # not left open behind a transport that never was
             raise
 
     # -- nodes --------------------------------------------------------------------------------
