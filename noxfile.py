@@ -305,7 +305,8 @@ def bench(session: nox.Session) -> None:
     """Benchmarks: the framework against the raw middleware in one run (``-- --quick`` for CI; benchmarks/README.md)."""
     # servers: the map suite writes into a local Chroma server; ui: the UI suite measures what a user of the
     # ui extra gets (simplejpeg's JPEG path, not only Pillow's); sim: the world suite (Reacher-v5 in MuJoCo).
-    _install_with_local_models(session, "zenoh,ros2,local,voice,voice-gpl,vla,servers,memory,record,ui,mcp,sim,otel")
+    _install_with_local_models(session, "zenoh,rmw-zenoh,ros2,local,voice,voice-gpl,vla,servers,memory,record,ui,mcp,"
+                                        "sim,otel")
     session.install("matplotlib")
     _install_ros2_interfaces(session)
     session.run("python", "-m", "benchmarks.run", *session.posargs)
