@@ -383,7 +383,7 @@ def test_multiprocessing_is_refused_on_a_transport_that_lives_in_one_process() -
     launcher = Launcher(transport="memory")
     launcher.add_pkg(components=[relay], multiprocessing=True)
     with pytest.raises(ConfigError, match=r"multiprocessing=True needs a transport whose capabilities say "
-                                          r"cross_process \(zenoh, ros2\); 'memory' lives in one process"):
+                                          r"cross_process \(zenoh, ros2, rmw_zenoh\); 'memory' lives in one process"):
         launcher.start()
 
 
