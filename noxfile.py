@@ -164,7 +164,10 @@ def lint(session: nox.Session) -> None:
 
 @nox.session
 def types(session: nox.Session) -> None:
-    """mypy --strict on src/ (with the extras whose types it checks against: Starlette and uvicorn, mcp, OpenTelemetry, rosbags and xxhash)."""
+    """mypy --strict on src/, with the extras whose types it checks against.
+
+    Those are Starlette and uvicorn, mcp, OpenTelemetry, rosbags and xxhash.
+    """
     session.install("-e", ".[dev,zenoh,rmw-zenoh,cli,ui,mcp,otel]")
     session.run("mypy", "src")
     session.run("mypy", "--strict", "--explicit-package-bases", "examples", env={"MYPYPATH": "examples"})
