@@ -64,7 +64,6 @@ from rclpy.signals import SignalHandlerOptions
 
 from agents_core.errors import (
     ConfigError,
-    RemoteError,
     RequestTimeoutError,
     ServiceUnavailableError,
     TransportClosedError,
@@ -86,6 +85,7 @@ from agents_core.transport.driver import (
 )
 from agents_core.transport.goals import ActionType
 from agents_core.transport.graph import Graph
+from agents_core.transport.requests import json_call_reply
 
 from .conversions import RosConversion, conversion_for
 from .executor import OffloadingExecutor
@@ -363,15 +363,7 @@ class Ros2Driver(DriverBase):
             response = self._call(client, JsonCall.Request(request_json=body), deadline, f"request to {name!r}")
         except RequestTimeoutError:
             raise RequestTimeoutError(f"request to {name!r} got no reply within {timeout:g} s") from None
-        if not response.success:
-            raise RemoteError(f"{name!r} failed: {response.error}")
-        try:
-            reply = bounded_json.loads(response.response_json or "{}", REQUEST_JSON_LIMITS)
-        except bounded_json.InvalidJsonError as exc:
-            raise RemoteError(f"{name!r} sent a reply that does not decode: {exc}") from None
-        if not isinstance(reply, dict):
-            raise RemoteError(f"{name!r} replied with a {type(reply).__name__}, not a JSON object")
-        return reply
+        return json_call_reply(name, response.success, response.error, response.response_json)
 
     def serve_goals(self, name: str, definition: ActionType, hooks: GoalServerHooks, owner: str | None,
                     lane: Lane) -> Ros2ActionServer:

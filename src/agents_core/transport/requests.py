@@ -34,12 +34,14 @@ from concurrent.futures import Future, ThreadPoolExecutor
 from typing import Any, TypeVar
 
 from ..errors import ConfigError, RemoteError, RequestTimeoutError
+from ..support import bounded_json
 
 __all__ = [
     "CALLER_TIMEOUT_KEY",
     "RequestLanes",
     "answer_here",
     "check_timeout",
+    "json_call_reply",
     "on_lane",
     "request_deadline",
     "serve_with_caller_deadline",
@@ -177,3 +179,20 @@ class RequestLanes:
             pools = [self._shared, *self._lanes.values()]
         for pool in pools:
             pool.shutdown(wait=False, cancel_futures=True)
+
+
+def json_call_reply(name: str, success: bool, error: str, response_json: str) -> dict[str, Any]:
+    """The reply map of a ``JsonCall`` service's response (a middleware's typed services carry JSON this way).
+
+    :raises RemoteError: naming service ``name``, when the server reported a failure, or its reply does not
+        decode within :data:`~agents_core.support.bounded_json.REQUEST_JSON_LIMITS`, or is not a JSON object.
+    """
+    if not success:
+        raise RemoteError(f"{name!r} failed: {error}")
+    try:
+        reply = bounded_json.loads(response_json or "{}", bounded_json.REQUEST_JSON_LIMITS)
+    except bounded_json.InvalidJsonError as exc:
+        raise RemoteError(f"{name!r} sent a reply that does not decode: {exc}") from None
+    if not isinstance(reply, dict):
+        raise RemoteError(f"{name!r} replied with a {type(reply).__name__}, not a JSON object")
+    return reply

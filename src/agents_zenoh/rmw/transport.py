@@ -36,7 +36,7 @@ from typing import Any
 
 import zenoh
 
-from agents_core.errors import ConfigError, RemoteError, RequestTimeoutError, ServiceUnavailableError, TransportError
+from agents_core.errors import ConfigError, RequestTimeoutError, ServiceUnavailableError, TransportError
 from agents_core.messages import ComponentStatusMsg
 from agents_core.status import HealthStatus, LifecycleState
 from agents_core.support import bounded_json
@@ -55,6 +55,7 @@ from agents_core.transport.driver import (
 )
 from agents_core.transport.goals import ActionType
 from agents_core.transport.graph import Graph
+from agents_core.transport.requests import json_call_reply
 
 from .codec import codec_for
 from .discovery import GraphCache, graph_of
@@ -273,15 +274,7 @@ class RmwZenohDriver(DriverBase):
     def call(self, name: str, payload: dict[str, Any], timeout: float) -> dict[str, Any]:
         request = ros_types().message_class(f"{JSON_CALL}_Request")(request_json=json.dumps(payload))
         response = self._request(name, JSON_CALL, request, timeout)
-        if not response.success:
-            raise RemoteError(f"{name!r} failed: {response.error}")
-        try:
-            reply = bounded_json.loads(response.response_json or "{}", REQUEST_JSON_LIMITS)
-        except bounded_json.InvalidJsonError as exc:
-            raise RemoteError(f"{name!r} sent a reply that does not decode: {exc}") from None
-        if not isinstance(reply, dict):
-            raise RemoteError(f"{name!r} replied with a {type(reply).__name__}, not a JSON object")
-        return reply
+        return json_call_reply(name, response.success, response.error, response.response_json)
 
     def serve_goals(self, name: str, definition: ActionType, hooks: GoalServerHooks, owner: str | None,
                     lane: Lane) -> RmwActionServer:
