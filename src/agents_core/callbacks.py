@@ -147,6 +147,8 @@ class DetectionsCallback(GenericCallback):
 def callback_for(topic: Topic, node_name: str | None = None) -> GenericCallback:
     """The callback that fits ``topic``: its type's ``callback`` class if it names one, else GenericCallback."""
     own = getattr(topic.msg_type, "callback", None)
+    if own is GenericCallback:
+        own = None  # a type naming no callback of its own
     if own is not None and not (isinstance(own, type) and issubclass(own, GenericCallback)):
         raise ConfigError(f"{topic.type_name}.callback must be a GenericCallback subclass, got {own!r}")
     if isinstance(topic, FixedInput):

@@ -151,3 +151,53 @@ def test_a_server_unreachable_at_configure_stays_a_component_failure() -> None:
             assert brain.health_status == HealthStatus.COMPONENT_FAILURE and fired[:1] == ["component"]
         finally:
             brain.shutdown()
+
+
+@pytest.mark.parametrize("fault", ["die", "hang"])
+def test_a_websocket_reply_missing_runs_the_algorithm_fallback(fault: str) -> None:
+    # The WebSocket server takes the request and drops the connection mid-reply, or never answers.
+    with RoboMLTestServer() as primary_server, RoboMLTestServer() as backup_server:
+        primary = RoboMLWSClient(_model(), port=primary_server.port, inference_timeout=3)
+        backup = RoboMLWSClient(_model(), port=backup_server.port, inference_timeout=5)
+        brain = LLM(inputs=[QUESTION], outputs=[ANSWER], model_client=primary, trigger=QUESTION,
+                    component_name="brain", config=LLMConfig(stream=True))
+        brain.additional_model_clients = {"backup": backup}
+        component_failures: list[str] = []
+        brain.on_component_fail(Action(lambda: component_failures.append("component")))
+        brain.on_algorithm_fail(Action(brain.change_model_client, args=("backup",)), max_retries=3)
+        launcher = Launcher("memory")
+        launcher.add_pkg(components=[brain])
+        with launcher:
+            answers: list[Any] = []
+            launcher.transport.create_subscription(ANSWER, answers.append)
+            primary_server.set_fault(fault, after=1, seconds=30.0)
+            launcher.transport.create_publisher(QUESTION).publish("is anyone there")
+            assert wait_for(lambda: brain.model_client is backup, timeout=30), brain.health_message
+            assert _ask(launcher, answers, "after the switch")
+            assert answers[-1] == "echo: after the switch"
+            assert not component_failures
+
+
+def test_the_spec_s_websocket_queue_flow_reports_a_server_killed_mid_run_as_an_algorithm_failure() -> None:
+    from .streaming_chat import StreamingChat  # noqa: PLC0415 - a component written from architecture.md's text
+
+    with roboml_process() as (proc, port):
+        chat = StreamingChat(inputs=[QUESTION], outputs=[Topic("tokens", "StreamingString")], trigger=QUESTION,
+                             model_client=RoboMLWSClient(_model(), port=port, inference_timeout=5),
+                             component_name="chat")
+        fired: list[str] = []
+        chat.on_algorithm_fail(Action(lambda: fired.append("algorithm")))
+        chat.on_component_fail(Action(lambda: fired.append("component")))
+        launcher = Launcher("memory")
+        launcher.add_pkg(components=[chat])
+        with launcher:
+            done: list[Any] = []
+            launcher.transport.create_subscription(Topic("tokens", "StreamingString"),
+                                                   lambda m: done.append(m) if m.done else None)
+            launcher.transport.create_publisher(QUESTION).publish("first")
+            assert wait_for(lambda: bool(done), timeout=20), chat.health_message
+            _kill(proc)
+            launcher.transport.create_publisher(QUESTION).publish("asked while the server is dead")
+            assert wait_for(lambda: bool(fired), timeout=30), chat.health_message
+            assert fired[0] == "algorithm" and "component" not in fired
+            assert chat.health_status == HealthStatus.ALGORITHM_FAILURE

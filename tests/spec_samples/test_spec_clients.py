@@ -200,9 +200,10 @@ def test_block_16_the_db_client_hooks() -> None:
     assert client.db_type == "ChromaDB" and isinstance(client, DBClient)
     hooks = ("_check_connection", "_initialize", "_add", "_conditional_add", "_query", "_metadata_query",
              "_deinitialize")
-    lacking = type("LacksQuery", (DBClient,), {h: getattr(my_db, h) for h in hooks if h != "_query"})
-    with pytest.raises(TypeError, match="LacksQuery must implement _query"):
-        lacking(db=ChromaDB())
+    for hook in hooks:  # each one the page says a DBClient must implement, refused at construction
+        lacking = type(f"Lacks{hook}", (DBClient,), {h: getattr(my_db, h) for h in hooks if h != hook})
+        with pytest.raises(TypeError, match=f"Lacks{hook} must implement {hook}"):
+            lacking(db=ChromaDB())
 
 
 @covers((17, "from typing import Any, Dict, Optional, Union, MutableMapping"),

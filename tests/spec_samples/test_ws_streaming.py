@@ -92,6 +92,9 @@ def test_the_request_goes_into_req_queue_and_call_inference_returns_none() -> No
         chat = StreamingChat(inputs=[QUESTION], outputs=[ANSWER], model_client=_client(server), trigger=QUESTION)
         chat.configure()
         try:
+            # "custom_on_configure() detects config.stream with a RoboMLWSClient": the loops run after
+            # configure alone, before activate; the fast loop calls the hook only while active.
+            assert chat._ws_streaming.running and chat.lifecycle_state.value == "inactive"
             chat._ws_streaming.stop()  # hold the client loop: look at the queue itself
             chat._ws_streaming._threads = [threading.Thread(target=lambda: None)]  # "running", loops parked
             assert chat._call_inference({"query": [{"role": "user", "content": "hi"}]}) is None

@@ -39,6 +39,20 @@ __all__ = [
 ]
 
 
+class _DefaultCallback:
+    """``SupportedType.callback`` of a type that names none: :class:`~agents_core.callbacks.GenericCallback`.
+
+    messages.md: "Each ``SupportedType.callback`` class inherits from ``GenericCallback``", so
+    ``String.callback`` is a class, as upstream. A descriptor, since the callbacks module imports the
+    topics, which import this one.
+    """
+
+    def __get__(self, instance: object, owner: type | None = None) -> type[Any]:
+        from ..callbacks import GenericCallback  # noqa: PLC0415 - see the class docstring
+
+        return GenericCallback
+
+
 class SupportedType:
     """Base of every message type token.
 
@@ -61,8 +75,8 @@ class SupportedType:
     value_class: ClassVar[type[Any]] = object
     #: The ROS message class (or ``"pkg/msg/Name"``) this type travels as on ROS 2 (None: the adapter's table).
     _ros_type: ClassVar[Any] = None
-    #: The callback class components create for inputs of this type (None: GenericCallback).
-    callback: ClassVar[type[Any] | None] = None
+    #: The callback class components create for inputs of this type (GenericCallback unless a type names its own).
+    callback: ClassVar[Any] = _DefaultCallback()
 
     @classmethod
     def type_name(cls) -> str:
