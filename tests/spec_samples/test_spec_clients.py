@@ -146,6 +146,8 @@ def test_block_13_serialize_returns_the_documented_dict() -> None:
             assert spec[key].upper() == value  # stored lower-case here (docs/porting.md)
         else:
             assert spec[key] == value, key
+    # The keys beyond the spec's example are the ones docs/porting.md names (the `logging_level` row).
+    assert set(spec) - set(documented) == {"stream_first_chunk_timeout", "stream_chunk_timeout", "max_reply_bytes"}
     assert client_from_spec(spec) == my_client(OllamaModel(name="my_model", checkpoint="llama3.2:3b"),
                                                host="127.0.0.1", port=8080)
 

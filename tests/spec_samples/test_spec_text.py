@@ -101,13 +101,20 @@ def test_the_configuration_chain_is_the_spec_s_or_documented() -> None:
     from agents_core import config  # noqa: PLC0415
 
     _check_tree("## Configuration Chain", config, minimum=10)
-    assert attrs.has(config.LLMConfig) and attrs.has(config.MapConfig), "configs are attrs classes"
+    # "Each config class uses @define(kw_only=True) ... implements _get_inference_params() -> Dict".
+    for _, name, _ in _edges(_drawing("## Configuration Chain")):
+        cls = getattr(config, name)
+        assert attrs.has(cls) and all(f.kw_only for f in attrs.fields(cls)), name
+        assert isinstance(cls()._get_inference_params(), dict), name
 
 
 def test_the_model_hierarchy_and_the_fields_each_model_adds() -> None:
     from agents_core import models  # noqa: PLC0415
 
     _check_tree("## Existing Model Hierarchy", models, minimum=13)
+    for _, name, _ in _edges(_drawing("## Existing Model Hierarchy")):  # "Always use @define(kw_only=True)"
+        cls = getattr(models, name)
+        assert attrs.has(cls) and all(f.kw_only for f in attrs.fields(cls)), name
 
 
 # -- messages.md's tables -----------------------------------------------------------------------------

@@ -6,6 +6,8 @@ does not import the component.
 
 from __future__ import annotations
 
+from typing import Any
+
 from attrs import define, field
 
 from .. import base_validators
@@ -37,4 +39,8 @@ class MapConfig(BaseComponentConfig):
     map_wait_timeout: float = field(default=0.0, validator=base_validators.in_range(0.0, 3600.0))
     require_map: bool = field(default=False)
     buffer_size: int = field(default=1000, validator=base_validators.in_range(1, 10_000_000))
+
+    def _get_inference_params(self) -> dict[str, Any]:
+        """None: this component calls no model (every config class has the hook, architecture.md)."""
+        return {}
 

@@ -47,3 +47,7 @@ class VideoMessageMakerConfig(BaseComponentConfig):
     pixel_threshold: int = field(default=25, validator=base_validators.in_range(1, 255))
     max_still_frames: int = field(default=3, validator=base_validators.in_range(0, 100_000))
 
+    def _get_inference_params(self) -> dict[str, Any]:
+        """None: this component calls no model (every config class has the hook, architecture.md)."""
+        return {}
+
