@@ -273,3 +273,33 @@ def test_every_type_s_callback_class_inherits_from_generic_callback() -> None:
              if not (isinstance(t.callback, type) and issubclass(t.callback, GenericCallback))}
     assert not wrong, wrong
     assert String.callback is GenericCallback and Detections.callback is DetectionsCallback
+
+
+def test_the_local_wrappers_take_model_path_device_ncpu_in_that_order() -> None:
+    import inspect  # noqa: PLC0415
+
+    from agents_core import utils  # noqa: PLC0415 - architecture.md: "the local model wrappers live in agents/utils/"
+
+    for name in ("LocalLLM", "LocalVLM", "LocalVisionModel", "LocalSTT", "LocalTTS"):
+        params = list(inspect.signature(getattr(utils, name)).parameters.values())[:3]
+        assert [(p.name, p.kind) for p in params] == [
+            (n, inspect.Parameter.POSITIONAL_OR_KEYWORD) for n in ("model_path", "device", "ncpu")], name
+
+
+def test_local_llm_returns_the_output_whole_or_as_a_generator() -> None:
+    from ..components.models_dir import needs_smollm2  # noqa: PLC0415
+
+    needs_smollm2()
+    from agents_core.engines.model_files import default_llm_path  # noqa: PLC0415
+    from agents_core.utils import LocalLLM  # noqa: PLC0415
+
+    model = LocalLLM(str(default_llm_path()), "cpu", 1)  # architecture.md's order, positionally
+    try:
+        query = {"query": [{"role": "user", "content": "Say hello."}], "temperature": 0.0, "max_new_tokens": 8}
+        whole = model(query)
+        assert isinstance(whole["output"], str) and whole["output"].strip()
+        streamed = model({**query, "stream": True})["output"]
+        assert not isinstance(streamed, str) and iter(streamed) is streamed, "a generator of text chunks"
+        assert "".join(streamed).strip() == whole["output"].strip()
+    finally:
+        model.close()
