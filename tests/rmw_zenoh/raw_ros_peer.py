@@ -8,7 +8,9 @@ read from ``share/<pkg>/<kind>/<Type>.json``. Usage: ``python raw_ros_peer.py RO
   a publisher token seen on the topic;
 - ``call SERVICE``: one JsonCall query ``{"from": "raw"}``, print the reply and whether seq / GID were echoed;
 - ``get_state NODE``: one lifecycle_msgs/GetState query, print the label;
-- ``serve SERVICE``: serve JsonCall (reply ``{"raw_got": <request>}``) until stdin closes.
+- ``serve SERVICE``: serve JsonCall (reply ``{"raw_got": <request>}``) until stdin closes;
+- ``node NODE``: wait (up to 20 s) for the node token of the node called NODE and for its lifecycle services, then
+  print its namespace and name as the token says, and the names of the entities that token's node owns.
 """
 
 from __future__ import annotations
@@ -154,6 +156,29 @@ elif MODE == "serve":
     queryable = session.declare_queryable(key, on_query, complete=True)
     print("ready", flush=True)
     sys.stdin.read()
+elif MODE == "node":
+    seen: dict[str, list[str]] = {}
+
+    def on_any(sample: zenoh.Sample) -> None:
+        if sample.kind == zenoh.SampleKind.PUT:  # @ros2_lv/d/zid/nid/eid/kind/enclave/namespace/node[/name/...]
+            parts = [p.replace("%", "/") for p in str(sample.key_expr).split("/")]
+            seen[str(sample.key_expr)] = parts
+
+    watch = session.liveliness().declare_subscriber(f"@ros2_lv/{DOMAIN}/**", on_any, history=True)
+    found: dict[str, object] = {}
+    for _ in range(200):
+        nodes = [p for p in list(seen.values()) if p[5] == "NN" and p[8] == ARG]
+        if nodes:
+            ns, nid = nodes[0][7], nodes[0][3]
+            owned = sorted(p[9] for p in list(seen.values()) if p[5] != "NN" and p[3] == nid and p[8] == ARG
+                           and p[7] == ns)
+            found = {"namespace": ns, "node": ARG, "owned": owned,
+                     "others_named_like_it": sorted(p[8] for p in list(seen.values()) if p[5] == "NN"
+                                                    and ARG in p[8] and p[8] != ARG)}
+            if any(name.endswith("/change_state") for name in owned):
+                break
+        time.sleep(0.1)
+    print(json.dumps(found), flush=True)
 for token in tokens:
     token.undeclare()
 session.close()
