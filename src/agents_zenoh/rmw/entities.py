@@ -106,6 +106,7 @@ class Publisher:
     def __init__(self, node: Node, topic: Topic, codec: RmwCodec) -> None:
         self._codec = codec
         self._lock = threading.Lock()
+        self._buffer: bytearray | None = None
         self._entity = node.entity("MP", absolute(topic.name), codec.ros_type, codec.type_hash, qos_of(topic))
         reliable = topic.qos_profile.reliability == "reliable"
         options: dict[str, Any] = {
@@ -126,8 +127,10 @@ class Publisher:
         return self._entity.key
 
     def send(self, value: Any) -> None:
-        """Encode and put ``value``; the first sends wait (up to 1 s) for a subscriber to match."""
-        payload = self._codec.encode(value)
+        """Encode and put ``value``; the first sends wait (up to 1 s) for a subscriber to match.
+
+        The CDR is written into this publisher's buffer, kept from one value to the next (Zenoh copies it on
+        ``put``, so it is free again when ``put`` returns)."""
         while self._deadline and time.monotonic() < self._deadline:
             status = getattr(self._pub, "matching_status", True)
             if getattr(status, "matching", status):
@@ -135,6 +138,7 @@ class Publisher:
             time.sleep(0.002)
         self._deadline = 0.0
         with self._lock:
+            self._buffer = payload = self._codec.encode_into(value, self._buffer)
             try:
                 self._pub.put(payload, attachment=self._entity.attachment())
             except zenoh.ZError as exc:

@@ -210,6 +210,27 @@ class RosTypes:
         data = self._store.serialize_cdr(self.adapt(message, typename), typename)
         return data.tobytes()  # one copy of the buffer (bytes(array) would walk it item by item)
 
+    def serialize_into(self, message: Any, typename: str, buffer: bytearray | None) -> bytearray:
+        """``message`` as CDR (little-endian) written into ``buffer`` when it has the size (zeroed first, so the
+        padding is as in a fresh one), else into a new bytearray; returns the one written.
+
+        A publisher keeps its buffer from one message to the next: a large message (an image) then costs no
+        fresh pages per message (Zenoh copies the bytes on ``put``)."""
+        self.ensure(typename)
+        adapted = self.adapt(message, typename)
+        msgdef = self._store.get_msgdef(typename)
+        size = 4 + msgdef.getsize_cdr(0, adapted, self._store)
+        if buffer is None or len(buffer) != size:
+            buffer = bytearray(size)
+        else:
+            np.frombuffer(buffer, np.uint8).fill(0)
+        with memoryview(buffer) as view, view[4:] as body:
+            view[:4] = b"\x00\x01\x00\x00"
+            end = msgdef.serialize_cdr_le(body, 0, adapted, self._store)
+        if end + 4 != size:
+            raise TypeValidationError(f"{typename}: wrote {end + 4} bytes of CDR, expected {size}")
+        return buffer
+
     def deserialize(self, data: bytes | bytearray | memoryview, typename: str) -> Any:
         """CDR bytes as the rosbags dataclass of ``typename`` (TypeValidationError for malformed bytes)."""
         self.ensure(typename)
