@@ -12,6 +12,9 @@ sessions on loopback; two ROS 2 contexts, so DDS discovers them as two processes
 - raw ROS 2: ``rclpy.action.ActionServer`` (execute callback publishing N feedbacks) and
   ``ActionClient`` (send_goal_async, get_result_async), each node spun by its own
   single-threaded executor;
+- rmw_zenoh: the framework's goal as a ROS 2 action in rmw_zenoh's format (three services and two topics
+  under ``_action/``, CDR, attachments) between two rmw_zenoh peers of a router in the child, against raw
+  zenoh's exchange above between two plain peers of such a router (the same topology);
 - memory: the framework only (there is no raw library to compare with).
 
 The time of a goal is from sending it to holding its result; the feedback is then collected
@@ -69,12 +72,27 @@ def _measure(one: Callable[[], threading.Semaphore], goals: int, feedbacks: int)
     return samples
 
 
-def _pair(transport: str, domain: int | None) -> tuple[Any, Any]:
+def _router() -> tuple[str, Any]:
+    """A Zenoh router in this process on a free loopback port: (its endpoint, its session)."""
+    from agents_zenoh.router import open_router  # noqa: PLC0415
+
+    endpoint = f"tcp/127.0.0.1:{free_tcp_port()}"
+    return endpoint, open_router([endpoint])
+
+
+def _pair(transport: str, domain: int | None, closers: list[Callable[[], Any]]) -> tuple[Any, Any]:
     if transport == "memory":
         from agents_core.transport import MemoryTransport  # noqa: PLC0415
 
         t = MemoryTransport()
         return t, t
+    if transport == "rmw_zenoh":
+        from agents_zenoh.rmw.transport import RmwZenohTransport  # noqa: PLC0415
+
+        endpoint, router = _router()
+        closers.append(router.close)
+        return (RmwZenohTransport(connect=[endpoint], listen=["tcp/127.0.0.1:0"]),
+                RmwZenohTransport(connect=[endpoint], listen=["tcp/127.0.0.1:0"]))
     if transport == "zenoh":
         from agents_zenoh.transport import ZenohTransport  # noqa: PLC0415
 
@@ -89,7 +107,8 @@ def _pair(transport: str, domain: int | None) -> tuple[Any, Any]:
 
 
 def framework(transport: str, goals: int, feedbacks: int, domain: int | None) -> list[int]:
-    a, b = _pair(transport, domain)
+    closers: list[Callable[[], Any]] = []
+    a, b = _pair(transport, domain, closers)
 
     def execute(handle: Any) -> dict[str, Any]:
         for step in range(feedbacks):
@@ -120,17 +139,26 @@ def framework(transport: str, goals: int, feedbacks: int, domain: int | None) ->
         b.close()
         if a is not b:
             a.close()
+        for close in closers:
+            close()
 
 
-def raw_zenoh(goals: int, feedbacks: int) -> list[int]:
+def raw_zenoh(goals: int, feedbacks: int, via_router: bool = False) -> list[int]:
+    """Raw zenoh's goal exchange; ``via_router``: between two peers of a router (rmw_zenoh's topology)."""
     import msgpack  # noqa: PLC0415
     import zenoh  # noqa: PLC0415
 
     from .common import zenoh_raw_config  # noqa: PLC0415
 
-    port = free_tcp_port()
-    server = zenoh.open(zenoh_raw_config([f"tcp/127.0.0.1:{port}"], []))
-    client = zenoh.open(zenoh_raw_config([], [f"tcp/127.0.0.1:{port}"]))
+    router = None
+    if via_router:
+        endpoint, router = _router()
+        server = zenoh.open(zenoh_raw_config(["tcp/127.0.0.1:0"], [endpoint]))
+        client = zenoh.open(zenoh_raw_config(["tcp/127.0.0.1:0"], [endpoint]))
+    else:
+        port = free_tcp_port()
+        server = zenoh.open(zenoh_raw_config([f"tcp/127.0.0.1:{port}"], []))
+        client = zenoh.open(zenoh_raw_config([], [f"tcp/127.0.0.1:{port}"]))
 
     def serve(query: zenoh.Query) -> None:
         def run() -> None:
@@ -167,6 +195,8 @@ def raw_zenoh(goals: int, feedbacks: int) -> list[int]:
         queryable.undeclare()
         client.close()
         server.close()
+        if router is not None:
+            router.close()
 
 
 def raw_ros2(goals: int, feedbacks: int, domain: int | None) -> list[int]:
@@ -243,6 +273,8 @@ def run_child(transport: str, goals: int, feedbacks: int, domain: int | None) ->
         modes.insert(0, ("raw", lambda: raw_zenoh(goals, feedbacks)))
     elif transport == "ros2":
         modes.insert(0, ("raw", lambda: raw_ros2(goals, feedbacks, domain)))
+    elif transport == "rmw_zenoh":
+        modes.insert(0, ("raw", lambda: raw_zenoh(goals, feedbacks, via_router=True)))
     for mode, measure in modes:
         samples = measure()
         emit({"suite": "goals", "transport": transport, "payload": f"goal_{feedbacks}_feedbacks", "mode": mode,
@@ -276,7 +308,7 @@ def run_suite(transports: list[str], settings: dict[str, Any], children: Childre
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--transport", choices=("memory", "zenoh", "ros2"), required=True)
+    parser.add_argument("--transport", choices=("memory", "zenoh", "ros2", "rmw_zenoh"), required=True)
     parser.add_argument("--goals", type=int, default=50)
     parser.add_argument("--feedbacks", type=int, default=10)
     parser.add_argument("--ros-domain", type=int, default=None)

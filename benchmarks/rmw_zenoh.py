@@ -5,6 +5,11 @@ two sides meet through, as rmw_zenoh needs one) and a pinger on an rmw_zenoh tra
 keys, attachments and liveliness tokens. Raw: zenoh-python alone (``benchmarks.hop``'s raw Zenoh relay and pinger,
 bytes in and out). Records carry ``transport="rmw_zenoh"``; the report's ratio is rmw_zenoh ÷ raw zenoh-python, and
 the hop suite's ros2 framework figures of the same run give rmw_zenoh ÷ the ros2 transport.
+
+And the goal round trip of ``benchmarks.goals`` (a goal with N feedbacks, sent to its result): ``send_goal`` /
+``create_action_server`` as a ROS 2 action in rmw_zenoh's format between two rmw_zenoh peers of a router, ÷ raw
+zenoh-python's queryable doing the same exchange between two plain peers of a router (records ``suite="goals"``,
+``transport="rmw_zenoh"``).
 """
 
 from __future__ import annotations
@@ -12,7 +17,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-from . import hop
+from . import goals, hop
 from .common import Children, available
 
 __all__ = ["run_suite"]
@@ -28,7 +33,8 @@ def unavailable() -> str | None:
 
 def run_suite(settings: dict[str, Any], children: Children, ros_domain: int,
               progress: Callable[[str], None]) -> tuple[list[dict[str, Any]], list[dict[str, str]]]:
-    """Raw zenoh and framework rmw_zenoh pairs, alternating which goes first each round; (records, skipped)."""
+    """Raw zenoh and framework rmw_zenoh hop pairs, alternating which goes first each round, then the goal round
+    trip (raw, then framework, in one child); (records, skipped)."""
     reason = unavailable()
     if reason is not None:
         progress(f"rmw_zenoh: skipped: {reason}")
@@ -47,4 +53,5 @@ def run_suite(settings: dict[str, Any], children: Children, ros_domain: int,
                 progress(f"rmw_zenoh {mode}: FAILED: {failure.splitlines()[0]}")
                 skipped.append({"suite": "rmw_zenoh", "transport": "rmw_zenoh", "mode": mode,
                                 "reason": failure[-1500:]})
-    return records, skipped
+    goal_records, goal_skipped = goals.run_suite(["rmw_zenoh"], settings, children, ros_domain, progress)
+    return records + goal_records, skipped + goal_skipped

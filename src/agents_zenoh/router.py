@@ -3,7 +3,9 @@
 Recipes on several hosts run as Zenoh *clients* connected to one router; everything they
 exchange goes through it. :func:`open_router` opens a session in ``router`` mode on explicit
 endpoints with multicast scouting off; :func:`serve_router` keeps it open until SIGINT / SIGTERM
-(what ``agentsctl router --listen tcp/0.0.0.0:7447`` runs).
+(what ``agentsctl router --listen tcp/0.0.0.0:7447`` runs). ``python -m agents_zenoh.router ENDPOINT...`` runs
+one without the CLI and prints ``READY`` once it listens (the test harness's router, see
+:mod:`agents_core.testing.recipes`).
 
 Routers joined with ``connect`` (``agentsctl router --listen ... --connect tcp/other:7447``, one
 per other router) form a *mesh*: a client of any of them reaches the clients of every other one,
@@ -87,3 +89,9 @@ def serve_router(listen: list[str], connect: list[str] | None = None,
         for sig, handler in previous.items():
             signal.signal(sig, handler)
         logger.info("Zenoh router stopped")
+
+
+if __name__ == "__main__":
+    import sys
+
+    serve_router(sys.argv[1:], on_ready=lambda _session: print("READY", flush=True))

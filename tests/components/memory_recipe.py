@@ -77,7 +77,7 @@ def build(db: str, dim: int = 64, checkpoint: str = "words", **config: Any) -> M
 
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("--transport", required=True, choices=["memory", "zenoh", "ros2"])
+    parser.add_argument("--transport", required=True, choices=["memory", "zenoh", "ros2", "rmw_zenoh"])
     parser.add_argument("--listen", default=None, help="zenoh: the endpoint to listen on")
     parser.add_argument("--db", required=True)
     parser.add_argument("--notes", type=int, default=0)

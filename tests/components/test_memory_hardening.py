@@ -14,7 +14,7 @@ import os
 import signal
 import sqlite3
 import time
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -51,9 +51,10 @@ def running(m: Memory) -> Iterator[Any]:
 
 
 @contextlib.contextmanager
-def child(db: Path, tmp_path: Path, *args: str, name: str = "recipe") -> Iterator[RecipeProcess]:
+def child(db: Path, tmp_path: Path, *args: str, name: str = "recipe",
+          environment: Mapping[str, str] | None = None) -> Iterator[RecipeProcess]:
     process = RecipeProcess("tests.components.memory_recipe", ["--db", str(db), *args], tmp_path / f"{name}.log",
-                            cwd=REPO, env=recipe_environment())
+                            cwd=REPO, env=recipe_environment(**(environment or {})))
     try:
         process.wait_ready(60)
         yield process
@@ -139,7 +140,7 @@ def test_nan_z_from_a_peer_in_another_process_is_refused_and_the_next_notes_are_
     """Attack 1 over the network: any Zenoh (or ROS 2) peer calls store_specific_memory with z = NaN."""
     transport = recipe_transport
     db = tmp_path / "peer.db"
-    with child(db, tmp_path, *transport.recipe_args) as process:
+    with child(db, tmp_path, *transport.recipe_args, environment=transport.environment) as process:
         peer = transport.open_asker()
 
         def call(method: str, **kwargs: Any) -> Any:

@@ -79,7 +79,7 @@ def build() -> Vision:
 
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("--transport", required=True, choices=["memory", "zenoh", "ros2"])
+    parser.add_argument("--transport", required=True, choices=["memory", "zenoh", "ros2", "rmw_zenoh"])
     parser.add_argument("--listen", default=None, help="zenoh: the endpoint to listen on")
     args = parser.parse_args(argv)
     launcher = Launcher(transport=args.transport, transport_options=transport_options(args.transport, args.listen))

@@ -47,7 +47,7 @@ def build(policy_port: int) -> VLA:
 
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("--transport", required=True, choices=["memory", "zenoh", "ros2"])
+    parser.add_argument("--transport", required=True, choices=["memory", "zenoh", "ros2", "rmw_zenoh"])
     parser.add_argument("--listen", default=None, help="zenoh: the endpoint to listen on")
     parser.add_argument("--policy-port", type=int, required=True)
     args = parser.parse_args(argv)

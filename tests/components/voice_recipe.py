@@ -133,7 +133,7 @@ def build(transport: str = "memory", **transport_options: Any) -> Launcher:
 
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("--transport", required=True, choices=["memory", "zenoh", "ros2"])
+    parser.add_argument("--transport", required=True, choices=["memory", "zenoh", "ros2", "rmw_zenoh"])
     parser.add_argument("--listen", default=None, help="zenoh: the endpoint to listen on")
     args = parser.parse_args(argv)
     launcher = build(args.transport, **transport_options(args.transport, args.listen))

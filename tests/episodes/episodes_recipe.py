@@ -20,7 +20,7 @@ CAMERA = Topic("camera", "Image")
 
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("--transport", required=True, choices=["zenoh", "ros2"])
+    parser.add_argument("--transport", required=True, choices=["zenoh", "ros2", "rmw_zenoh"])
     parser.add_argument("--listen", default=None)
     parser.add_argument("--directory", required=True)
     args = parser.parse_args(argv)

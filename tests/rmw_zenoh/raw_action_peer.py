@@ -13,26 +13,21 @@ Usage: ``python raw_action_peer.py ROUTER DOMAIN MODE ACTION``:
 from __future__ import annotations
 
 import json
-import os
 import sys
 import threading
 import time
 import uuid
-from pathlib import Path
 from typing import Any
 
 import numpy as np
-import xxhash
 import zenoh
-from rosbags.typesys import Stores, get_types_from_msg, get_typestore
-from zenoh import ext as zext
+from raw_wire import SHARE, attachment, dds, gid, open_session, read_attachment, store
+from rosbags.typesys import get_types_from_msg
 
 ROUTER, DOMAIN, MODE, ACTION = sys.argv[1], int(sys.argv[2]), sys.argv[3], sys.argv[4]
-SHARE = Path(os.environ.get("AMENT_PREFIX_PATH", sys.prefix).split(os.pathsep)[0]) / "share"
 ROS = "agents_interfaces/action/VisionLanguageAction"
 HASHES = {e["type_name"]: e["hash_string"] for e in json.loads(
     (SHARE / "agents_interfaces" / "action" / "VisionLanguageAction.json").read_text())["type_hashes"]}
-store = get_typestore(Stores.ROS2_JAZZY)
 
 # The generated types, as rosidl writes them (names here are ours: only the CDR layout and the hashes matter).
 goal_text, result_text, feedback_text = (SHARE / "agents_interfaces" / "action" /
@@ -56,32 +51,7 @@ def uncdr(data: bytes, name: str) -> Any:
     return store.deserialize_cdr(data, P + name)
 
 
-def dds(ros_type: str) -> str:
-    pkg, kind, name = ros_type.split("/")
-    return f"{pkg}::{kind}::dds_::{name}_"
-
-
-def gid(token: str) -> bytes:
-    d = xxhash.xxh3_128(token.encode()).digest()
-    return d[8:][::-1] + d[:8][::-1]
-
-
-def attachment(seq: int, g: bytes) -> bytes:
-    return zext.z_serialize((zext.Int64(seq), zext.Int64(time.time_ns()), g)).to_bytes()
-
-
-def read_attachment(raw: zenoh.ZBytes | None) -> tuple[int, int, bytes]:
-    assert raw is not None, "no attachment"
-    seq, stamp, g = zext.z_deserialize(tuple[zext.Int64, zext.Int64, bytes], raw)
-    return int(seq), int(stamp), bytes(g)
-
-
-conf = zenoh.Config()
-conf.insert_json5("mode", '"peer"')
-conf.insert_json5("connect/endpoints", json.dumps([ROUTER]))
-conf.insert_json5("listen/endpoints", '["tcp/127.0.0.1:0"]')
-conf.insert_json5("scouting/multicast/enabled", "false")
-session = zenoh.open(conf)
+session = open_session(ROUTER)
 zid = str(session.zid())
 node = "raw_action_peer"
 tokens = [session.liveliness().declare_token(f"@ros2_lv/{DOMAIN}/{zid}/0/0/NN/%/%/{node}")]

@@ -8,31 +8,23 @@ read from ``share/<pkg>/<kind>/<Type>.json``. Usage: ``python raw_ros_peer.py RO
   a publisher token seen on the topic;
 - ``call SERVICE``: one JsonCall query ``{"from": "raw"}``, print the reply and whether seq / GID were echoed;
 - ``get_state NODE``: one lifecycle_msgs/GetState query, print the label;
-- ``serve SERVICE``: serve JsonCall (reply ``{"raw_got": <request>}``) until stdin closes.
+- ``serve SERVICE``: serve JsonCall (reply ``{"raw_got": <request>}``) until stdin closes;
+- ``node NODE``: wait (up to 20 s) for the node token of the node called NODE and for its lifecycle services, then
+  print its namespace and name as the token says, and the names of the entities that token's node owns.
 """
 
 from __future__ import annotations
 
 import json
-import os
 import sys
 import time
-from pathlib import Path
 
-import xxhash
 import zenoh
-from rosbags.typesys import Stores, get_types_from_msg, get_typestore
-from zenoh import ext as zext
+from raw_wire import SHARE, attachment, dds, gid, installed_hash, open_session, read_attachment, store
+from rosbags.typesys import get_types_from_msg
 
 ROUTER, DOMAIN, MODE = sys.argv[1], int(sys.argv[2]), sys.argv[3]
 ARG = sys.argv[4] if len(sys.argv) > 4 else ""
-SHARE = Path(os.environ.get("AMENT_PREFIX_PATH", sys.prefix).split(os.pathsep)[0]) / "share"
-store = get_typestore(Stores.ROS2_JAZZY)
-
-
-def installed_hash(ros_type: str) -> str:
-    pkg, kind, name = ros_type.split("/")
-    return str(json.loads((SHARE / pkg / kind / f"{name}.json").read_text())["type_hashes"][0]["hash_string"])
 
 
 def load_service(ros_type: str) -> tuple[str, str]:
@@ -45,32 +37,7 @@ def load_service(ros_type: str) -> tuple[str, str]:
     return req, res
 
 
-def dds(ros_type: str) -> str:
-    pkg, kind, name = ros_type.split("/")
-    return f"{pkg}::{kind}::dds_::{name}_"
-
-
-def gid(token: str) -> bytes:
-    d = xxhash.xxh3_128(token.encode()).digest()
-    return d[8:][::-1] + d[:8][::-1]
-
-
-def attachment(seq: int, g: bytes) -> bytes:
-    return zext.z_serialize((zext.Int64(seq), zext.Int64(time.time_ns()), g)).to_bytes()
-
-
-def read_attachment(raw: zenoh.ZBytes | None) -> tuple[int, int, bytes]:
-    assert raw is not None, "no attachment"
-    seq, stamp, g = zext.z_deserialize(tuple[zext.Int64, zext.Int64, bytes], raw)
-    return int(seq), int(stamp), bytes(g)
-
-
-conf = zenoh.Config()
-conf.insert_json5("mode", '"peer"')
-conf.insert_json5("connect/endpoints", json.dumps([ROUTER]))
-conf.insert_json5("listen/endpoints", '["tcp/127.0.0.1:0"]')
-conf.insert_json5("scouting/multicast/enabled", "false")
-session = zenoh.open(conf)
+session = open_session(ROUTER)
 zid = str(session.zid())
 node = "raw_peer"
 tokens = [session.liveliness().declare_token(f"@ros2_lv/{DOMAIN}/{zid}/0/0/NN/%/%/{node}")]
@@ -154,6 +121,29 @@ elif MODE == "serve":
     queryable = session.declare_queryable(key, on_query, complete=True)
     print("ready", flush=True)
     sys.stdin.read()
+elif MODE == "node":
+    seen: dict[str, list[str]] = {}
+
+    def on_any(sample: zenoh.Sample) -> None:
+        if sample.kind == zenoh.SampleKind.PUT:  # @ros2_lv/d/zid/nid/eid/kind/enclave/namespace/node[/name/...]
+            parts = [p.replace("%", "/") for p in str(sample.key_expr).split("/")]
+            seen[str(sample.key_expr)] = parts
+
+    watch = session.liveliness().declare_subscriber(f"@ros2_lv/{DOMAIN}/**", on_any, history=True)
+    found: dict[str, object] = {}
+    for _ in range(200):
+        nodes = [p for p in list(seen.values()) if p[5] == "NN" and p[8] == ARG]
+        if nodes:
+            ns, nid = nodes[0][7], nodes[0][3]
+            owned = sorted(p[9] for p in list(seen.values()) if p[5] != "NN" and p[3] == nid and p[8] == ARG
+                           and p[7] == ns)
+            found = {"namespace": ns, "node": ARG, "owned": owned,
+                     "others_named_like_it": sorted(p[8] for p in list(seen.values()) if p[5] == "NN"
+                                                    and ARG in p[8] and p[8] != ARG)}
+            if any(name.endswith("/change_state") for name in owned):
+                break
+        time.sleep(0.1)
+    print(json.dumps(found), flush=True)
 for token in tokens:
     token.undeclare()
 session.close()

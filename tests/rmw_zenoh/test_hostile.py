@@ -162,3 +162,37 @@ def test_bad_action_requests_are_refused_and_counted(ours: Any, attacker: Any) -
     stats = server.statistics()
     assert (stats.accepted, stats.rejected, stats.decode_errors) == (1, 1, len(cases))
     server.close()
+
+
+def test_a_flood_of_tokens_is_bounded_and_counted(router: str, attacker: Any) -> None:
+    """A peer announcing tokens without end cannot grow the graph: past its bound new tokens are dropped and
+    counted, ours are still held (our services still found), and room comes back as tokens are withdrawn."""
+    transport = RmwZenohTransport(**rmw_options(router, max_graph_tokens=40))
+    try:
+        graph = transport.driver.graph
+        assert _wait(lambda: len(graph.tokens(0)) >= 1)
+        flood = [attacker.liveliness().declare_token(f"@ros2_lv/21/{'f' * 32}/9/{i}/MP/%/%/flood/%flood{i}/"
+                                                     f"std_msgs::msg::dds_::String_/RIHS01_{'0' * 64}/::,10:,:,:,,")
+                 for i in range(100)]
+        try:
+            assert _wait(lambda: len(graph.tokens(0)) + graph.dropped >= 100)
+            held = graph.tokens(0)
+            assert len(held) == 40
+            flooded = sum(1 for t in held if "/flood/" in t)
+            assert graph.dropped == 100 - flooded and graph.dropped >= 60
+            transport.create_service("still_here", lambda request: {"ok": True})  # our own tokens: always held
+            assert _wait(lambda: any("still_here" in t for t in graph.tokens(0)))
+            assert transport.driver.served("/still_here", "agents_interfaces/srv/JsonCall")
+            assert transport.request("still_here", {}, timeout=3.0) == {"ok": True}
+            assert len(transport.discover(0.1).topics) <= 40
+        finally:
+            for token in flood:
+                token.undeclare()
+        assert _wait(lambda: not any("/flood/" in t for t in graph.tokens(0)))
+        late = attacker.liveliness().declare_token("@ros2_lv/21/" + "e" * 32 + "/0/0/NN/%/%/late_node")
+        try:
+            assert _wait(lambda: any(t.endswith("/late_node") for t in graph.tokens(0)))  # room again
+        finally:
+            late.undeclare()
+    finally:
+        transport.close()

@@ -18,6 +18,7 @@ import pytest
 from agents_core.status import HealthStatus, LifecycleState
 from agents_core.supported_types import get_type
 from agents_core.topics import Topic
+from agents_core.transport.namespace import namespaced
 
 from .conftest import rmw_options
 
@@ -119,6 +120,23 @@ def test_raw_client_calls_our_service_and_lifecycle(router: str) -> None:
                           "success": True}
         state = json.loads(_run_peer(router, "get_state", "arm"))
         assert state["reply"] == "active" and state["seq_echoed"] and state["gid_echoed"]
+
+
+def test_a_namespaced_component_is_its_node_in_the_namespace(router: str) -> None:
+    """``Launcher(namespace="robot1")``'s component ``arm`` is node ``arm`` in namespace ``/robot1`` (as on ROS 2),
+    read from its tokens by the raw peer, which also drives its lifecycle; our graph lists it as ``robot1/arm``."""
+    with _transport(router) as transport:
+        view = namespaced(transport, "robot1")
+        presence = view.declare_component("arm", on_transition=lambda _t: True)
+        presence.update(LifecycleState.ACTIVE, HealthStatus.HEALTHY)
+        view.create_publisher(Topic("joints", get_type("String")), owner="arm")
+        node = json.loads(_run_peer(router, "node", "arm"))
+        assert node["namespace"] == "/robot1" and node["node"] == "arm", node
+        assert {"/robot1/arm/change_state", "/robot1/arm/get_state", "/robot1/joints"} <= set(node["owned"]), node
+        assert node["others_named_like_it"] == []  # no flattened "robot1_arm" node beside it
+        state = json.loads(_run_peer(router, "get_state", "robot1/arm"))
+        assert state["reply"] == "active" and state["gid_echoed"]
+        assert "robot1/arm" in transport.discover(1.0).components
 
 
 def test_our_request_reaches_raw_server(router: str) -> None:

@@ -19,9 +19,10 @@ import pytest
 from agents_core import messages as m
 from agents_core.errors import TransportError
 from agents_core.supported_types import SupportedType, add_additional_datatypes, get_type, registered_types
+from agents_core.testing.helpers import free_tcp_port as free_port
 from agents_core.topics import QoSConfig, Topic
 
-from .conftest import free_port, rmw_options
+from .conftest import rmw_options
 
 pytest.importorskip("rosbags", reason="needs the rmw_zenoh extra")
 pytest.importorskip("geometry_msgs", reason="needs the ros2 extra's message packages")

@@ -26,6 +26,7 @@ from rclpy.serialization import deserialize_message, serialize_message
 from agents_core import messages as m
 from agents_core.supported_types import get_type, registered_types
 from agents_ros2.conversions import to_ros
+from agents_zenoh.rmw import typesupport
 from agents_zenoh.rmw.codec import codec_for
 from agents_zenoh.rmw.typesupport import ros_types
 from agents_zenoh.rmw.wire import (
@@ -65,7 +66,7 @@ def _installed_hash(ros_type: str) -> str:
 
 
 @pytest.mark.parametrize("type_name", sorted(registered_types()))
-def test_cdr_equals_rclpy_and_reads_back(type_name: str) -> None:
+def test_cdr_equals_rclpy_and_reads_back(type_name: str, monkeypatch: pytest.MonkeyPatch) -> None:
     msg_type = get_type(type_name)
     value = msg_type.validate(msg_type.example())
     codec = codec_for(msg_type)
@@ -81,6 +82,12 @@ def test_cdr_equals_rclpy_and_reads_back(type_name: str) -> None:
     assert len(differ) <= 3 * len(payload) // 8
     ours, theirs = deserialize_message(payload, type(message)), deserialize_message(reference, type(message))
     assert repr(ours) == repr(theirs)  # repr: NaN covariances compare unequal
+    # What a publisher sends: the same bytes written into its reused buffer, whatever that held before
+    # (reused from any size on here; a publisher reuses it from REUSE_MIN_BYTES on).
+    monkeypatch.setattr(typesupport, "REUSE_MIN_BYTES", 0)
+    assert codec.encode_into(value, None) == payload
+    assert codec.encode_into(value, bytearray(b"\xa5" * len(payload))) == payload
+    assert codec.encode_into(value, bytearray(3)) == payload
     back = codec.decode(payload)
     if type_name in UNSTAMPED:
         strip = {"header": m.Header(stamp_ns=0)}

@@ -1,16 +1,13 @@
 """Upstream's event-driven and conversational recipes on the rmw_zenoh transport, only the transport name changed.
 
-The recipe file runs unchanged as a script with ``AGENTS_TRANSPORT=rmw_zenoh``; its sessions reach a router (a
-child process) through rmw_zenoh's own ``ZENOH_CONFIG_OVERRIDE``, in ROS domain 21; the asker is an rmw_zenoh
-transport on the same router.
+The recipe file runs unchanged as a script with ``AGENTS_TRANSPORT=rmw_zenoh`` (:func:`run_recipe`); its sessions
+reach the recipe harness's router (a child process) through rmw_zenoh's own ``ZENOH_CONFIG_OVERRIDE``; the asker is
+an rmw_zenoh transport on the same router.
 """
 
 from __future__ import annotations
 
 import itertools
-import os
-import subprocess
-import sys
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from pathlib import Path
@@ -21,8 +18,7 @@ import pytest
 
 from agents_core.messages import AudioMsg
 from agents_core.ros import Topic
-from agents_core.testing.helpers import free_tcp_port
-from agents_core.testing.recipes import RecipeProcess, recipe_environment
+from agents_core.testing.recipes import RecipeProcess, open_recipe_transport, run_recipe
 
 from ..conftest import wait_for
 from ..servers.ollama_server import OllamaTestServer
@@ -33,10 +29,6 @@ pytest.importorskip("rosbags", reason="needs the rmw_zenoh extra")
 pytest.importorskip("agents_interfaces", reason="needs agents_interfaces")
 
 pytestmark = [pytest.mark.zenoh, pytest.mark.slow]
-
-from agents_zenoh.rmw.transport import RmwZenohTransport  # noqa: E402
-
-ROUTER = Path(__file__).resolve().parents[1] / "rmw_zenoh" / "router.py"
 
 
 @pytest.fixture
@@ -53,37 +45,14 @@ def roboml() -> Iterator[RoboMLTestServer]:
 
 @contextmanager
 def _on_rmw_zenoh(recipe: Path, ports: Mapping[str, Any], tmp_path: Path) -> Iterator[tuple[RecipeProcess, Any]]:
-    port = free_tcp_port()
-    router = subprocess.Popen([sys.executable, str(ROUTER), str(port)], stdout=subprocess.PIPE, text=True,
-                              env={**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)})
-    endpoint = f"tcp/127.0.0.1:{port}"
-    process = None
-    asker = None
+    """The recipe unchanged, on the recipe harness's router (its own ZENOH_CONFIG_OVERRIDE), and an asker there."""
+    harness = open_recipe_transport("rmw_zenoh")
     try:
-        assert router.stdout is not None and router.stdout.readline().strip() == "ready"
-        env = recipe_environment(AGENTS_TRANSPORT="rmw_zenoh", ROS_DOMAIN_ID="21",
-                                 ZENOH_CONFIG_OVERRIDE=f'connect/endpoints=["{endpoint}"];'
-                                                       'listen/endpoints=["tcp/127.0.0.1:0"]',
-                                 **{k: str(v) for k, v in ports.items()})
-        process = RecipeProcess(recipe, [], tmp_path / "recipe.log", cwd=recipe.parent, env=env)
-        asker = RmwZenohTransport(connect=[endpoint], listen=["tcp/127.0.0.1:0"], domain_id=21)
-        try:
-            yield process, asker
-        except BaseException:
-            raise AssertionError(f"recipe {recipe.name} on rmw_zenoh:\n{process.output()}") from None
+        with run_recipe(recipe, harness, tmp_path, cwd=recipe.parent, ready_timeout=None, transport_args=False,
+                        env={"AGENTS_TRANSPORT": "rmw_zenoh", **{k: str(v) for k, v in ports.items()}}) as process:
+            yield process, harness.open_asker()
     finally:
-        if asker is not None:
-            asker.close()
-        if process is not None:
-            process.stop()
-        router.terminate()
-        try:
-            router.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            router.kill()
-            router.wait()
-        if router.stdout is not None:
-            router.stdout.close()
+        harness.end()
 
 
 def test_event_driven_visual_description_on_rmw_zenoh(ollama: OllamaTestServer, tmp_path: Path) -> None:

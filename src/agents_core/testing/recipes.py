@@ -15,7 +15,11 @@ test is written once::
 
 The recipe must accept ``--transport NAME`` and, for Zenoh, ``--listen ENDPOINT`` (the loopback
 endpoint it listens on and the asker connects to), print ``READY`` once its launcher is active,
-and stop on SIGINT.
+and stop on SIGINT. A transport whose processes meet only through a router (its descriptor's
+``needs_router``, rmw_zenoh) gets one per test: the descriptor's ``router`` module in a child
+process on a free loopback port, stopped by PID after the test; the recipe reaches it through the
+environment the descriptor's ``router_environment`` gives (rmw_zenoh: its own
+``ZENOH_CONFIG_OVERRIDE``), so it runs unchanged, and the asker connects to it.
 
 Everything stays on this host: Zenoh on an explicit ``tcp/127.0.0.1`` port with multicast
 scouting off; ROS 2 with ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` in a domain of this
@@ -29,9 +33,11 @@ from __future__ import annotations
 
 import contextlib
 import os
+import shutil
 import signal
 import subprocess
 import sys
+import tempfile
 import threading
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -63,6 +69,8 @@ CROSS_PROCESS_TRANSPORTS = tuple(name for name in TRANSPORT_ALIASES if describe_
 #: Environment variables of the test process that must not reach a recipe: they would pick
 #: its transport or its Zenoh endpoints instead of the ones the harness gives on its command line.
 _INHERITED_SETTINGS = ("AGENTS_ZENOH_", "AGENTS_TRANSPORT")
+#: How long a test's router may take to listen.
+ROUTER_READY_S = 30.0
 
 
 @dataclass(frozen=True)
@@ -74,12 +82,15 @@ class RecipeTransport:
         listens on; None otherwise.
     :param domain_id: ROS 2: the private domain both processes use; None otherwise.
     :param options: what the transport's descriptor's ``isolate`` gave (both sides open with it).
+    :param router: a transport that needs a router: the router's process (``endpoint`` is where it
+        listens); stopped by :meth:`end`.
     """
 
     name: str
     endpoint: str | None = None
     domain_id: int | None = None
     options: Mapping[str, Any] = field(default_factory=dict, compare=False)
+    router: RecipeProcess | None = field(default=None, compare=False)
     _opened: list[Transport] = field(default_factory=list, compare=False, repr=False)
 
     @property
@@ -91,9 +102,17 @@ class RecipeTransport:
     def recipe_args(self) -> list[str]:
         """The recipe's command-line arguments that select this transport."""
         args = ["--transport", self.name]
-        if self.endpoint is not None:
+        if self.endpoint is not None and self.router is None:
             args += ["--listen", self.endpoint]
         return args
+
+    @property
+    def environment(self) -> dict[str, str]:
+        """The environment variables a recipe process needs besides :func:`recipe_environment` (the router's)."""
+        hook = self.descriptor.router_environment
+        if self.router is None or self.endpoint is None or hook is None:
+            return {}
+        return dict(hook(self.endpoint))
 
     def open_asker(self) -> Transport:
         """A transport in this process that reaches the recipe's; closed by :meth:`close`."""
@@ -106,7 +125,7 @@ class RecipeTransport:
 
         For a recipe run inside the test process; closed by :meth:`close`.
         """
-        if self.endpoint is not None:
+        if self.endpoint is not None and self.router is None:
             return self._open(self.name, **self.descriptor.listen(self.endpoint))
         return self.open_asker()
 
@@ -120,15 +139,32 @@ class RecipeTransport:
         while self._opened:
             self._opened.pop().close()
 
+    def end(self) -> None:
+        """:meth:`close`, then stop the router (by its PID) if this transport has one."""
+        self.close()
+        if self.router is not None:
+            self.router.stop()
+            shutil.rmtree(self.router.log_path.parent, ignore_errors=True)
+
 
 def open_recipe_transport(name: str) -> RecipeTransport:
     """Set up transport ``name`` on this host for a recipe test, as its descriptor says.
 
     A transport reached at endpoints gets a free loopback one; one with an ``isolate`` sets up its
     private space (ROS 2: the private domain, in ``os.environ``, which rcl reads when a context
-    starts: the test process's plain rclpy nodes too).
+    starts: the test process's plain rclpy nodes too); one that needs a router gets one started on a
+    free loopback endpoint (call :meth:`RecipeTransport.end` to stop it).
     """
     descriptor = describe_transport_kind(name)
+    if descriptor.needs_router and descriptor.router:
+        endpoint = f"tcp/127.0.0.1:{free_tcp_port()}"
+        router = RecipeProcess(descriptor.router, [endpoint], Path(tempfile.mkdtemp(prefix="router-")) / "router.log")
+        try:
+            router.wait_ready(ROUTER_READY_S)
+        except BaseException:
+            router.stop()
+            raise
+        return RecipeTransport(name, endpoint=endpoint, router=router)
     if descriptor.endpoints:
         return RecipeTransport(name, endpoint=f"tcp/127.0.0.1:{free_tcp_port()}")
     if descriptor.isolate is not None:
@@ -144,10 +180,9 @@ def recipe_transport_params() -> list[Any]:
     for name in CROSS_PROCESS_TRANSPORTS:
         marks: list[Any] = [getattr(pytest.mark, name)]  # the marker named after the transport
         reason = missing_requirement(name)
-        if reason is None and describe_transport_kind(name).needs_router:
-            # The harness gives each recipe a loopback endpoint to listen on or a private domain; a transport
-            # whose sessions all go through a router would need one started per test, which it does not do.
-            reason = f"{name} needs a router, which this recipe harness does not start (its own tests start one)"
+        descriptor = describe_transport_kind(name)
+        if reason is None and descriptor.needs_router and not descriptor.router:
+            reason = f"{name} needs a router and its descriptor names no router module for the harness to start"
         if reason is not None:
             marks.append(pytest.mark.skip(reason=reason))
         params.append(pytest.param(name, marks=marks, id=name))
@@ -161,7 +196,7 @@ def recipe_transport(request: pytest.FixtureRequest) -> Iterator[RecipeTransport
     try:
         yield transport
     finally:
-        transport.close()
+        transport.end()
 
 
 def recipe_environment(**extra: str) -> dict[str, str]:
@@ -234,17 +269,23 @@ class RecipeProcess:
 
 @contextlib.contextmanager
 def run_recipe(recipe: str | Path, transport: RecipeTransport, tmp_path: Path, args: Sequence[str] = (), *,
-               cwd: Path | None = None, ready_timeout: float = 60.0) -> Iterator[RecipeProcess]:
+               cwd: Path | None = None, ready_timeout: float | None = 60.0, env: Mapping[str, str] | None = None,
+               transport_args: bool = True) -> Iterator[RecipeProcess]:
     """Run ``recipe`` (a module name or a file) on ``transport`` until the block ends; then stop it by PID.
 
-    ``args`` follow the transport's own arguments. The transports ``transport`` opened in the block
-    are closed before the recipe stops. If the block fails, the recipe's output is written to this
-    process's stderr (pytest shows it with the failure).
+    ``args`` follow the transport's own arguments (none when ``transport_args`` is false: a recipe that
+    picks its transport from ``env``, e.g. ``AGENTS_TRANSPORT``, as upstream's do); ``env`` is added to the
+    recipe's environment. ``ready_timeout`` None: do not wait for ``READY`` (a recipe that never prints it).
+    The transports ``transport`` opened in the block are closed before the recipe
+    stops. If the block fails, the recipe's output is written to this process's stderr (pytest shows it
+    with the failure).
     """
-    process = RecipeProcess(recipe, [*transport.recipe_args, *args], tmp_path / "recipe.log", cwd=cwd,
-                            env=recipe_environment())
+    process = RecipeProcess(recipe, [*(transport.recipe_args if transport_args else []), *args],
+                            tmp_path / "recipe.log", cwd=cwd,
+                            env=recipe_environment(**transport.environment, **(env or {})))
     try:
-        process.wait_ready(ready_timeout)
+        if ready_timeout is not None:
+            process.wait_ready(ready_timeout)
         yield process
     except BaseException:
         transport.close()

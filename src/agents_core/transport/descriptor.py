@@ -56,6 +56,11 @@ class TransportDescriptor:
     :param requires: modules whose absence means that extra is not installed.
     :param in_process: it lives inside one process (nothing outside can reach it).
     :param needs_router: processes meet only through a router (``agentsctl router``) that must run first.
+    :param router: a module that runs such a router for a test: ``python -m MODULE ENDPOINT`` listens on
+        ``ENDPOINT``, prints ``READY`` once it does and stops on SIGINT (:mod:`agents_core.testing.recipes`
+        starts one per test); None: none.
+    :param router_environment: the environment variables that make a process of this transport (a recipe
+        run unchanged) reach the router at ``endpoint``, on this host only; None: none needed.
     :param rendezvous: where processes meet when nothing else is said (an endpoint), or None.
     :param endpoints: it is reached at endpoints (``--connect`` / ``--listen`` mean something to it).
     :param carries: words of :data:`CARRIES`.
@@ -77,6 +82,8 @@ class TransportDescriptor:
     requires: tuple[str, ...] = ()
     in_process: bool = False
     needs_router: bool = False
+    router: str | None = None
+    router_environment: Callable[[str], dict[str, str]] | None = field(default=None, eq=False)
     rendezvous: str | None = None
     endpoints: bool = False
     carries: frozenset[str] = field(default=frozenset({"values", "requests"}), converter=_carries)

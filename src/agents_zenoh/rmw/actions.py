@@ -219,13 +219,17 @@ class RawSubscription:
         self._on_error = on_error
         self._closed = False
         self._entity = node.entity("MS", name, typename, types.type_hash(typename), qos)
+        # On Zenoh's own thread (not a Python thread per subscription, zenoh-python's default): the samples of
+        # one session's publishers are then handled in the order they came, across subscriptions (an action
+        # client reads a goal's feedback before the status that ends it).
+        handler = zenoh.handlers.Callback(self._on_sample, indirect=False)
         self._sub: Any
         if qos.durability == 1:
             history = zenoh.ext.HistoryConfig(detect_late_publishers=True, max_samples=qos.depth)
-            self._sub = zenoh.ext.declare_advanced_subscriber(node.session, self._entity.key, self._on_sample,
+            self._sub = zenoh.ext.declare_advanced_subscriber(node.session, self._entity.key, handler,
                                                               history=history)
         else:
-            self._sub = node.session.declare_subscriber(self._entity.key, self._on_sample)
+            self._sub = node.session.declare_subscriber(self._entity.key, handler)
 
     def _on_sample(self, sample: zenoh.Sample) -> None:
         if self._closed or sample.kind != zenoh.SampleKind.PUT:

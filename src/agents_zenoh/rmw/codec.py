@@ -43,6 +43,10 @@ class RmwCodec:
         """A value (validated by the core) as CDR bytes."""
         return self._types.serialize(self._to_ros(value), self.ros_type)
 
+    def encode_into(self, value: Any, buffer: bytearray | None) -> bytearray:
+        """:meth:`encode` into ``buffer`` when it has the size, else into a new one (see ``serialize_into``)."""
+        return self._types.serialize_into(self._to_ros(value), self.ros_type, buffer)
+
     def decode(self, data: bytes | bytearray | memoryview) -> Any:
         """CDR bytes as a validated value (TypeValidationError with the reason)."""
         return self._from_ros(self._types.deserialize(data, self.ros_type))

@@ -23,12 +23,18 @@ from .codec import RmwCodec
 from .typesupport import ros_types
 from .wire import Qos, data_key, dds_type_name, decode_attachment, encode_attachment, entity_token, gid_of
 
-__all__ = ["Entity", "Node", "Publisher", "ServiceServer", "Subscription", "absolute", "qos_of"]
+__all__ = ["Entity", "Node", "Publisher", "ServiceServer", "Subscription", "absolute", "node_name", "qos_of"]
 
 
 def absolute(name: str) -> str:
     """A core name as a ROS fully qualified name (``camera/image`` -> ``/camera/image``)."""
     return "/" + name.strip("/")
+
+
+def node_name(full: str) -> tuple[str, str]:
+    """A component's wire name as ROS 2's node namespace and name (``robot1/arm`` -> ``("/robot1", "arm")``)."""
+    namespace, _, node = full.strip("/").rpartition("/")
+    return "/" + namespace, node
 
 
 def qos_of(topic: Topic) -> Qos:
@@ -44,16 +50,18 @@ SERVICE_QOS = Qos(depth=10)
 
 
 class Node:
-    """One ROS 2 node on the session (a component, or the transport's own)."""
+    """One ROS 2 node on the session (a component, or the transport's own): ``name`` in ``namespace``."""
 
-    def __init__(self, session: zenoh.Session, domain_id: int, name: str, ids: Callable[[], int]) -> None:
+    def __init__(self, session: zenoh.Session, domain_id: int, name: str, ids: Callable[[], int],
+                 namespace: str = "/") -> None:
         self.session = session
         self.domain_id = domain_id
         self.name = name
+        self.namespace = namespace
         self.zid = str(session.zid())
         self.nid = ids()
         self._ids = ids
-        self.token = entity_token(domain_id, self.zid, self.nid, self.nid, "NN", "/", name)
+        self.token = entity_token(domain_id, self.zid, self.nid, self.nid, "NN", namespace, name)
         self._live = session.liveliness().declare_token(self.token)
 
     def entity(self, kind: str, name: str, ros_type: str, type_hash: str, qos: Qos) -> Entity:
@@ -71,7 +79,8 @@ class Entity:
     def __init__(self, node: Node, kind: str, name: str, ros_type: str, type_hash: str, qos: Qos) -> None:
         self.node = node
         self.key = data_key(node.domain_id, name, ros_type, type_hash)
-        self.token = entity_token(node.domain_id, node.zid, node.nid, node._ids(), kind, "/", node.name, name=name,
+        self.token = entity_token(node.domain_id, node.zid, node.nid, node._ids(), kind, node.namespace, node.name,
+                                  name=name,
                                   ros_type=dds_type_name(ros_type), type_hash=type_hash, qos=qos)
         self.gid = gid_of(self.token)
         self._seq = itertools.count(1)
@@ -97,6 +106,7 @@ class Publisher:
     def __init__(self, node: Node, topic: Topic, codec: RmwCodec) -> None:
         self._codec = codec
         self._lock = threading.Lock()
+        self._buffer: bytearray | None = None
         self._entity = node.entity("MP", absolute(topic.name), codec.ros_type, codec.type_hash, qos_of(topic))
         reliable = topic.qos_profile.reliability == "reliable"
         options: dict[str, Any] = {
@@ -117,8 +127,10 @@ class Publisher:
         return self._entity.key
 
     def send(self, value: Any) -> None:
-        """Encode and put ``value``; the first sends wait (up to 1 s) for a subscriber to match."""
-        payload = self._codec.encode(value)
+        """Encode and put ``value``; the first sends wait (up to 1 s) for a subscriber to match.
+
+        The CDR is written into this publisher's buffer, kept from one value to the next (Zenoh copies it on
+        ``put``, so it is free again when ``put`` returns)."""
         while self._deadline and time.monotonic() < self._deadline:
             status = getattr(self._pub, "matching_status", True)
             if getattr(status, "matching", status):
@@ -126,6 +138,7 @@ class Publisher:
             time.sleep(0.002)
         self._deadline = 0.0
         with self._lock:
+            self._buffer = payload = self._codec.encode_into(value, self._buffer)
             try:
                 self._pub.put(payload, attachment=self._entity.attachment())
             except zenoh.ZError as exc:

@@ -327,6 +327,8 @@ class RmwGoal:
         self._events = events
         self._names = client.names
         self._done = threading.Event()
+        #: The status array listed this goal as ended: the server published it after its last feedback.
+        self._ended = threading.Event()
         self._last_feedback = 0.0
         self._last_status = -1
         client.add(self)
@@ -343,6 +345,8 @@ class RmwGoal:
 
     def on_status(self, status: int) -> None:
         """The status array listed this goal with ``status`` (Zenoh's thread)."""
+        if status in _WIRE_TERMINAL:
+            self._ended.set()
         if status != self._last_status and status in (GoalStatus.EXECUTING, GoalStatus.CANCELING):
             self._last_status = status
             self._events.status(GoalStatus(status))
@@ -395,10 +399,14 @@ class RmwGoal:
         except Exception as exc:
             self._events.reject(exc)
             result = {}
-        # Feedback travels on a topic, the result as a reply: let feedback still on its way arrive first.
+        # Feedback travels on a topic, the result as a reply: let feedback still on its way arrive first. The
+        # server publishes the ended goal's status after its last feedback, on the same session (reliable, in
+        # order): once that is here, so is the feedback. A server that publishes no status (it need not): wait
+        # until no feedback came for FEEDBACK_SETTLE_S, bounded.
         settle_until = time.monotonic() + 6 * FEEDBACK_SETTLE_S
-        while time.monotonic() - self._last_feedback < FEEDBACK_SETTLE_S and time.monotonic() < settle_until:
-            time.sleep(FEEDBACK_SETTLE_S / 5)
+        while not self._ended.is_set() and time.monotonic() - self._last_feedback < FEEDBACK_SETTLE_S \
+                and time.monotonic() < settle_until:
+            self._ended.wait(FEEDBACK_SETTLE_S / 5)
         self._events.finished(GoalStatus(status), result)
 
     def cancel(self, timeout: float) -> bool:

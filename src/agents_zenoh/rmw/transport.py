@@ -21,7 +21,8 @@ either). Long-running goals are ROS 2 actions of the action type's ``ros_type``
 
 Options: ``domain_id`` (default ``ROS_DOMAIN_ID``), ``connect`` / ``listen`` / ``mode`` (default: as
 rmw_zenoh, see :mod:`.session`), ``router_timeout`` (seconds to wait for a router, default 3; 0: none),
-``zenoh_options`` (config key -> value).
+``zenoh_options`` (config key -> value), ``max_graph_tokens`` (other sessions' liveliness tokens the graph holds
+at most, default :data:`~agents_zenoh.rmw.discovery.MAX_TOKENS`; past it new ones are dropped and counted).
 """
 
 from __future__ import annotations
@@ -58,8 +59,8 @@ from agents_core.transport.graph import Graph
 from agents_core.transport.requests import json_call_reply
 
 from .codec import codec_for
-from .discovery import GraphCache, graph_of
-from .entities import SERVICE_QOS, Entity, Node, Publisher, ServiceServer, Subscription, absolute
+from .discovery import MAX_TOKENS, GraphCache, graph_of
+from .entities import SERVICE_QOS, Entity, Node, Publisher, ServiceServer, Subscription, absolute, node_name
 from .goals import RmwActionClient, RmwActionServer, RmwGoal
 from .session import domain_from_environment, open_rmw_session, session_config
 from .typesupport import ros_types
@@ -76,7 +77,8 @@ CHANGE_STATE = "lifecycle_msgs/srv/ChangeState"
 STATE_IDS = {"unconfigured": 1, "inactive": 2, "active": 3, "finalized": 4, "errorprocessing": 15}
 #: How long a request waits for a route to a server of which no token is seen (discovery settling).
 _SETTLE_S = 1.0
-_OPTIONS = {"domain_id", "connect", "listen", "mode", "router_timeout", "zenoh_options", "request_workers"}
+_OPTIONS = {"domain_id", "connect", "listen", "mode", "router_timeout", "zenoh_options", "request_workers",
+            "max_graph_tokens"}
 
 
 class _Presence:
@@ -152,7 +154,8 @@ class RmwZenohDriver(DriverBase):
         self.refused_requests = 0
         self._closed = False
         try:
-            self._graph = GraphCache(self._session, self.domain_id)
+            self._graph = GraphCache(self._session, self.domain_id,
+                                     int(options.get("max_graph_tokens", MAX_TOKENS)))
             self._own = Node(self._session, self.domain_id, f"agents_core_{os.getpid()}", self._ids)
         except BaseException:
             self._session.close()  # type: ignore[no-untyped-call]  # not left open behind a transport that never was
@@ -161,14 +164,23 @@ class RmwZenohDriver(DriverBase):
     # -- nodes --------------------------------------------------------------------------------
 
     def node_for(self, owner: str | None) -> Node:
-        """The node of component ``owner`` (created on first use), or the transport's own."""
+        """The node of component ``owner`` (created on first use), or the transport's own.
+
+        A namespaced component (``robot1/arm``, see :mod:`agents_core.transport.namespace`) is node ``arm`` in
+        namespace ``/robot1``, as on ROS 2."""
         if owner is None:
             return self._own
         with self._lock:
             node = self._nodes.get(owner)
             if node is None:
-                node = self._nodes[owner] = Node(self._session, self.domain_id, owner.replace("/", "_"), self._ids)
+                namespace, name = node_name(owner)
+                node = self._nodes[owner] = Node(self._session, self.domain_id, name, self._ids, namespace)
             return node
+
+    @property
+    def graph(self) -> GraphCache:
+        """The liveliness tokens seen (with the counts of bogus and dropped ones)."""
+        return self._graph
 
     def refused(self, reason: object) -> None:
         """A query that did not decode (bad attachment or CDR): counted and logged."""

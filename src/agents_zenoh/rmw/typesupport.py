@@ -42,6 +42,9 @@ _DTYPES: dict[str, Any] = {
     "int64": np.int64, "uint64": np.uint64, "float32": np.float32, "float64": np.float64,
 }
 
+#: From this size on, a publisher's CDR buffer is reused (:meth:`RosTypes.serialize_into`).
+REUSE_MIN_BYTES = 64 * 1024
+
 
 def ros_type_name(cls: type[Any]) -> str:
     """``pkg/msg/Type`` of a message class: a rosbags dataclass' ``__msgtype__``, or an rclpy class' module."""
@@ -209,6 +212,28 @@ class RosTypes:
         self.ensure(typename)
         data = self._store.serialize_cdr(self.adapt(message, typename), typename)
         return data.tobytes()  # one copy of the buffer (bytes(array) would walk it item by item)
+
+    def serialize_into(self, message: Any, typename: str, buffer: bytearray | None) -> bytearray:
+        """``message`` as CDR (little-endian) written into ``buffer`` when it has the size and at least
+        :data:`REUSE_MIN_BYTES` (zeroed first, so the padding is as in a fresh one), else into a new bytearray;
+        returns the one written.
+
+        A publisher keeps its buffer from one message to the next: a large message (an image) then costs no
+        fresh pages per message (Zenoh copies the bytes on ``put``)."""
+        self.ensure(typename)
+        adapted = self.adapt(message, typename)
+        msgdef = self._store.get_msgdef(typename)
+        size = 4 + msgdef.getsize_cdr(0, adapted, self._store)
+        if buffer is None or len(buffer) != size or size < REUSE_MIN_BYTES:
+            buffer = bytearray(size)  # small ones come from the allocator's free lists: cheaper than zeroing
+        else:
+            np.frombuffer(buffer, np.uint8).fill(0)
+        with memoryview(buffer) as view, view[4:] as body:
+            view[:4] = b"\x00\x01\x00\x00"
+            end = msgdef.serialize_cdr_le(body, 0, adapted, self._store)
+        if end + 4 != size:
+            raise TypeValidationError(f"{typename}: wrote {end + 4} bytes of CDR, expected {size}")
+        return buffer
 
     def deserialize(self, data: bytes | bytearray | memoryview, typename: str) -> Any:
         """CDR bytes as the rosbags dataclass of ``typename`` (TypeValidationError for malformed bytes)."""
