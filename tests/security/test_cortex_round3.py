@@ -175,6 +175,8 @@ def test_a_task_that_never_ends_is_cut_at_task_timeout(recipe: Any) -> None:
         launcher = recipe(cortex, [], nav_step=100.0)  # a goal that never arrives
         status, result, seconds = _send(launcher, "drive and blink")
         assert status == GoalStatus.ABORTED, result
+        print(f"CONTINUE forever: aborted after {seconds:.1f} s and {len(srv.confirmation_requests)} confirmation "
+              f"calls: {result['message'][:120]}")
         assert "task_timeout" in result["message"], result
         assert seconds < 8, seconds
         assert LED == []
@@ -190,6 +192,8 @@ def test_confirmation_rounds_are_bounded(recipe: Any) -> None:
         cortex = _cortex(srv, max_confirmation_rounds=5, task_timeout=60.0)
         launcher = recipe(cortex, [], nav_step=100.0)
         status, result, seconds = _send(launcher, "drive and blink")
+        print(f"CONTINUE forever, 5 rounds allowed: aborted after {seconds:.1f} s and "
+              f"{len(srv.confirmation_requests)} confirmation calls")
         assert status == GoalStatus.ABORTED and "max_confirmation_rounds=5" in result["message"], result
         assert len(srv.confirmation_requests) == 1 + 5
         assert seconds < 20

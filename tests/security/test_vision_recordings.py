@@ -126,6 +126,8 @@ def test_recordings_past_the_bound_are_refused_with_a_clear_error(peer: tuple[Vi
         time.sleep(0.1)
     gifs = list(folder.glob("*.gif"))
     assert len(gifs) == 3, gifs
+    print(f"8 record_video calls: {len(accepted)} accepted, {len(refused)} refused; RSS high-water "
+          f"{before:.0f} -> {_maxrss_mb():.0f} MB")
     assert _maxrss_mb() - before < 600  # 2 recordings of 240 palette frames: ~150 MB; 8 unbounded: GBs
 
 
