@@ -220,6 +220,67 @@ def test_a_second_process_on_the_same_database_is_refused_with_the_holder_s_pid(
         assert found_notes(m, 20, "first") == 20 and found_notes(m, 20, "second") == 20
 
 
+def _asker(transport: RecipeTransport, process: RecipeProcess) -> Any:
+    """A peer's ``call(method, **kwargs)`` of the child's Memory, once it answers."""
+    peer = transport.open_asker()
+
+    def call(method: str, **kwargs: Any) -> Any:
+        return peer.request("memory/execute_method", {"method": method, "kwargs": kwargs}, timeout=15)["result"]
+
+    assert wait_for(lambda: _answers(call), timeout=30), process.output()
+    return call
+
+
+def test_notes_a_peer_committed_before_a_sigkill_are_found_by_meaning_after_the_restart(
+        recipe_transport: RecipeTransport, tmp_path: Path) -> None:
+    """Attack 2 over the network: a Zenoh (or ROS 2) peer stores 20 notes, the Memory is SIGKILLed 0.5 s later."""
+    db = tmp_path / "peer-crash.db"
+    with child(db, tmp_path, *recipe_transport.recipe_args) as process:
+        call = _asker(recipe_transport, process)
+        for i in range(20):
+            assert call("store_specific_memory", content=note(i, "peer"), x=float(i), y=0.0) is True
+        time.sleep(0.5)
+        os.kill(process.pid, signal.SIGKILL)
+        process.proc.wait(10)
+    assert process.proc.returncode == -signal.SIGKILL
+    m = build(str(db))
+    with running(m):
+        assert m.health_status == HealthStatus.HEALTHY, m.health_message
+        assert found_notes(m, 20, "peer") == 20
+
+
+def test_a_second_memory_process_a_peer_writes_to_is_refused_with_the_holder_s_pid(
+        recipe_transport: RecipeTransport, tmp_path: Path) -> None:
+    """Attack 3 over the network: the second Memory process on one db_path is served on Zenoh (or ROS 2); its
+    own notes and a peer's are refused naming the first process, and nothing of them is lost silently."""
+    db = tmp_path / "shared.db"
+    with child(db, tmp_path, "--transport", "memory", "--notes", "20", "--writer", "first", name="first") as first, \
+            child(db, tmp_path, *recipe_transport.recipe_args, "--notes", "20", "--writer", "second",
+                  name="second") as second:
+        assert "COMMITTED 20" in first.lines
+        assert any(line.startswith("REFUSED") and f"in use by process {first.pid}" in line for line in second.lines), \
+            second.lines
+        peer = recipe_transport.open_asker()
+        answers: list[str] = []
+
+        def store() -> bool:  # retried until the second process's service is reached
+            try:
+                peer.request("memory/execute_method", {"method": "store_specific_memory", "kwargs": {
+                    "content": note(0, "peer"), "x": 0.0, "y": 0.0}}, timeout=15)
+                answers.append("stored")
+            except RemoteError as exc:
+                answers.append(str(exc))
+            except Exception:  # not reachable yet
+                return False
+            return True
+
+        assert wait_for(store, timeout=30), second.output()
+        assert f"in use by process {first.pid}" in answers[-1], answers
+    m = build(str(db))
+    with running(m):
+        assert found_notes(m, 20, "first") == 20 and found_notes(m, 20, "second") == 0
+
+
 def test_a_database_of_another_embedding_model_is_refused_or_embedded_again_never_answered_wrong(
         tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
     """Attack 4: a 64-dimension database reopened with a 128- or 16-dimension embedder, or another model."""

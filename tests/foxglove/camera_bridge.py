@@ -1,6 +1,6 @@
 """A recipe-like process serving a 640x480 camera through the Foxglove bridge.
 
-``python -m tests.foxglove.camera_bridge --transport memory|zenoh [--max-clients N]
+``python -m tests.foxglove.camera_bridge --transport memory|zenoh|ros2 [--max-clients N]
 [--handshake-timeout S] [--allow-origin O]``: publishes rgb8 frames at 30 Hz on ``camera`` (on
 Zenoh from a second session over loopback TCP), serves them with a ``FoxgloveBridge`` on an
 ephemeral port, prints ``READY <port>`` and runs until killed.
@@ -38,6 +38,10 @@ def main() -> None:
 
             transport = stack.enter_context(MemoryTransport())
             camera_side = transport
+        elif args.transport == "ros2":  # two DDS participants in a private domain, discovery on this host
+            from agents_core.testing.pairs import ros2_pair  # noqa: PLC0415
+
+            transport, camera_side = stack.enter_context(ros2_pair())
         else:
             from agents_core.transport.registry import resolve_transport  # noqa: PLC0415
 

@@ -1,5 +1,5 @@
 """The Foxglove bridge against hostile clients (issue 36, item 5), through real sockets to a real bridge
-process serving a 640x480 camera at 30 Hz (``camera_bridge.py``), on memory and on Zenoh:
+process serving a 640x480 camera at 30 Hz (``camera_bridge.py``), on memory, Zenoh and ROS 2:
 
 - 20 clients that subscribe to the camera and never read do not grow the process without bound
   (each client's buffer is bounded in bytes, latest frame wins for images);
@@ -64,10 +64,12 @@ class _Bridge:
             self.proc.stdout.close()
 
 
-@pytest.fixture(params=["memory", "zenoh"])
+@pytest.fixture(params=["memory", "zenoh", "ros2"])
 def transport(request: pytest.FixtureRequest) -> str:
-    if request.param == "zenoh":
-        pytest.importorskip("zenoh")
+    if request.param != "memory":
+        from agents_core.testing.pairs import skip_unless_installed  # noqa: PLC0415
+
+        skip_unless_installed(request.param)
     return str(request.param)
 
 

@@ -1,6 +1,6 @@
-"""A component process never outlives its launcher, stopped or not, and what it starts ends with it
-(issue 36, item 11). Real processes: a launcher running ``spawning_recipe.py`` on Zenoh with the
-component in a process of its own, which starts two ``sleep`` processes (one orphaned at once)."""
+"""A component process never outlives its launcher, stopped or not, and what it starts ends with it, killed
+outright or not (issue 36, item 11). Real processes: a launcher running ``spawning_recipe.py`` on Zenoh with
+the component in a process of its own, which starts two ``sleep`` processes (one orphaned at once)."""
 
 from __future__ import annotations
 
@@ -107,3 +107,14 @@ def test_what_a_component_starts_ends_with_a_clean_stop(run: _Run) -> None:
     assert _gone_within([component], GONE_WITHIN_S) is not None
     assert _gone_within(sleeps, GONE_WITHIN_S) is not None, \
         f"processes {[p for p in sleeps if alive(p)]} started by the component outlived a clean stop"
+
+
+def test_what_a_component_starts_ends_when_the_component_is_killed_outright(run: _Run) -> None:
+    component, sleeps = run.started()
+    assert all(alive(p) for p in sleeps)
+    os.kill(component, signal.SIGKILL)  # it cannot end them itself: they are re-parented to the fork server
+    assert _gone_within([component], GONE_WITHIN_S) is not None
+    gone = _gone_within(sleeps, GONE_WITHIN_S)
+    assert gone is not None, f"processes {[p for p in sleeps if alive(p)]} started by the killed component outlived it"
+    print(f"a SIGKILLed component's processes gone {gone:.2f} s after it")
+    assert run.proc.poll() is None, "the launcher goes on (it gives up on the component)"

@@ -123,7 +123,9 @@ def _refused(call: Any, port: int) -> tuple[str, float, float]:
     message = str(info.value)
     assert "max_reply_bytes" in message and str(LIMIT) in message, message
     assert f"127.0.0.1:{port}" in message, message
-    return message, time.monotonic() - start, _maxrss_mb() - before
+    seconds, grown = time.monotonic() - start, _maxrss_mb() - before
+    print(f"refused in {seconds:.2f} s, RSS high-water +{grown:.0f} MB: {message[:160]}")
+    return message, seconds, grown
 
 
 @pytest.mark.parametrize("stream", [False, True])

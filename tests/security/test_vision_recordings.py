@@ -2,7 +2,8 @@
 clear error past it, and ``save_path`` confined to ``config.recordings_dir``.
 
 The calls arrive as any peer would send them: the component's ``execute_method`` service, on the
-memory transport and from a second Zenoh session over loopback TCP. The Vision model is a real
+memory transport, from a second Zenoh session over loopback TCP and from a second ROS 2
+participant (a private domain, discovery on this host). The Vision model is a real
 RoboML HTTP server double; the camera is a real publisher sending 640x480 frames at 30 Hz.
 """
 
@@ -29,6 +30,7 @@ from agents_core.launch.launcher import Launcher
 from agents_core.messages import ImageMsg
 from agents_core.models import VisionModel
 from agents_core.testing.helpers import free_tcp_port
+from agents_core.testing.pairs import private_ros_environment, skip_unless_installed
 from agents_core.topics import Topic
 
 from ..servers.roboml_server import RoboMLTestServer
@@ -37,12 +39,13 @@ pytestmark = pytest.mark.timeout(120)
 CAMERA = Topic("camera", "Image")
 
 
-@pytest.fixture(params=["memory", "zenoh"])
+@pytest.fixture(params=["memory", "zenoh", "ros2"])
 def peer(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[tuple[Vision, Any, Path]]:
     """A running Vision (recordings_dir inside tmp_path, max_recordings=2) fed by a camera, and the
     transport a peer calls it from."""
-    if request.param == "zenoh":
-        pytest.importorskip("zenoh")
+    if request.param != "memory":
+        skip_unless_installed(request.param)
+    domain = private_ros_environment() if request.param == "ros2" else None
     folder = tmp_path / "videos"
     with RoboMLTestServer() as server:
         client = RoboMLHTTPClient(VisionModel(name="eyes"), port=server.port)
@@ -51,6 +54,8 @@ def peer(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[tuple[Visio
         port = free_tcp_port()
         if request.param == "memory":
             launcher = Launcher("memory")
+        elif request.param == "ros2":
+            launcher = Launcher(transport="ros2", transport_options={"domain_id": domain})
         else:
             launcher = Launcher(transport="zenoh", transport_options={
                 "mode": "peer", "listen": [f"tcp/127.0.0.1:{port}"], "connect": [], "multicast_scouting": False})
@@ -70,6 +75,12 @@ def peer(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[tuple[Visio
             try:
                 if request.param == "memory":
                     yield vision, launcher.transport, folder
+                elif request.param == "ros2":  # a second DDS participant, as a peer process would be
+                    from agents_ros2.transport import Ros2Transport  # noqa: PLC0415
+
+                    with Ros2Transport(domain_id=domain) as other:
+                        time.sleep(1.0)
+                        yield vision, other, folder
                 else:
                     from agents_core.transport.registry import resolve_transport  # noqa: PLC0415
 
@@ -115,6 +126,8 @@ def test_recordings_past_the_bound_are_refused_with_a_clear_error(peer: tuple[Vi
         time.sleep(0.1)
     gifs = list(folder.glob("*.gif"))
     assert len(gifs) == 3, gifs
+    print(f"8 record_video calls: {len(accepted)} accepted, {len(refused)} refused; RSS high-water "
+          f"{before:.0f} -> {_maxrss_mb():.0f} MB")
     assert _maxrss_mb() - before < 600  # 2 recordings of 240 palette frames: ~150 MB; 8 unbounded: GBs
 
 

@@ -12,6 +12,15 @@ Two Linux mechanisms, both set by the component process itself at its start
   process, so one that was stopped (SIGSTOP, SIGTSTP) runs again and its own launcher watches
   (the end of its command pipe, its parent pid changing) stop it within the exit deadline. A
   SIGTERM sent to a stopped process waits until it is continued, which would never happen.
+
+A component process that dies without stopping (SIGKILL, a crash) cannot end what it started: its
+orphans are re-parented to the nearest subreaper above it. The fork server is one
+(:func:`become_subreaper`), so they become its children, and as it starts no process but the
+component processes, every other child it has is such an orphan: :class:`Orphans` ends them
+(SIGCONT, SIGTERM, SIGKILL after a grace) without blocking the server. A component process started
+as a fresh interpreter (``process_start="spawn"``) is the launcher's own child, and the launcher
+(the user's process) is not made a subreaper: there, the orphans of a component killed outright
+are left to init.
 """
 
 from __future__ import annotations
@@ -23,7 +32,7 @@ import signal
 import sys
 import time
 
-__all__ = ["descendants", "end_descendants", "guard_process"]
+__all__ = ["Orphans", "become_subreaper", "descendants", "end_descendants", "guard_process"]
 
 _PR_SET_PDEATHSIG = 1
 _PR_SET_CHILD_SUBREAPER = 36
@@ -44,6 +53,11 @@ def guard_process() -> bool:
     reaper = _prctl(_PR_SET_CHILD_SUBREAPER, 1)
     continued = _prctl(_PR_SET_PDEATHSIG, int(signal.SIGCONT))
     return reaper and continued
+
+
+def become_subreaper() -> bool:
+    """Make this process the subreaper of its descendants: their orphans are re-parented to it."""
+    return _prctl(_PR_SET_CHILD_SUBREAPER, 1)
 
 
 def _children(pid: int) -> list[int]:
@@ -103,3 +117,48 @@ def end_descendants(grace: float = 0.5) -> int:
         if not _gone(pid):
             _signal(pid, signal.SIGKILL)
     return len(pids)
+
+
+class Orphans:
+    """The children of this (subreaper) process that it did not start itself, ended without blocking.
+
+    :meth:`end` asks each one not in ``keep`` to end (SIGCONT, SIGTERM); :meth:`kill_due` sends SIGKILL
+    to those still there ``grace`` seconds later (:meth:`timeout` says when the next one is due). The
+    caller reaps its children and calls :meth:`reaped` for each, so that a pid the system hands out
+    again is never signalled.
+    """
+
+    def __init__(self, grace: float = 0.5) -> None:
+        self._grace = grace
+        self._ending: dict[int, float] = {}
+
+    def end(self, keep: set[int]) -> int:
+        """Start ending every child of this process not in ``keep``; how many new ones there were."""
+        now, found = time.monotonic(), 0
+        for pid in _children(os.getpid()):
+            if pid not in keep and pid not in self._ending:
+                _signal(pid, signal.SIGCONT)
+                _signal(pid, signal.SIGTERM)
+                self._ending[pid] = now + self._grace
+                found += 1
+        return found
+
+    def reaped(self, pid: int) -> None:
+        """``pid`` (a child of this process) was reaped: never signalled again."""
+        self._ending.pop(pid, None)
+
+    def timeout(self) -> float | None:
+        """Seconds until the next SIGKILL is due; None when none is."""
+        return max(0.0, min(self._ending.values()) - time.monotonic()) if self._ending else None
+
+    def kill_due(self, now: float | None = None) -> None:
+        """SIGKILL the ones whose grace is over (each once; it stays listed until it is reaped)."""
+        now = time.monotonic() if now is None else now
+        for pid, due in list(self._ending.items()):
+            if now >= due:
+                _signal(pid, signal.SIGKILL)
+                self._ending[pid] = float("inf")
+
+    def kill_all(self) -> None:
+        """SIGKILL every one still being ended (the server is about to exit)."""
+        self.kill_due(float("inf"))

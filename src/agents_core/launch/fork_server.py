@@ -45,7 +45,9 @@ The spec (which may hold secrets) is never seen by the server: the launcher writ
 component's command pipe, as for a spawned process. A forked component process's argv and
 environment are the server's (no secret in either). It dies with the launcher: its command pipe
 ends (only the launcher holds the write end), the server exits when its socket ends and each
-forked process has ``PR_SET_PDEATHSIG`` set towards the server.
+forked process has ``PR_SET_PDEATHSIG`` set towards the server. The server is the subreaper of
+its component processes: what one started is re-parented to the server if it dies without ending
+it (SIGKILL, a crash), and the server ends it (:class:`~.descendants.Orphans`).
 
 Opt out with ``AGENTS_PROCESS_START=spawn`` (or ``Launcher(process_start="spawn")``); where
 fork or descriptor passing is not available (not Linux) the spawn path is used anyway.
@@ -71,6 +73,7 @@ import time
 from collections.abc import Callable, Iterable
 from typing import IO, Any
 
+from .descendants import Orphans, become_subreaper
 from .process_start import PROCESS_START_ENV, fork_available, process_start
 
 __all__ = [
@@ -405,31 +408,59 @@ def _fork() -> int:
     return pid
 
 
-def _reap(sock: socket.socket) -> None:
+def _reap(sock: socket.socket, forked: set[int], orphans: Orphans) -> None:
+    """Reap every child that ended: a component process's end is told to the launcher; then the orphans of
+    a component process that died without ending them (re-parented to this subreaper) are ended."""
+    reaped = False
     while True:
         try:
             pid, status = os.waitpid(-1, os.WNOHANG)
         except ChildProcessError:
-            return
+            break
         if pid == 0:
-            return
+            break
+        reaped = True
+        if pid not in forked:  # an orphan this server adopted and ended
+            orphans.reaped(pid)
+            continue
+        forked.discard(pid)
         with contextlib.suppress(OSError):
             sock.send(json.dumps({"exit": pid, "status": os.waitstatus_to_exitcode(status)}).encode())
+    if reaped:
+        orphans.end(keep=forked)
 
 
-def serve(sock: socket.socket, baseline_threads: int) -> tuple[int, int, str] | None:
-    """Answer requests until the launcher's end closes (None); in a forked child, its descriptors and name."""
+def _wakeup_pipe() -> tuple[int, int]:
+    """A pipe that SIGCHLD writes to (``signal.set_wakeup_fd``): its read and write ends."""
     wake_read, wake_write = os.pipe()
     os.set_blocking(wake_read, False)
     os.set_blocking(wake_write, False)
     signal.set_wakeup_fd(wake_write)
     signal.signal(signal.SIGCHLD, lambda *_: None)  # a handler, so that SIGCHLD writes to the wakeup fd
+    return wake_read, wake_write
+
+
+def _leave_server(sock: socket.socket, *wake: int) -> None:
+    """In a forked child: drop what was the server's (its SIGCHLD wake-up, its socket)."""
+    signal.set_wakeup_fd(-1)
+    signal.signal(signal.SIGCHLD, signal.SIG_DFL)
+    for fd in wake:
+        os.close(fd)
+    sock.close()
+
+
+def serve(sock: socket.socket, baseline_threads: int) -> tuple[int, int, str] | None:
+    """Answer requests until the launcher's end closes (None); in a forked child, its descriptors and name."""
+    wake_read, wake_write = _wakeup_pipe()
+    forked: set[int] = set()  # the component processes this server forked and has not reaped
+    orphans = Orphans()
     while True:
-        ready = select.select([sock.fileno(), wake_read], [], [])[0]
+        ready = select.select([sock.fileno(), wake_read], [], [], orphans.timeout())[0]
+        orphans.kill_due()
         if wake_read in ready:
             with contextlib.suppress(BlockingIOError):
                 os.read(wake_read, 4096)
-            _reap(sock)
+            _reap(sock, forked, orphans)
         if sock.fileno() not in ready:
             continue
         try:
@@ -437,6 +468,7 @@ def serve(sock: socket.socket, baseline_threads: int) -> tuple[int, int, str] | 
         except OSError:
             data, fds = b"", []
         if not data:
+            orphans.kill_all()
             return None  # the launcher is gone or done: the component processes see their pipes end
         try:
             request = json.loads(data)
@@ -462,13 +494,10 @@ def serve(sock: socket.socket, baseline_threads: int) -> tuple[int, int, str] | 
                 pid = -1
                 reply["error"] = f"cannot fork: {exc}"
             if pid == 0:
-                signal.set_wakeup_fd(-1)
-                signal.signal(signal.SIGCHLD, signal.SIG_DFL)
-                for fd in (wake_read, wake_write):
-                    os.close(fd)
-                sock.close()
+                _leave_server(sock, wake_read, wake_write)
                 return fds[0], fds[1], str(request.get("name", ""))
             if pid > 0:
+                forked.add(pid)
                 reply["pid"] = pid
         for fd in fds:
             os.close(fd)
@@ -482,6 +511,7 @@ def main(argv: list[str] | None = None) -> int:
     # Ctrl-C reaches the whole process group: the launcher decides when the server ends.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     server_pid = os.getpid()
+    become_subreaper()  # the orphans of a component process killed outright come here, to be ended
     sock = socket.socket(fileno=args.socket_fd)
     for name in BASE_MODULES:
         importlib.import_module(name)

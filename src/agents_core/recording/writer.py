@@ -182,6 +182,7 @@ class McapSeriesWriter:
         path.parent.mkdir(parents=True, exist_ok=True)
         self._stream = _CheckedFile(path)
         self.files.append(path)
+        self._good = 0  # nothing of this file is good yet: a failed start leaves no bytes behind
         self._writer = self._mcap.Writer(self._stream, chunk_size=self._chunk_size, compression=self._compression)
         self._writer.start(profile="ros2", library="agents_core")
         self._good = self._stream.tell()
@@ -214,6 +215,9 @@ class McapSeriesWriter:
             with contextlib.suppress(OSError):  # else the file keeps a torn end; a reader stops there
                 stream.cut(self._good)
             stream.close()
+            if self._good == 0 and self.files:  # a file that failed at its start holds nothing: not kept
+                with contextlib.suppress(OSError):
+                    self.files.pop().unlink()
         now = time.monotonic()
         self._last_attempt = now
         if self._failing_since is None:

@@ -47,7 +47,7 @@ from .config import CortexConfig
 from .dispatch import Dispatcher
 from .executor import Executor
 from .monitor import HealthWatch
-from .peers import DescribeRefused, allowed, checked_description
+from .peers import DescribeRefused, allowed, as_data, checked_description
 from .planner import PLANNING_PROMPT, Planner
 from .tools import INSPECT, Tool, ToolBox, goal_schema
 from .transfer import ACTION_CODEC  # noqa: F401  (registers how its actions cross to a component process)
@@ -417,10 +417,11 @@ class Cortex(ModelComponent):
     def _rag_context(self, task: str) -> str | None:
         if not (self.config.enable_rag and self.db_client is not None):
             return None
-        found = self.db_client.query({"collection_name": self.config.collection_name or self.component_name,
-                                      "query": task, "n_results": self.config.n_results})
+        collection = self.config.collection_name or self.component_name
+        found = self.db_client.query({"collection_name": collection, "query": task, "n_results": self.config.n_results})
         documents = list(found.get("documents") or [])
-        return "\n".join(f"- {d}" for d in documents) or None
+        # What the database holds came from somewhere (a topic, a peer): data for the planner, never instructions.
+        return as_data(f"database:{collection}", "\n".join(f"- {d}" for d in documents)) if documents else None
 
     # -- ModelComponent hooks -----------------------------------------------------------------------
 

@@ -17,6 +17,7 @@ import threading
 from typing import TYPE_CHECKING, Any
 
 from ...transport.goals import GoalClient, GoalStatus
+from .peers import as_data
 from .tools import Tool
 
 if TYPE_CHECKING:
@@ -137,16 +138,17 @@ class Dispatcher:
             return [g.component for g in self._running if not g.client.done]
 
     def goal_report(self) -> str:
-        """The goals of this task, one line each (status, latest feedback or result)."""
+        """The goals of this task, one line each (status, latest feedback or result, marked as data)."""
         with self._lock:
             goals = list(self._running)
         lines = []
         for g in goals:
             if g.client.done:
                 status, result = g.client.result(0.0)
-                lines.append(f"- {g.tool}: {status.name}, result {_text(result)}")
-            else:
-                extra = f", latest feedback {_text(g.last_feedback)}" if g.last_feedback else ""
+                lines.append(f"- {g.tool}: {status.name}, result {as_data(f'{g.tool} result', _text(result))}")
+            else:  # what the action server sends is marked as its data, as tool results are
+                extra = (f", latest feedback {as_data(f'{g.tool} feedback', _text(g.last_feedback))}"
+                         if g.last_feedback else "")
                 lines.append(f"- {g.tool}: {g.client.status.name} (running){extra}")
         return "\n".join(lines)
 
