@@ -14,6 +14,11 @@ sessions on loopback; two ROS 2 contexts, so DDS discovers them as two processes
   single-threaded executor;
 - memory: the framework only (there is no raw library to compare with).
 
+The framework is measured twice: with the feedback callback on a thread of the goal's own (the
+default, payload ``goal_<n>_feedbacks``) and with ``send_goal(..., feedback_inline=True)`` (on the
+thread that receives the goal's events, no hand-off: payload ``goal_<n>_feedbacks_inline``, with the
+same raw measurement as its baseline).
+
 The time of a goal is from sending it to holding its result; the feedback is then collected
 (bounded) and what never came is recorded as ``feedback_lost`` (ROS 2 drops feedback that arrives
 after the result, in raw rclpy as in the framework). Records carry ``rtt`` (median / p99 in µs,
@@ -88,7 +93,7 @@ def _pair(transport: str, domain: int | None) -> tuple[Any, Any]:
     return Ros2Transport(domain_id=domain), Ros2Transport(domain_id=domain)
 
 
-def framework(transport: str, goals: int, feedbacks: int, domain: int | None) -> list[int]:
+def framework(transport: str, goals: int, feedbacks: int, domain: int | None, inline: bool = False) -> list[int]:
     a, b = _pair(transport, domain)
 
     def execute(handle: Any) -> dict[str, Any]:
@@ -111,7 +116,7 @@ def framework(transport: str, goals: int, feedbacks: int, domain: int | None) ->
         def one() -> threading.Semaphore:
             got = threading.Semaphore(0)
             goal = b.send_goal("bench_goal", VLA, {"task": "t", "max_steps": feedbacks},
-                               feedback=lambda fb: got.release())
+                               feedback=lambda fb: got.release(), feedback_inline=inline)
             goal.result(30.0)
             return got
 
@@ -237,17 +242,22 @@ def raw_ros2(goals: int, feedbacks: int, domain: int | None) -> list[int]:
 
 
 def run_child(transport: str, goals: int, feedbacks: int, domain: int | None) -> None:
-    modes: list[tuple[str, Callable[[], list[int]]]] = [
-        ("framework", lambda: framework(transport, goals, feedbacks, domain))]
+    payload = f"goal_{feedbacks}_feedbacks"
+    modes: list[tuple[str, str, Callable[[], list[int]]]] = [
+        ("framework", payload, lambda: framework(transport, goals, feedbacks, domain)),
+        ("framework", f"{payload}_inline", lambda: framework(transport, goals, feedbacks, domain, inline=True))]
     if transport == "zenoh":
-        modes.insert(0, ("raw", lambda: raw_zenoh(goals, feedbacks)))
+        modes.insert(0, ("raw", payload, lambda: raw_zenoh(goals, feedbacks)))
     elif transport == "ros2":
-        modes.insert(0, ("raw", lambda: raw_ros2(goals, feedbacks, domain)))
-    for mode, measure in modes:
+        modes.insert(0, ("raw", payload, lambda: raw_ros2(goals, feedbacks, domain)))
+    for mode, name, measure in modes:
         samples = measure()
-        emit({"suite": "goals", "transport": transport, "payload": f"goal_{feedbacks}_feedbacks", "mode": mode,
-              "rtt": summarize_ns(samples), "goals": goals, "feedbacks": feedbacks, "feedback_lost": Lost.count})
-        log(f"goals {transport} {mode} done")
+        record = {"suite": "goals", "transport": transport, "payload": name, "mode": mode,
+                  "rtt": summarize_ns(samples), "goals": goals, "feedbacks": feedbacks, "feedback_lost": Lost.count}
+        emit(record)
+        if mode == "raw":  # the baseline of the inline figure too (the same measurement)
+            emit({**record, "payload": f"{payload}_inline"})
+        log(f"goals {transport} {mode} {name} done")
 
 
 def run_suite(transports: list[str], settings: dict[str, Any], children: Children, ros_domain: int,
@@ -267,7 +277,8 @@ def run_suite(transports: list[str], settings: dict[str, Any], children: Childre
             children.stop(child)
             records += got
             for r in got:
-                progress(f"{'goals':<10} {transport:<6} {r['mode']:<9} {r['rtt']['median_us']:10.1f} us median")
+                progress(f"{'goals':<10} {transport:<6} {r['mode']:<9} {r['payload']:<26} "
+                         f"{r['rtt']['median_us']:10.1f} us median")
         except ChildFailed as exc:
             progress(f"goals {transport}: FAILED: {str(exc).splitlines()[0]}")
             skipped.append({"suite": "goals", "transport": transport, "mode": "both", "reason": str(exc)[-1500:]})
