@@ -17,7 +17,9 @@ sessions on loopback; two ROS 2 contexts, so DDS discovers them as two processes
 The framework is measured twice: with the feedback callback on a thread of the goal's own (the
 default, payload ``goal_<n>_feedbacks``) and with ``send_goal(..., feedback_inline=True)`` (on the
 thread that receives the goal's events, no hand-off: payload ``goal_<n>_feedbacks_inline``, with the
-same raw measurement as its baseline).
+same raw measurement as its baseline). On Zenoh also with the server in a child process and the client
+here, raw and framework alike (payload ``goal_<n>_feedbacks_processes``): as deployments run them, with
+no GIL shared between the two sides.
 
 The time of a goal is from sending it to holding its result; the feedback is then collected
 (bounded) and what never came is recorded as ``feedback_lost`` (ROS 2 drops feedback that arrives
@@ -93,16 +95,27 @@ def _pair(transport: str, domain: int | None) -> tuple[Any, Any]:
     return Ros2Transport(domain_id=domain), Ros2Transport(domain_id=domain)
 
 
-def framework(transport: str, goals: int, feedbacks: int, domain: int | None, inline: bool = False) -> list[int]:
-    a, b = _pair(transport, domain)
-
+def _framework_server(transport: Any, feedbacks: int) -> None:
     def execute(handle: Any) -> dict[str, Any]:
         for step in range(feedbacks):
             handle.publish_feedback({"step": step, "action": [0.1, 0.2, 0.3], "status": "moving"})
         return {"success": True, "steps": feedbacks}
 
+    transport.create_action_server("bench_goal", VLA, execute)
+
+
+def framework(transport: str, goals: int, feedbacks: int, domain: int | None, inline: bool = False,
+              server_port: int | None = None) -> list[int]:
+    """The framework's goals; ``server_port``: the server runs in another process (see :func:`serve`)."""
+    if server_port is None:
+        a, b = _pair(transport, domain)
+        _framework_server(a, feedbacks)
+    else:
+        from agents_zenoh.transport import ZenohTransport  # noqa: PLC0415
+
+        a = b = ZenohTransport(mode="peer", listen=[f"tcp/127.0.0.1:{free_tcp_port()}"],
+                               connect=[f"tcp/127.0.0.1:{server_port}"], multicast_scouting=False)
     try:
-        a.create_action_server("bench_goal", VLA, execute)
         deadline = time.monotonic() + 20
         while True:  # discovery on networked transports
             try:
@@ -127,15 +140,9 @@ def framework(transport: str, goals: int, feedbacks: int, domain: int | None, in
             a.close()
 
 
-def raw_zenoh(goals: int, feedbacks: int) -> list[int]:
+def _raw_server(server: Any, feedbacks: int) -> Any:
     import msgpack  # noqa: PLC0415
     import zenoh  # noqa: PLC0415
-
-    from .common import zenoh_raw_config  # noqa: PLC0415
-
-    port = free_tcp_port()
-    server = zenoh.open(zenoh_raw_config([f"tcp/127.0.0.1:{port}"], []))
-    client = zenoh.open(zenoh_raw_config([], [f"tcp/127.0.0.1:{port}"]))
 
     def serve(query: zenoh.Query) -> None:
         def run() -> None:
@@ -148,7 +155,20 @@ def raw_zenoh(goals: int, feedbacks: int) -> list[int]:
 
         threading.Thread(target=run, daemon=True).start()
 
-    queryable = server.declare_queryable("raw_goal/goal", serve)
+    return server.declare_queryable("raw_goal/goal", serve)
+
+
+def raw_zenoh(goals: int, feedbacks: int, server_port: int | None = None) -> list[int]:
+    """Raw zenoh goals; ``server_port``: the queryable runs in another process (see :func:`serve`)."""
+    import msgpack  # noqa: PLC0415
+    import zenoh  # noqa: PLC0415
+
+    from .common import zenoh_raw_config  # noqa: PLC0415
+
+    port = server_port or free_tcp_port()
+    server = zenoh.open(zenoh_raw_config([f"tcp/127.0.0.1:{port}"], [])) if server_port is None else None
+    client = zenoh.open(zenoh_raw_config([], [f"tcp/127.0.0.1:{port}"]))
+    queryable = _raw_server(server, feedbacks) if server is not None else None
     counter = iter(range(10**9))
     try:
         time.sleep(0.5)
@@ -169,9 +189,64 @@ def raw_zenoh(goals: int, feedbacks: int) -> list[int]:
             sub.undeclare()
         return samples
     finally:
-        queryable.undeclare()
+        if queryable is not None:
+            queryable.undeclare()
         client.close()
-        server.close()
+        if server is not None:
+            server.close()
+
+
+def serve(kind: str, port: int, feedbacks: int) -> None:
+    """The server side alone (``--serve raw|framework``), listening on ``port``; prints ``ready``, ends when
+    stdin closes (or after 600 s)."""
+    import zenoh  # noqa: PLC0415
+
+    from .common import zenoh_raw_config  # noqa: PLC0415
+
+    if kind == "raw":
+        session = zenoh.open(zenoh_raw_config([f"tcp/127.0.0.1:{port}"], []))
+        queryable = _raw_server(session, feedbacks)
+        close = lambda: (queryable.undeclare(), session.close())  # noqa: E731
+    else:
+        from agents_zenoh.transport import ZenohTransport  # noqa: PLC0415
+
+        transport = ZenohTransport(mode="peer", listen=[f"tcp/127.0.0.1:{port}"], connect=[],
+                                   multicast_scouting=False)
+        _framework_server(transport, feedbacks)
+        close = transport.close
+    print("ready", flush=True)
+    done = threading.Event()
+    threading.Thread(target=lambda: (sys.stdin.read(), done.set()), daemon=True).start()
+    done.wait(600)
+    close()
+
+
+def _in_another_process(kind: str, goals: int, feedbacks: int) -> list[int]:
+    """Goals to a server in a child process (``serve``), as deployments run them: no GIL shared."""
+    import subprocess  # noqa: PLC0415
+
+    port = free_tcp_port()
+    child = subprocess.Popen([sys.executable, "-m", "benchmarks.goals", "--transport", "zenoh", "--serve", kind,
+                              "--port", str(port), "--feedbacks", str(feedbacks)],
+                             stdin=subprocess.PIPE, stdout=subprocess.PIPE, env=child_env())
+    try:
+        assert child.stdout is not None
+        ready = threading.Event()
+        threading.Thread(target=lambda: (child.stdout.readline(), ready.set()), daemon=True).start()  # type: ignore[union-attr]
+        if not ready.wait(60):
+            raise RuntimeError(f"the {kind} goal server did not start")
+        if kind == "raw":
+            time.sleep(0.5)
+            return raw_zenoh(goals, feedbacks, server_port=port)
+        return framework("zenoh", goals, feedbacks, None, server_port=port)
+    finally:
+        if child.stdin is not None:
+            child.stdin.close()
+        try:
+            child.wait(10)
+        except subprocess.TimeoutExpired:
+            child.kill()
+            child.wait(5)
 
 
 def raw_ros2(goals: int, feedbacks: int, domain: int | None) -> list[int]:
@@ -248,6 +323,9 @@ def run_child(transport: str, goals: int, feedbacks: int, domain: int | None) ->
         ("framework", f"{payload}_inline", lambda: framework(transport, goals, feedbacks, domain, inline=True))]
     if transport == "zenoh":
         modes.insert(0, ("raw", payload, lambda: raw_zenoh(goals, feedbacks)))
+        # Client and server in two processes (each side's own GIL), raw then framework.
+        modes += [(mode, f"{payload}_processes", lambda kind=kind: _in_another_process(kind, goals, feedbacks))
+                  for mode, kind in (("raw", "raw"), ("framework", "framework"))]
     elif transport == "ros2":
         modes.insert(0, ("raw", payload, lambda: raw_ros2(goals, feedbacks, domain)))
     for mode, name, measure in modes:
@@ -255,7 +333,7 @@ def run_child(transport: str, goals: int, feedbacks: int, domain: int | None) ->
         record = {"suite": "goals", "transport": transport, "payload": name, "mode": mode,
                   "rtt": summarize_ns(samples), "goals": goals, "feedbacks": feedbacks, "feedback_lost": Lost.count}
         emit(record)
-        if mode == "raw":  # the baseline of the inline figure too (the same measurement)
+        if mode == "raw" and name == payload:  # the baseline of the inline figure too (the same measurement)
             emit({**record, "payload": f"{payload}_inline"})
         log(f"goals {transport} {mode} {name} done")
 
@@ -291,8 +369,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--goals", type=int, default=50)
     parser.add_argument("--feedbacks", type=int, default=10)
     parser.add_argument("--ros-domain", type=int, default=None)
+    parser.add_argument("--serve", choices=("raw", "framework"), help="the server side alone, in this process")
+    parser.add_argument("--port", type=int, default=0)
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.WARNING, stream=sys.stderr)
+    if args.serve:
+        serve(args.serve, args.port, args.feedbacks)
+        return 0
     run_child(args.transport, args.goals, args.feedbacks, args.ros_domain)
     return 0
 
