@@ -203,22 +203,28 @@ def serve(kind: str, port: int, feedbacks: int) -> None:
 
     from .common import zenoh_raw_config  # noqa: PLC0415
 
+    closing: list[Callable[[], Any]] = []
     if kind == "raw":
         session = zenoh.open(zenoh_raw_config([f"tcp/127.0.0.1:{port}"], []))
-        queryable = _raw_server(session, feedbacks)
-        close = lambda: (queryable.undeclare(), session.close())  # noqa: E731
+        closing += [_raw_server(session, feedbacks).undeclare, session.close]
     else:
         from agents_zenoh.transport import ZenohTransport  # noqa: PLC0415
 
         transport = ZenohTransport(mode="peer", listen=[f"tcp/127.0.0.1:{port}"], connect=[],
                                    multicast_scouting=False)
         _framework_server(transport, feedbacks)
-        close = transport.close
+        closing.append(transport.close)
     print("ready", flush=True)
     done = threading.Event()
-    threading.Thread(target=lambda: (sys.stdin.read(), done.set()), daemon=True).start()
+
+    def until_stdin_closes() -> None:
+        sys.stdin.read()
+        done.set()
+
+    threading.Thread(target=until_stdin_closes, daemon=True).start()
     done.wait(600)
-    close()
+    for close in closing:
+        close()
 
 
 def _in_another_process(kind: str, goals: int, feedbacks: int) -> list[int]:
@@ -230,9 +236,14 @@ def _in_another_process(kind: str, goals: int, feedbacks: int) -> list[int]:
                               "--port", str(port), "--feedbacks", str(feedbacks)],
                              stdin=subprocess.PIPE, stdout=subprocess.PIPE, env=child_env())
     try:
-        assert child.stdout is not None
         ready = threading.Event()
-        threading.Thread(target=lambda: (child.stdout.readline(), ready.set()), daemon=True).start()  # type: ignore[union-attr]
+        stdout = child.stdout
+
+        def until_ready() -> None:
+            if stdout is not None and stdout.readline():
+                ready.set()
+
+        threading.Thread(target=until_ready, daemon=True).start()
         if not ready.wait(60):
             raise RuntimeError(f"the {kind} goal server did not start")
         if kind == "raw":
@@ -324,8 +335,8 @@ def run_child(transport: str, goals: int, feedbacks: int, domain: int | None) ->
     if transport == "zenoh":
         modes.insert(0, ("raw", payload, lambda: raw_zenoh(goals, feedbacks)))
         # Client and server in two processes (each side's own GIL), raw then framework.
-        modes += [(mode, f"{payload}_processes", lambda kind=kind: _in_another_process(kind, goals, feedbacks))
-                  for mode, kind in (("raw", "raw"), ("framework", "framework"))]
+        modes += [("raw", f"{payload}_processes", lambda: _in_another_process("raw", goals, feedbacks)),
+                  ("framework", f"{payload}_processes", lambda: _in_another_process("framework", goals, feedbacks))]
     elif transport == "ros2":
         modes.insert(0, ("raw", payload, lambda: raw_ros2(goals, feedbacks, domain)))
     for mode, name, measure in modes:
