@@ -17,6 +17,13 @@ sessions on loopback; two ROS 2 contexts, so DDS discovers them as two processes
   zenoh's exchange above between two plain peers of such a router (the same topology);
 - memory: the framework only (there is no raw library to compare with).
 
+The framework is measured twice: with the feedback callback on a thread of the goal's own (the
+default, payload ``goal_<n>_feedbacks``) and with ``send_goal(..., feedback_inline=True)`` (on the
+thread that receives the goal's events, no hand-off: payload ``goal_<n>_feedbacks_inline``, with the
+same raw measurement as its baseline). On Zenoh also with the server in a child process and the client
+here, raw and framework alike (payload ``goal_<n>_feedbacks_processes``): as deployments run them, with
+no GIL shared between the two sides.
+
 The time of a goal is from sending it to holding its result; the feedback is then collected
 (bounded) and what never came is recorded as ``feedback_lost`` (ROS 2 drops feedback that arrives
 after the result, in raw rclpy as in the framework). Records carry ``rtt`` (median / p99 in µs,
@@ -106,17 +113,28 @@ def _pair(transport: str, domain: int | None, closers: list[Callable[[], Any]]) 
     return Ros2Transport(domain_id=domain), Ros2Transport(domain_id=domain)
 
 
-def framework(transport: str, goals: int, feedbacks: int, domain: int | None) -> list[int]:
-    closers: list[Callable[[], Any]] = []
-    a, b = _pair(transport, domain, closers)
-
+def _framework_server(transport: Any, feedbacks: int) -> None:
     def execute(handle: Any) -> dict[str, Any]:
         for step in range(feedbacks):
             handle.publish_feedback({"step": step, "action": [0.1, 0.2, 0.3], "status": "moving"})
         return {"success": True, "steps": feedbacks}
 
+    transport.create_action_server("bench_goal", VLA, execute)
+
+
+def framework(transport: str, goals: int, feedbacks: int, domain: int | None, inline: bool = False,
+              server_port: int | None = None) -> list[int]:
+    """The framework's goals; ``server_port``: the server runs in another process (see :func:`serve`)."""
+    closers: list[Callable[[], Any]] = []
+    if server_port is None:
+        a, b = _pair(transport, domain, closers)
+        _framework_server(a, feedbacks)
+    else:
+        from agents_zenoh.transport import ZenohTransport  # noqa: PLC0415
+
+        a = b = ZenohTransport(mode="peer", listen=[f"tcp/127.0.0.1:{free_tcp_port()}"],
+                               connect=[f"tcp/127.0.0.1:{server_port}"], multicast_scouting=False)
     try:
-        a.create_action_server("bench_goal", VLA, execute)
         deadline = time.monotonic() + 20
         while True:  # discovery on networked transports
             try:
@@ -130,7 +148,7 @@ def framework(transport: str, goals: int, feedbacks: int, domain: int | None) ->
         def one() -> threading.Semaphore:
             got = threading.Semaphore(0)
             goal = b.send_goal("bench_goal", VLA, {"task": "t", "max_steps": feedbacks},
-                               feedback=lambda fb: got.release())
+                               feedback=lambda fb: got.release(), feedback_inline=inline)
             goal.result(30.0)
             return got
 
@@ -143,22 +161,9 @@ def framework(transport: str, goals: int, feedbacks: int, domain: int | None) ->
             close()
 
 
-def raw_zenoh(goals: int, feedbacks: int, via_router: bool = False) -> list[int]:
-    """Raw zenoh's goal exchange; ``via_router``: between two peers of a router (rmw_zenoh's topology)."""
+def _raw_server(server: Any, feedbacks: int) -> Any:
     import msgpack  # noqa: PLC0415
     import zenoh  # noqa: PLC0415
-
-    from .common import zenoh_raw_config  # noqa: PLC0415
-
-    router = None
-    if via_router:
-        endpoint, router = _router()
-        server = zenoh.open(zenoh_raw_config(["tcp/127.0.0.1:0"], [endpoint]))
-        client = zenoh.open(zenoh_raw_config(["tcp/127.0.0.1:0"], [endpoint]))
-    else:
-        port = free_tcp_port()
-        server = zenoh.open(zenoh_raw_config([f"tcp/127.0.0.1:{port}"], []))
-        client = zenoh.open(zenoh_raw_config([], [f"tcp/127.0.0.1:{port}"]))
 
     def serve(query: zenoh.Query) -> None:
         def run() -> None:
@@ -171,7 +176,27 @@ def raw_zenoh(goals: int, feedbacks: int, via_router: bool = False) -> list[int]
 
         threading.Thread(target=run, daemon=True).start()
 
-    queryable = server.declare_queryable("raw_goal/goal", serve)
+    return server.declare_queryable("raw_goal/goal", serve)
+
+
+def raw_zenoh(goals: int, feedbacks: int, server_port: int | None = None, via_router: bool = False) -> list[int]:
+    """Raw zenoh goals; ``server_port``: the queryable runs in another process (see :func:`serve`);
+    ``via_router``: between two peers of a router (rmw_zenoh's topology)."""
+    import msgpack  # noqa: PLC0415
+    import zenoh  # noqa: PLC0415
+
+    from .common import zenoh_raw_config  # noqa: PLC0415
+
+    router = None
+    if via_router:
+        endpoint, router = _router()
+        server: Any = zenoh.open(zenoh_raw_config(["tcp/127.0.0.1:0"], [endpoint]))
+        client = zenoh.open(zenoh_raw_config(["tcp/127.0.0.1:0"], [endpoint]))
+    else:
+        port = server_port or free_tcp_port()
+        server = zenoh.open(zenoh_raw_config([f"tcp/127.0.0.1:{port}"], [])) if server_port is None else None
+        client = zenoh.open(zenoh_raw_config([], [f"tcp/127.0.0.1:{port}"]))
+    queryable = _raw_server(server, feedbacks) if server is not None else None
     counter = iter(range(10**9))
     try:
         time.sleep(0.5)
@@ -192,11 +217,77 @@ def raw_zenoh(goals: int, feedbacks: int, via_router: bool = False) -> list[int]
             sub.undeclare()
         return samples
     finally:
-        queryable.undeclare()
+        if queryable is not None:
+            queryable.undeclare()
         client.close()
-        server.close()
+        if server is not None:
+            server.close()
         if router is not None:
             router.close()
+
+
+def serve(kind: str, port: int, feedbacks: int) -> None:
+    """The server side alone (``--serve raw|framework``), listening on ``port``; prints ``ready``, ends when
+    stdin closes (or after 600 s)."""
+    import zenoh  # noqa: PLC0415
+
+    from .common import zenoh_raw_config  # noqa: PLC0415
+
+    closing: list[Callable[[], Any]] = []
+    if kind == "raw":
+        session = zenoh.open(zenoh_raw_config([f"tcp/127.0.0.1:{port}"], []))
+        closing += [_raw_server(session, feedbacks).undeclare, session.close]
+    else:
+        from agents_zenoh.transport import ZenohTransport  # noqa: PLC0415
+
+        transport = ZenohTransport(mode="peer", listen=[f"tcp/127.0.0.1:{port}"], connect=[],
+                                   multicast_scouting=False)
+        _framework_server(transport, feedbacks)
+        closing.append(transport.close)
+    print("ready", flush=True)
+    done = threading.Event()
+
+    def until_stdin_closes() -> None:
+        sys.stdin.read()
+        done.set()
+
+    threading.Thread(target=until_stdin_closes, daemon=True).start()
+    done.wait(600)
+    for close in closing:
+        close()
+
+
+def _in_another_process(kind: str, goals: int, feedbacks: int) -> list[int]:
+    """Goals to a server in a child process (``serve``), as deployments run them: no GIL shared."""
+    import subprocess  # noqa: PLC0415
+
+    port = free_tcp_port()
+    child = subprocess.Popen([sys.executable, "-m", "benchmarks.goals", "--transport", "zenoh", "--serve", kind,
+                              "--port", str(port), "--feedbacks", str(feedbacks)],
+                             stdin=subprocess.PIPE, stdout=subprocess.PIPE, env=child_env())
+    try:
+        ready = threading.Event()
+        stdout = child.stdout
+
+        def until_ready() -> None:
+            if stdout is not None and stdout.readline():
+                ready.set()
+
+        threading.Thread(target=until_ready, daemon=True).start()
+        if not ready.wait(60):
+            raise RuntimeError(f"the {kind} goal server did not start")
+        if kind == "raw":
+            time.sleep(0.5)
+            return raw_zenoh(goals, feedbacks, server_port=port)
+        return framework("zenoh", goals, feedbacks, None, server_port=port)
+    finally:
+        if child.stdin is not None:
+            child.stdin.close()
+        try:
+            child.wait(10)
+        except subprocess.TimeoutExpired:
+            child.kill()
+            child.wait(5)
 
 
 def raw_ros2(goals: int, feedbacks: int, domain: int | None) -> list[int]:
@@ -267,19 +358,27 @@ def raw_ros2(goals: int, feedbacks: int, domain: int | None) -> list[int]:
 
 
 def run_child(transport: str, goals: int, feedbacks: int, domain: int | None) -> None:
-    modes: list[tuple[str, Callable[[], list[int]]]] = [
-        ("framework", lambda: framework(transport, goals, feedbacks, domain))]
+    payload = f"goal_{feedbacks}_feedbacks"
+    modes: list[tuple[str, str, Callable[[], list[int]]]] = [
+        ("framework", payload, lambda: framework(transport, goals, feedbacks, domain)),
+        ("framework", f"{payload}_inline", lambda: framework(transport, goals, feedbacks, domain, inline=True))]
     if transport == "zenoh":
-        modes.insert(0, ("raw", lambda: raw_zenoh(goals, feedbacks)))
+        modes.insert(0, ("raw", payload, lambda: raw_zenoh(goals, feedbacks)))
+        # Client and server in two processes (each side's own GIL), raw then framework.
+        modes += [("raw", f"{payload}_processes", lambda: _in_another_process("raw", goals, feedbacks)),
+                  ("framework", f"{payload}_processes", lambda: _in_another_process("framework", goals, feedbacks))]
     elif transport == "ros2":
-        modes.insert(0, ("raw", lambda: raw_ros2(goals, feedbacks, domain)))
+        modes.insert(0, ("raw", payload, lambda: raw_ros2(goals, feedbacks, domain)))
     elif transport == "rmw_zenoh":
-        modes.insert(0, ("raw", lambda: raw_zenoh(goals, feedbacks, via_router=True)))
-    for mode, measure in modes:
+        modes.insert(0, ("raw", payload, lambda: raw_zenoh(goals, feedbacks, via_router=True)))
+    for mode, name, measure in modes:
         samples = measure()
-        emit({"suite": "goals", "transport": transport, "payload": f"goal_{feedbacks}_feedbacks", "mode": mode,
-              "rtt": summarize_ns(samples), "goals": goals, "feedbacks": feedbacks, "feedback_lost": Lost.count})
-        log(f"goals {transport} {mode} done")
+        record = {"suite": "goals", "transport": transport, "payload": name, "mode": mode,
+                  "rtt": summarize_ns(samples), "goals": goals, "feedbacks": feedbacks, "feedback_lost": Lost.count}
+        emit(record)
+        if mode == "raw" and name == payload:  # the baseline of the inline figure too (the same measurement)
+            emit({**record, "payload": f"{payload}_inline"})
+        log(f"goals {transport} {mode} {name} done")
 
 
 def run_suite(transports: list[str], settings: dict[str, Any], children: Children, ros_domain: int,
@@ -299,7 +398,8 @@ def run_suite(transports: list[str], settings: dict[str, Any], children: Childre
             children.stop(child)
             records += got
             for r in got:
-                progress(f"{'goals':<10} {transport:<6} {r['mode']:<9} {r['rtt']['median_us']:10.1f} us median")
+                progress(f"{'goals':<10} {transport:<6} {r['mode']:<9} {r['payload']:<26} "
+                         f"{r['rtt']['median_us']:10.1f} us median")
         except ChildFailed as exc:
             progress(f"goals {transport}: FAILED: {str(exc).splitlines()[0]}")
             skipped.append({"suite": "goals", "transport": transport, "mode": "both", "reason": str(exc)[-1500:]})
@@ -312,8 +412,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--goals", type=int, default=50)
     parser.add_argument("--feedbacks", type=int, default=10)
     parser.add_argument("--ros-domain", type=int, default=None)
+    parser.add_argument("--serve", choices=("raw", "framework"), help="the server side alone, in this process")
+    parser.add_argument("--port", type=int, default=0)
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.WARNING, stream=sys.stderr)
+    if args.serve:
+        serve(args.serve, args.port, args.feedbacks)
+        return 0
     run_child(args.transport, args.goals, args.feedbacks, args.ros_domain)
     return 0
 

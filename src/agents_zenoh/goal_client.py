@@ -68,6 +68,7 @@ class ZenohGoal:
         self._subscriber: Any = None
         self._thread: threading.Thread | None = None
         self._feedback_seen = 0
+        self._feedback_awaited = False
         self._feedback_cond = threading.Condition()
 
     # -- sending ---------------------------------------------------------------------------------
@@ -76,8 +77,10 @@ class ZenohGoal:
         """Send the goal on a stream query and wait (at most ``timeout``) for the server's decision."""
         started = time.monotonic()
         request = {"goal_id": self._goal_id, "goal": goal, "cancel_token": self._cancel_token, "stream_s": STREAM_S}
+        # indirect=False: the replies are read on Zenoh's thread (they never wait there), not on a
+        # Python thread zenoh-python would start for this query (a thread start per goal).
         self._context.session.get(self._context.goal_key(self._name, "stream"),
-                                  zenoh.handlers.Callback(self._on_reply, self._on_stream_end),
+                                  zenoh.handlers.Callback(self._on_reply, self._on_stream_end, indirect=False),
                                   payload=pack(request), encoding=MSGPACK, timeout=STREAM_S,
                                   consolidation=zenoh.ConsolidationMode.NONE, priority=CONTROL_PRIORITY,
                                   express=True)
@@ -147,9 +150,7 @@ class ZenohGoal:
                 if not isinstance(feedback, dict):
                     raise CodecError(f"feedback must be a map, got {type(feedback).__name__}")
                 self._events.feedback(feedback)
-                with self._feedback_cond:
-                    self._feedback_seen += 1
-                    self._feedback_cond.notify_all()
+                self._count_feedback()
             elif kind == KIND_STATUS:
                 self._events.status(GoalStatus(doc["status"]))
             elif kind == KIND_RESULT:
@@ -191,9 +192,7 @@ class ZenohGoal:
             key = str(sample.key_expr)
             if key == self._feedback_key:
                 self._events.feedback(doc)
-                with self._feedback_cond:
-                    self._feedback_seen += 1
-                    self._feedback_cond.notify_all()
+                self._count_feedback()
             elif key == self._result_key:
                 self._result_doc = doc  # the result thread reports it (Zenoh's thread must not wait)
                 self._result_sample.set()
@@ -257,12 +256,21 @@ class ZenohGoal:
             self._finished = True
         self._events.finished(status, result)
 
+    def _count_feedback(self) -> None:
+        # The condition is taken only while a result waits for feedback (see _await_feedback): the
+        # waiter sets the flag under it before it reads the count, so no increment goes unseen.
+        self._feedback_seen += 1
+        if self._feedback_awaited:
+            with self._feedback_cond:
+                self._feedback_cond.notify_all()
+
     def _await_feedback(self, sent: Any) -> None:
         """Let the feedback the server sent before the result arrive first (bounded)."""
         if isinstance(sent, bool) or not isinstance(sent, int):
             return
         deadline = time.monotonic() + FEEDBACK_GRACE_S
         with self._feedback_cond:
+            self._feedback_awaited = True
             while self._feedback_seen < sent and not self._done.is_set():
                 left = deadline - time.monotonic()
                 if left <= 0:

@@ -185,3 +185,19 @@ def test_a_scalar_head_with_anything_after_it_takes_the_full_path() -> None:
     # Too large for a scalar: the full path's error too.
     with pytest.raises(CodecError, match=r"out of range|Integer"):
         pack(2**70)
+
+
+def test_a_small_map_without_arrays_decodes_alone_and_one_with_them_or_past_a_limit_takes_the_full_path() -> None:
+    from agents_zenoh.codecs import framing  # noqa: PLC0415
+
+    doc = {"kind": "feedback", "feedback": {"step": 3, "action": [0.1, 0.2], "status": "moving"}}
+    assert framing.unpack(framing.pack(doc)) == doc
+    # A str that merely holds the marker's bytes goes down the full path and decodes the same.
+    marked = {"note": "__ndarray__", "n": [1, 2]}
+    assert framing.unpack(framing.pack(marked)) == marked
+    # Arrays after the document: the full path resolves them.
+    with_array = framing.unpack(framing.pack({"a": np.arange(4, dtype=np.int32), "b": {"c": 1}}))
+    assert with_array["a"].tolist() == [0, 1, 2, 3] and with_array["b"] == {"c": 1}
+    # A limit is still enforced, and named, for a map that the one C call refuses.
+    with pytest.raises(framing.CodecError, match="decode limit"):
+        framing.unpack(framing.pack({"xs": [1, 2, 3]}), framing.DecodeLimits(max_array_len=2))

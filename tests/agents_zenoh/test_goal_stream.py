@@ -282,3 +282,32 @@ def test_a_stream_request_with_a_nan_stream_s_gets_an_error_reply() -> None:
         ok, answer = peer.ask("stream", {**request, "stream_s": "long"})
         assert not ok and "stream_s must be a number of seconds" in answer["error"]
         assert server.statistics().decode_errors == 2 and server.statistics().accepted == 0
+
+
+@pytest.mark.parametrize("inline", [False, True])
+def test_stream_feedback_reaches_its_callback_in_order_on_the_thread_the_option_says(inline: bool) -> None:
+    # Default: a goal-feedback thread of the goal's own. feedback_inline=True: the thread that reads the
+    # stream's replies (Zenoh's own, not a Python thread started per goal), every message before the result.
+    with served_action() as (_server, client, _peer):
+        seen: list[tuple[int, str]] = []
+        goal = None
+        for _ in range(50):
+            try:
+                goal = client.send_goal(ACTION, VLA, {"task": "hold"}, timeout=5.0, feedback_inline=inline,
+                                        feedback=lambda fb: seen.append((fb["step"], threading.current_thread().name)))
+                break
+            except TransportError:
+                time.sleep(0.1)
+        assert goal is not None and goal.accepted
+        assert wait_for(lambda: len(seen) >= 3, timeout=10.0)
+        assert goal.cancel(5.0) is True
+        _status, result = goal.result(10.0)
+        if inline:
+            assert [s for s, _ in seen] == list(range(1, result["steps"] + 1))  # all in before the result
+        else:
+            assert wait_for(lambda: len(seen) == result["steps"], timeout=2.0)
+        names = {name for _, name in seen}
+        if inline:
+            assert not any(n.startswith(("goal-feedback", "Thread-", "arm_goal")) for n in names), names
+        else:
+            assert all(n.startswith("goal-feedback:") for n in names), names

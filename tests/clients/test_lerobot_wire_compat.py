@@ -5,10 +5,14 @@ field names), so a real LeRobot server and our client understand each other with
 from __future__ import annotations
 
 import base64
+import io
+import pickle
+import pickletools
 import subprocess
 import sys
 import textwrap
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -141,3 +145,47 @@ def test_payloads_round_trip_with_lerobots_dataclasses(tmp_path: Path) -> None:
     assert [type(a) for a in actions] == [wire.TimedAction] * 3
     assert [a.timestep for a in actions] == [4, 5, 6]
     assert actions[2].action.tolist() == [2.0, 2.0]
+
+
+def _pure(obj: Any) -> bytes:
+    buffer = io.BytesIO()
+    wire._LeRobotPickler(buffer, protocol=4).dump(obj)
+    return buffer.getvalue()
+
+
+class _AsLeRobot(pickle.Unpickler):
+    """Plain unpickling with LeRobot's class path resolved to ours (as a process with lerobot has it)."""
+
+    def find_class(self, module: str, name: str) -> Any:
+        if module == wire.LEROBOT_HELPERS:
+            return getattr(wire, name)
+        return super().find_class(module, name)
+
+
+def test_an_observation_is_pickled_by_the_c_pickler_to_what_the_pure_one_writes() -> None:
+    # The fast path (the state by the C pickler, the class around it by name) reads back, with plain
+    # pickle and with our reader, as the same object as the pure-Python pickler's bytes.
+    image = np.arange(224 * 224 * 3, dtype=np.uint8).reshape(224, 224, 3)
+    obs = wire.TimedObservation(timestamp=1.5, timestep=7, must_go=True,
+                                observation={"elbow": 0.5, "front": image, "task": "pick", "same": image})
+    fast = wire._dumps_fast(obs)
+    assert fast is not None and wire.dumps_payload(obs) == fast
+    assert fast.startswith(b"\x80\x04\x8c\x1flerobot.async_inference.helpers\x8c\x10TimedObservation\x93)\x81")
+    ops = [op.name for op, _arg, _pos in pickletools.genops(fast)]
+    assert ops[-2:] == ["BUILD", "STOP"] and ops.count("STOP") == 1
+    for data in (fast, _pure(obs)):
+        read = _AsLeRobot(io.BytesIO(data)).load()
+        assert type(read) is wire.TimedObservation and (read.timestamp, read.timestep, read.must_go) == (1.5, 7, True)
+        assert read.observation["task"] == "pick" and read.observation["front"].tobytes() == image.tobytes()
+        assert read.observation["same"] is read.observation["front"]  # the memo survives the splice
+    mine = wire.loads_payload(fast, max_bytes=1 << 22, what="observation")
+    assert type(mine) is wire.TimedObservation and mine.observation["front"].shape == (224, 224, 3)
+
+
+def test_a_payload_class_inside_a_payload_and_a_list_of_them_take_the_pure_pickler() -> None:
+    nested = wire.TimedObservation(timestamp=0.0, timestep=0, observation={"a": wire.TimedAction(0.0, 1, [1.0])})
+    assert wire._dumps_fast(nested) is None
+    assert wire._dumps_fast([wire.TimedAction(0.0, 1, [1.0])]) is None
+    assert wire.dumps_payload(nested) == _pure(nested)
+    read = _AsLeRobot(io.BytesIO(wire.dumps_payload(nested))).load()
+    assert type(read.observation["a"]) is wire.TimedAction

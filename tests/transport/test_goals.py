@@ -235,3 +235,30 @@ def test_a_goal_whose_acceptance_times_out_is_cancelled() -> None:
         assert wait_for(lambda: server.statistics().rejected == 1, timeout=5.0)
         assert server.statistics().accepted == 0 and ran == []
         t.close()
+
+
+def test_inline_feedback_runs_on_the_driver_thread_in_order_and_a_raising_one_is_contained() -> None:
+    # feedback_inline=True: no queue, no goal-feedback thread; on memory the driver's thread is the
+    # server's goal thread. Every message comes, in order, before the result; a raising callback is logged.
+    threads: list[str] = []
+    steps: list[int] = []
+
+    def callback(fb: dict[str, Any]) -> None:
+        threads.append(threading.current_thread().name)
+        steps.append(fb["step"])
+        if fb["step"] == 3:
+            raise ValueError("bad callback")
+
+    def execute(h: GoalHandle) -> dict[str, Any]:
+        for i in range(goal_serving.FEEDBACK_QUEUE_DEPTH + 20):
+            h.publish_feedback({"step": i})
+        return {"success": True}
+
+    with MemoryTransport() as t:
+        t.create_action_server("arm", VLA, execute)
+        goal = t.send_goal("arm", VLA, {"task": "x"}, feedback=callback, feedback_inline=True)
+        assert goal.result(5.0)[0] == GoalStatus.SUCCEEDED
+        assert steps == list(range(goal_serving.FEEDBACK_QUEUE_DEPTH + 20))  # nothing dropped, none after the result
+        assert goal.feedback_dropped == 0
+        assert threads and all(name.startswith("arm:goal:") for name in threads), set(threads)
+        t.close()

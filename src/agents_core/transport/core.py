@@ -533,22 +533,22 @@ class DriverTransport:
                 del self._action_servers[server.name]
 
     def send_goal(self, name: str, action_type_name: str | ActionType, goal: dict[str, Any], *,
-                  feedback: Callable[[dict[str, Any]], None] | None = None, timeout: float = 5.0) -> GoalClient:
+                  feedback: Callable[[dict[str, Any]], None] | None = None, timeout: float = 5.0,
+                  feedback_inline: bool = False) -> GoalClient:
         """Send ``goal`` to the action ``name`` and wait up to ``timeout`` for it to be accepted or rejected.
 
         Returns a :class:`~agents_core.transport.goals.GoalClient` (a rejected goal comes back
-        with status REJECTED and the reason in its result). ``feedback`` is called with each
-        feedback dict on a thread of the goal's own. Raises
-        :class:`~agents_core.errors.TypeValidationError` for a goal that does not fit the type,
-        :class:`~agents_core.errors.ServiceUnavailableError` when nobody serves ``name``,
-        :class:`~agents_core.errors.RequestTimeoutError` when the server does not answer in time.
-        """
+        with status REJECTED and the reason in its result). ``feedback`` is called with each feedback
+        dict on a thread of the goal's own (``feedback_inline=True``: on the driver's, no hand-off, for a
+        callback that returns at once; see :func:`.goal_serving.send_goal`). Raises TypeValidationError
+        (a goal that does not fit the type), ServiceUnavailableError (nobody serves ``name``),
+        RequestTimeoutError (the server does not answer in time), from :mod:`agents_core.errors`."""
         validate_topic_name(name, "action")
         timeout = check_timeout(timeout, f"goal to {name!r}")
         definition = action_type(action_type_name)
         self._check_open(f"send a goal to {name!r}")
-        driver = self._action_driver(f"send a goal to {name!r}")
-        client, handle = _send_goal(driver, name, definition, goal, feedback, timeout, self._forget_goal)
+        client, handle = _send_goal(self._action_driver(f"send a goal to {name!r}"), name, definition, goal,
+                                    feedback, timeout, self._forget_goal, feedback_inline)
         with self._lock:
             closed = self._closed
             if not closed and not client.done:

@@ -339,7 +339,8 @@ class GoalEvents(Protocol):
     """Where a driver hands what arrives for one sent goal; return at once, never raise."""
 
     def feedback(self, feedback: Any) -> None:
-        """Feedback as decoded (the core validates it)."""
+        """Feedback as decoded (the core validates it; a goal sent with ``feedback_inline=True`` runs
+        its callback within this call, on the driver's thread: it returns when the callback does)."""
         ...
 
     def status(self, status: GoalStatus) -> None:

@@ -374,9 +374,11 @@ class _FeedbackDelivery:
     Drops are counted in the client's ``feedback_dropped``.
     """
 
-    def __init__(self, client: GoalClient, callback: Callable[[dict[str, Any]], None]) -> None:
+    def __init__(self, client: GoalClient, callback: Callable[[dict[str, Any]], None], inline: bool = False) -> None:
         self._client = client
         self._callback = callback
+        # Called on the caller's thread (the driver's), no queue: see Transport.send_goal's feedback_inline.
+        self._inline = inline
         self._lock = threading.Lock()
         self._items: collections.deque[dict[str, Any]] = collections.deque()
         self._draining = False
@@ -385,6 +387,10 @@ class _FeedbackDelivery:
 
     def offer(self, feedback: dict[str, Any]) -> None:
         """Queue ``feedback`` (never blocks); the oldest waiting one goes when the queue is full."""
+        if self._inline:
+            if not self._stopped:
+                self._call(feedback)
+            return
         with self._lock:
             if self._stopped:
                 return
@@ -406,11 +412,14 @@ class _FeedbackDelivery:
                     self._draining = False
                     return
                 item = self._items.popleft()
-            try:
-                self._callback(item)
-            except Exception as exc:
-                logger.warning("feedback callback of goal %s raised %s: %s", self._client.goal_id,
-                               type(exc).__name__, exc)
+            self._call(item)
+
+    def _call(self, item: dict[str, Any]) -> None:
+        try:
+            self._callback(item)
+        except Exception as exc:
+            logger.warning("feedback callback of goal %s raised %s: %s", self._client.goal_id,
+                           type(exc).__name__, exc)
 
     def stop(self, *, discard: bool = False) -> int:
         """No more feedback comes: what waits is still delivered (or, ``discard=True``, dropped); returns
@@ -479,8 +488,13 @@ def new_goal_id() -> str:
 
 def send_goal(driver: TransportDriver, name: str, definition: ActionType, goal: Any,
               feedback: Callable[[dict[str, Any]], None] | None, timeout: float,
-              on_done: Callable[[GoalClient], None]) -> tuple[GoalClient, DriverGoal]:
+              on_done: Callable[[GoalClient], None], inline: bool = False) -> tuple[GoalClient, DriverGoal]:
     """Validate ``goal``, send it through ``driver`` and wait for its acceptance (see ``Transport.send_goal``).
+
+    ``feedback`` runs on a thread of the goal's own, behind a bounded queue (a slow callback never
+    holds up the result). With ``inline`` it runs on the thread that hands the driver's events in
+    (Zenoh's, the ROS 2 executor's, the server's goal thread on memory) with no hand-off: for a
+    callback that returns at once, as the goal's later feedback and its result wait behind it.
 
     A rejected goal comes back finished with :attr:`GoalStatus.REJECTED` and the reason in the
     result's ``message`` (when the type has one).
@@ -489,7 +503,7 @@ def send_goal(driver: TransportDriver, name: str, definition: ActionType, goal: 
     if feedback is not None and not callable(feedback):
         raise ComponentError(f"send_goal to {name!r}: feedback must be callable or None, got {feedback!r}")
     client = GoalClient(new_goal_id(), name, definition)
-    delivery = _FeedbackDelivery(client, feedback) if feedback is not None else None
+    delivery = _FeedbackDelivery(client, feedback, inline) if feedback is not None else None
     events = _ClientEvents(client, delivery)
     client._when_done(events.stop)
     try:

@@ -43,6 +43,7 @@ MSGPACK = "application/msgpack"
 
 #: The key that marks a map of the document as a numpy array.
 NDARRAY_KEY = "__ndarray__"
+_NDARRAY_BYTES = NDARRAY_KEY.encode()
 # Simple numeric dtypes only ("<f4", "|u1", ">i8", ...): a dtype string from the wire must never
 # describe a structured or object dtype.
 _DTYPE_RE = re.compile(r"^[<>|=][biufc][1-9][0-9]?$")
@@ -164,6 +165,14 @@ def unpack(payload: bytes | bytearray | memoryview, limits: DecodeLimits | None 
         # A small scalar document (a String, a number: what most topics carry): one C call,
         # no object hook needed. Anything else it meets (trailing arrays, a limit, bad bytes)
         # goes down the full path, which decides and names what is wrong.
+        try:
+            return msgpack.unpackb(payload, **limits._options)
+        except Exception:
+            pass
+    elif type(payload) is bytes and 0 < len(payload) < limits._uncounted_below and _NDARRAY_BYTES not in payload:
+        # A small map or list without an array in it (no "__ndarray__" anywhere in its bytes, so no map
+        # for the hook to resolve): one C call without the Python object hook per map (goal replies,
+        # requests). Anything it does not read alone (trailing arrays, a limit) takes the full path.
         try:
             return msgpack.unpackb(payload, **limits._options)
         except Exception:

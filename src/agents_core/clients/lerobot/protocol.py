@@ -174,8 +174,57 @@ class _LeRobotPickler(_PurePickler):  # type: ignore[misc]  # an untyped base, o
         self.memoize(obj)
 
 
+class _NestedPayload(Exception):
+    """A payload class inside the state: the C pickler would write it under this module's path."""
+
+
+class _StatePickler(pickle.Pickler):
+    """The C pickler, refusing payload classes (only :func:`_dumps_fast` uses it, on a payload's state)."""
+
+    def reducer_override(self, obj: Any) -> Any:
+        if type(obj) in _PAYLOAD_CLASSES or (isinstance(obj, type) and obj in _PAYLOAD_CLASSES):
+            raise _NestedPayload
+        return NotImplemented
+
+
+def _dumps_fast(obj: Any) -> bytes | None:
+    """``obj`` as the pure-Python pickler writes it, with the C pickler (~8x faster on an observation).
+
+    The C pickler cannot write a class under LeRobot's path (it imports the module to check it), so it
+    pickles only the object's state, and the object around it is written here: the class by name
+    (STACK_GLOBAL), ``copyreg.__newobj__``'s NEWOBJ with no arguments, then BUILD of that state, the
+    same opcodes a dataclass pickles to, less their two MEMOIZE (the state's own memo indices then
+    start at 0, as in its pickle). The state's STOP becomes the BUILD, inside the state's last frame.
+    None when this does not apply (a payload class inside the state): the pure-Python pickler then.
+    """
+    name = _PAYLOAD_CLASSES.get(type(obj))
+    if name is None:
+        return None
+    buffer = io.BytesIO()
+    try:
+        _StatePickler(buffer, protocol=4).dump(vars(obj))
+    except _NestedPayload:
+        return None
+    state = buffer.getbuffer()
+    if bytes(state[:2]) != _PROTO4 or state[-1] != pickle.STOP[0]:
+        return None
+    return b"".join((_PROTO4, _short_str(LEROBOT_HELPERS), _short_str(name), pickle.STACK_GLOBAL,
+                     pickle.EMPTY_TUPLE, pickle.NEWOBJ, state[2:-1], pickle.BUILD, pickle.STOP))
+
+
+_PROTO4 = pickle.PROTO + bytes([4])
+
+
+def _short_str(text: str) -> bytes:
+    raw = text.encode()
+    return pickle.SHORT_BINUNICODE + bytes([len(raw)]) + raw
+
+
 def dumps_payload(obj: Any) -> bytes:
     """Pickle ``obj`` (protocol 4) with the payload classes under LeRobot's class paths."""
+    fast = _dumps_fast(obj)
+    if fast is not None:
+        return fast
     buffer = io.BytesIO()
     _LeRobotPickler(buffer, protocol=4).dump(obj)
     return buffer.getvalue()
