@@ -32,8 +32,6 @@ def test_a_router_whose_database_is_down_stays_up_and_retries(tmp_path: Path) ->
             pytest.skip(f"{module} is not installed")
     if not Path(sys.executable).with_name("chroma").exists():
         pytest.skip("no `chroma` executable beside this Python")
-    from agents_core.example_servers import example_servers  # noqa: PLC0415
-
     chroma_port, embeddings_port, llm_port = free_tcp_port(), free_tcp_port(), free_tcp_port()
     embedder = GenericHTTPClient(GenericLLM(name="embeddings", checkpoint="embeddings"), port=embeddings_port)
     db = ChromaClient(ChromaDB(name="routes", collection_name="routes", distance_func="cosine"), port=chroma_port,
@@ -57,6 +55,8 @@ def test_a_router_whose_database_is_down_stays_up_and_retries(tmp_path: Path) ->
         requests.publish("please drive to the kitchen")  # fails: the database is still down
         time.sleep(1.0)
         assert routed == [] and router.lifecycle_state.value == "active"
+        from agents_core.example_servers import example_servers  # noqa: PLC0415  (here: the above needs none)
+
         with example_servers(chroma_port, embeddings_port, db_path=tmp_path / "db", log_dir=tmp_path):
             def asked() -> bool:
                 requests.publish("please drive to the kitchen")
