@@ -21,8 +21,9 @@ import contextlib
 import logging
 import os
 import sys
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from types import TracebackType
+from typing import Any
 
 from ..errors import AgentsError
 from .report import already_reported
@@ -63,13 +64,16 @@ def short_errors() -> Iterator[None]:
         raise SystemExit(1) from None
 
 
-def _uncaught(previous: object) -> object:
+_Hook = Callable[[type[BaseException], BaseException, TracebackType | None], Any]
+
+
+def _uncaught(previous: _Hook) -> _Hook:
     def hook(kind: type[BaseException], value: BaseException, tb: TracebackType | None) -> None:
         text = " ".join(str(value).split())
         if isinstance(value, AgentsError) and text and already_reported(text) and not debug_requested():
             _one_line(value)  # the interpreter still exits with status 1
             return
-        previous(kind, value, tb)  # type: ignore[operator]
+        previous(kind, value, tb)
 
     hook.agents_one_line = True  # type: ignore[attr-defined]
     return hook
@@ -79,4 +83,4 @@ def one_line_if_uncaught() -> None:
     """Make an uncaught framework error whose reason a status line showed print one line, not its traceback
     (installed once, in front of the interpreter's handler; see the module docstring)."""
     if not getattr(sys.excepthook, "agents_one_line", False):
-        sys.excepthook = _uncaught(sys.excepthook)  # type: ignore[assignment]
+        sys.excepthook = _uncaught(sys.excepthook)
