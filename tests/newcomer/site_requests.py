@@ -1,5 +1,7 @@
 """What a built documentation site would fetch from elsewhere when opened: external URLs in the tags and
-styles a browser loads by itself (not links, which load only when followed)."""
+styles a browser loads by itself (not links, which load only when followed), and what the Material theme's
+script fetches for a page: mermaid.js from unpkg.com for a diagram, the repository's facts from
+api.github.com when ``repo_url`` puts a source button in the header."""
 
 from __future__ import annotations
 
@@ -24,6 +26,12 @@ def _external(url: str) -> bool:
     return bool(url) and not url.startswith("data:") and not _LOCAL.match(url)
 
 
+#: Markup that makes the theme's bundled script fetch from elsewhere: (tag, attribute, word) -> what it fetches.
+_SCRIPT_FETCHES = {("pre", "class", "mermaid"): "https://unpkg.com/mermaid (a mermaid diagram)",
+                   ("div", "class", "mermaid"): "https://unpkg.com/mermaid (a mermaid diagram)",
+                   ("a", "data-md-component", "source"): "https://api.github.com (the repo_url source button)"}
+
+
 class _Tags(HTMLParser):
     def __init__(self) -> None:
         super().__init__()
@@ -32,6 +40,9 @@ class _Tags(HTMLParser):
 
     def handle_starttag(self, tag: str, attrs: list[tuple[str, str | None]]) -> None:
         values = {k: v or "" for k, v in attrs}
+        for (kind, name, word), fetched in _SCRIPT_FETCHES.items():
+            if tag == kind and word in values.get(name, "").split() and fetched not in self.found:
+                self.found.append(fetched)
         if tag == "link" and any(r in values.get("rel", "").lower().split() for r in _FETCHED_LINKS):
             self.found.append(values.get("href", ""))
         for name in _FETCHED.get(tag, ()):

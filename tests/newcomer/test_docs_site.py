@@ -97,8 +97,13 @@ def test_the_request_check_sees_web_fonts(tmp_path: Path) -> None:
         '<link rel="preconnect" href="https://fonts.gstatic.com"><link rel="stylesheet" href="assets/x.css">'
         '<a href="https://example.org/">a link is not a request</a><script src="//cdn.example.net/a.js"></script>')
     (tmp_path / "x.css").write_text("@import 'https://fonts.googleapis.com/css?family=Roboto'; a{b:url(y.png)}")
+    (tmp_path / "diagram.html").write_text('<pre class="mermaid"><code>graph LR; a-->b</code></pre>'
+                                           '<a href="https://github.com/x/y" class="md-source" '
+                                           'data-md-component="source">x/y</a>')
     found = external_requests(tmp_path)
     assert found == {"index.html": ["https://fonts.gstatic.com", "//cdn.example.net/a.js"],
+                     "diagram.html": ["https://unpkg.com/mermaid (a mermaid diagram)",
+                                      "https://api.github.com (the repo_url source button)"],
                      "x.css": ["https://fonts.googleapis.com/css?family=Roboto"]}
 
 

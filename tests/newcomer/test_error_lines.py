@@ -37,6 +37,46 @@ def test_one_line_and_no_such_file(tmp_path: Path) -> None:
                                                            "AGENTS_DEBUG=1"), done.stderr
 
 
+def test_a_with_block_says_one_line_too(tmp_path: Path) -> None:
+    """The tutorial's ``with launcher:`` form: the error leaves the script uncaught; one line, not the traceback."""
+    done = _run(tmp_path, "memory", "--with")
+    assert done.returncode == 1, done.stderr
+    assert "Traceback" not in done.stderr and "started" not in done.stdout, done.stderr
+    assert len([line for line in done.stderr.splitlines() if "no such file 'models/x.gguf'" in line]) == 1
+    assert done.stderr.rstrip().splitlines()[-1].startswith("agents: could not start (the reason is above; "
+                                                           "AGENTS_DEBUG=1"), done.stderr
+    loud = _run(tmp_path, "memory", "--with", AGENTS_DEBUG="1")
+    assert loud.returncode == 1 and "Traceback (most recent call last)" in loud.stderr, loud.stderr
+    assert "ConfigError: LocalLLM model: no such file" in loud.stderr
+
+
+def test_only_a_reported_framework_error_is_shortened(monkeypatch: pytest.MonkeyPatch,
+                                                      capsys: pytest.CaptureFixture[str]) -> None:
+    """The uncaught-error hook: the one line for the error the status line showed; any other error (a bug, a
+    framework error nobody reported) goes to the handler before it, with its traceback."""
+    import sys  # noqa: PLC0415
+
+    from agents_core.errors import ConfigError  # noqa: PLC0415
+    from agents_core.launch import report, short_errors  # noqa: PLC0415
+
+    passed_on: list[BaseException] = []
+    monkeypatch.setattr(sys, "excepthook", lambda kind, value, tb: passed_on.append(value))
+    monkeypatch.setattr(report, "_last_failure", ["✗ llm failed to configure: LocalLLM model: no such file 'x'"])
+    monkeypatch.delenv("AGENTS_DEBUG", raising=False)
+    short_errors.one_line_if_uncaught()
+    installed = sys.excepthook
+    short_errors.one_line_if_uncaught()
+    assert sys.excepthook is installed  # once: not a hook in front of a hook
+    reported, other, bug = ConfigError("LocalLLM model: no such file 'x'"), ConfigError("else"), KeyError("k")
+    for exc in (reported, other, bug):
+        sys.excepthook(type(exc), exc, None)
+    assert passed_on == [other, bug]
+    assert capsys.readouterr().err.startswith("agents: could not start (the reason is above; AGENTS_DEBUG=1")
+    monkeypatch.setenv("AGENTS_DEBUG", "1")
+    sys.excepthook(type(reported), reported, None)
+    assert passed_on == [other, bug, reported]
+
+
 def test_the_traceback_when_asked_for(tmp_path: Path) -> None:
     done = _run(tmp_path, "memory", AGENTS_DEBUG="1")
     assert done.returncode != 0

@@ -62,3 +62,15 @@ def test_a_failure_that_goes_on_is_summarised_periodically(caplog: pytest.LogCap
     summaries = _lines(caplog, "so far")
     assert 2 <= len(summaries) <= 4, summaries
     assert len(_lines(caplog, "step failed (")) <= 1 + len(summaries) + 1
+
+
+def test_a_failure_that_lasts_until_the_stop_is_counted_at_the_stop(caplog: pytest.LogCaptureFixture) -> None:
+    flaky = Flaky(inputs=[], outputs=[], trigger=50.0, component_name="flaky3")
+    launcher = Launcher("memory")
+    launcher.add_pkg(components=[flaky])
+    with caplog.at_level(logging.INFO, logger="agents_core"), launcher:
+        assert wait_for(lambda: flaky.steps >= 20, 10.0)
+    said = _lines(caplog, "step failed (")
+    assert len(said) == 2 and said[1].endswith("(before stopping)"), said
+    counted = int(said[1].rsplit("unplugged: ", 1)[1].split(" ")[0])
+    assert 19 <= counted <= flaky.steps - 1, (said, flaky.steps)

@@ -1,9 +1,10 @@
 """Item 3 of issue 38: ``agentsctl ui`` without ``--connect`` attaches to the recipe on this host, as every other
 ``agentsctl`` command does (not an isolated, empty session: "UI for []").
 
-The talker example runs on Zenoh in its own process; the host's rendezvous is made private to this test with
-``AGENTS_ZENOH_LISTEN`` / ``AGENTS_ZENOH_CONNECT`` (what the other commands honour too), so neither command
-line names an endpoint."""
+The talker example runs on Zenoh in its own process and neither command line names an endpoint. What a user
+does is the loopback rendezvous (nothing set: both meet on its port); here that port is a free one given to
+both with ``AGENTS_ZENOH_PORT``, so that parallel runs never meet. The same through ``AGENTS_ZENOH_LISTEN`` /
+``AGENTS_ZENOH_CONNECT`` (what the other commands honour too)."""
 
 from __future__ import annotations
 
@@ -30,18 +31,22 @@ def _env(**extra: str) -> dict[str, str]:
     return {**env, "PYTHONUNBUFFERED": "1", **extra}
 
 
-def test_agentsctl_ui_without_connect_shows_the_recipe(tmp_path: Path) -> None:
+@pytest.mark.parametrize("meeting", ["rendezvous", "endpoint"])
+def test_agentsctl_ui_without_connect_shows_the_recipe(tmp_path: Path, meeting: str) -> None:
     pytest.importorskip("zenoh")
     pytest.importorskip("starlette", reason="the ui extra is not installed")
-    endpoint = f"tcp/127.0.0.1:{free_tcp_port()}"
+    free = free_tcp_port()
+    endpoint = f"tcp/127.0.0.1:{free}"
+    if meeting == "rendezvous":
+        recipe_env, client_env = _env(AGENTS_ZENOH_PORT=str(free)), _env(AGENTS_ZENOH_PORT=str(free))
+    else:
+        recipe_env, client_env = _env(AGENTS_ZENOH_LISTEN=endpoint), _env(AGENTS_ZENOH_CONNECT=endpoint)
     log = (tmp_path / "talker.log").open("wb")
     talker = subprocess.Popen([sys.executable, str(EXAMPLES / "talker.py"), "--transport", "zenoh", "--seconds",
-                               "120"], cwd=EXAMPLES, stdout=log, stderr=subprocess.STDOUT,
-                              env=_env(AGENTS_ZENOH_LISTEN=endpoint))
+                               "120"], cwd=EXAMPLES, stdout=log, stderr=subprocess.STDOUT, env=recipe_env)
     port = free_tcp_port()
     ui = None
     try:
-        client_env = _env(AGENTS_ZENOH_CONNECT=endpoint)
         deadline = time.monotonic() + 60
         while time.monotonic() < deadline:  # the talker is up once the other commands see it
             listed = subprocess.run([sys.executable, "-m", "agents_core.cli", "components", "list", "--json"],

@@ -359,6 +359,7 @@ class LLM(ModelComponent):
                                     "documents": list(documents), "distance_func": self.config.distance_func}
         if metadatas is not None:
             db_input["metadatas"] = list(metadatas)
+        self._ensure_db_ready()
         self.db_client.add(db_input)
         return True
 
@@ -381,6 +382,7 @@ class LLM(ModelComponent):
                                     "n_results": self.config.n_results}
         if self._rag_where is not None:
             db_input["where"] = self._rag_where
+        self._ensure_db_ready()  # down at configure: it may be back
         found = self.db_client.query(db_input)
         documents = list(found.get("documents") or [])
         metadatas = list(found.get("metadatas") or [None] * len(documents))

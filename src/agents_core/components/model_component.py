@@ -14,7 +14,8 @@ recipe):
   COMPONENT_FAILURE: the ``on_component_fail`` / ``on_fail`` fallbacks run (``change_model_client``,
   ``fallback_to_local``, ...) and the setup is tried again with what they switched to. When nothing
   works the component still comes up, unhealthy, says so in one WARNING line, and each step tries
-  the setup again;
+  the setup again. A database (``db_client``) that cannot be reached at configure is the same: the
+  component comes up unhealthy and each use of the database (RAG, ``add_documents``) connects first;
 - an inference that fails (an error answer, a timeout, an unreadable or empty answer) is an
   ALGORITHM_FAILURE, so ``on_algorithm_fail`` chains fire; a client that cannot reach its server
   at all (:class:`~agents_core.errors.ClientConnectionError`) and a component with neither a client
@@ -109,6 +110,8 @@ class ModelComponent(Component):
         # The client whose setup (check_connection, initialize) has succeeded; a step sets up a
         # client that is not it first (the setup failed at configure, the server may be back).
         self._ready_client: ModelClient | None = None
+        # Whether the database client's setup has succeeded (the same for the database: see _ensure_db_ready).
+        self._db_ready = False
         self.local_model: Callable[..., Any] | None = None
         #: The WebSocket streaming flow's queues (architecture.md, "Streaming"): ``_call_inference``
         #: puts requests in ``req_queue``; the reply's parts arrive in ``resp_queue``.
@@ -190,9 +193,12 @@ class ModelComponent(Component):
 
     def custom_on_configure(self) -> None:
         self._check_outputs_converted()
-        if self.db_client is not None:
-            self._start_client(self.db_client)
+        database_down = self._set_up_database()  # before the model: a warm-up may use it
         self._set_up_model()
+        if database_down is not None:  # after it: a model set up fine would report the component healthy
+            self.runtime.health.failed(HealthStatus.COMPONENT_FAILURE, database_down, "database setup at configure")
+            self._logger.warning("component %r comes up unhealthy: its database is not reachable (%s); each use "
+                                 "tries again", self.component_name, database_down)
         if self._streams_through_queues():
             self._ws_streaming.start()
             self._logger.info("streaming through the WebSocket client: requests in req_queue, replies in resp_queue")
@@ -206,6 +212,23 @@ class ModelComponent(Component):
         """
         return (bool(getattr(self.config, "stream", False)) and bool(getattr(self.model_client, "is_websocket", False))
                 and type(self)._handle_websocket_streaming is not ModelComponent._handle_websocket_streaming)
+
+    def _set_up_database(self) -> ModelClientError | None:
+        """Connect the database client; the error when it cannot be reached (not raised: as a model server
+        that is down, a database that is down leaves the component up and unhealthy, and each use tries again)."""
+        self._db_ready = False
+        try:
+            self._ensure_db_ready()
+        except ModelClientError as exc:
+            return exc
+        return None
+
+    def _ensure_db_ready(self) -> None:
+        """Set up the database client unless that already succeeded (a ModelClientError if it fails): call it
+        before each use of ``db_client``."""
+        if self.db_client is not None and not self._db_ready:
+            self._start_client(self.db_client)
+            self._db_ready = True
 
     def _set_up_model(self) -> None:
         """Connect the model client (or deploy the local model) and warm up, running the fallbacks
@@ -276,6 +299,7 @@ class ModelComponent(Component):
                 except Exception as exc:
                     self._logger.debug("closing model client %r: %s", self.model_client, exc)
         if self.db_client is not None:
+            self._db_ready = False
             try:
                 self.db_client.deinitialize()
             except Exception as exc:

@@ -160,7 +160,7 @@ class SemanticRouter(ModelComponent):
     def _store_samples(self) -> None:
         """Connect the database and (re)build the route collection from the routes' samples."""
         assert self.db_client is not None
-        self._start_client(self.db_client)
+        self._ensure_db_ready()
         ids, documents, metadatas = [], [], []
         for route in self.routes:
             for i, sample in enumerate(route.samples):

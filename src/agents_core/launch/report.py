@@ -120,6 +120,9 @@ class LaunchReport:
         plain = f"  ✗ {who}failed to {stage}: {why}"
         if not self.quiet:
             _last_failure[:] = [" ".join(plain.split())]
+            from .short_errors import one_line_if_uncaught  # noqa: PLC0415  (it imports this module)
+
+            one_line_if_uncaught()  # `with launcher:` in a script: this line, not the traceback, if uncaught
         self._line(plain, f"  [red]✗[/] {_escape(who)}failed to {stage}: [red]{_escape(why)}[/]")
 
 

@@ -8,6 +8,11 @@ the status lines already showed that reason, ``agents: could not start (the reas
 exits with status 1 instead. The traceback is shown, as before, when it is asked for:
 ``AGENTS_DEBUG=1`` (what ``agentsctl run --debug`` sets), or the ``agents_core`` logger (or the root
 logger) at DEBUG level. Errors that are not the framework's (a bug) always keep their traceback.
+
+A recipe written ``with launcher:`` (the tutorial's form) has no such block around it: the error leaves the
+user's script. :func:`one_line_if_uncaught` (called when a start failure is reported) makes Python's handler of
+an uncaught exception print the same one line for a framework error whose reason the status lines showed; a
+caller that catches the error (a test) sees it unchanged, and anything else keeps its traceback.
 """
 
 from __future__ import annotations
@@ -16,12 +21,14 @@ import contextlib
 import logging
 import os
 import sys
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
+from types import TracebackType
+from typing import Any
 
 from ..errors import AgentsError
 from .report import already_reported
 
-__all__ = ["DEBUG_ENV_VAR", "debug_requested", "short_errors"]
+__all__ = ["DEBUG_ENV_VAR", "debug_requested", "one_line_if_uncaught", "short_errors"]
 
 #: Set to 1 / true / yes for the full traceback of a recipe that fails to start.
 DEBUG_ENV_VAR = "AGENTS_DEBUG"
@@ -34,6 +41,17 @@ def debug_requested() -> bool:
     return logging.getLogger("agents_core").getEffectiveLevel() <= logging.DEBUG
 
 
+_HINT = "AGENTS_DEBUG=1 or agentsctl run --debug shows the traceback"
+
+
+def _one_line(exc: AgentsError) -> None:
+    text = " ".join(str(exc).split()) or type(exc).__name__
+    if already_reported(text):  # the status line above said it: not twice
+        print(f"agents: could not start (the reason is above; {_HINT})", file=sys.stderr, flush=True)
+    else:
+        print(f"agents: error: {text} ({_HINT})", file=sys.stderr, flush=True)
+
+
 @contextlib.contextmanager
 def short_errors() -> Iterator[None]:
     """Turn an :class:`~agents_core.errors.AgentsError` escaping the block into one line and exit status 1."""
@@ -42,10 +60,27 @@ def short_errors() -> Iterator[None]:
     except AgentsError as exc:
         if debug_requested():
             raise
-        text = " ".join(str(exc).split()) or type(exc).__name__
-        hint = "AGENTS_DEBUG=1 or agentsctl run --debug shows the traceback"
-        if already_reported(text):  # the status line above said it: not twice
-            print(f"agents: could not start (the reason is above; {hint})", file=sys.stderr, flush=True)
-        else:
-            print(f"agents: error: {text} ({hint})", file=sys.stderr, flush=True)
+        _one_line(exc)
         raise SystemExit(1) from None
+
+
+_Hook = Callable[[type[BaseException], BaseException, TracebackType | None], Any]
+
+
+def _uncaught(previous: _Hook) -> _Hook:
+    def hook(kind: type[BaseException], value: BaseException, tb: TracebackType | None) -> None:
+        text = " ".join(str(value).split())
+        if isinstance(value, AgentsError) and text and already_reported(text) and not debug_requested():
+            _one_line(value)  # the interpreter still exits with status 1
+            return
+        previous(kind, value, tb)
+
+    hook.agents_one_line = True  # type: ignore[attr-defined]
+    return hook
+
+
+def one_line_if_uncaught() -> None:
+    """Make an uncaught framework error whose reason a status line showed print one line, not its traceback
+    (installed once, in front of the interpreter's handler; see the module docstring)."""
+    if not getattr(sys.excepthook, "agents_one_line", False):
+        sys.excepthook = _uncaught(sys.excepthook)

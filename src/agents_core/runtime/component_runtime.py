@@ -344,6 +344,7 @@ class ComponentRuntime:
                                   c.config.step_finish_timeout)
         for pub in c.publishers_dict.values():
             pub.detach()
+        self.health.stopped()  # a failure counted since its line: how many times, before the component stops
 
     def _do_cleanup(self) -> None:
         self._component.custom_on_cleanup()

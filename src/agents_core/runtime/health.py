@@ -162,6 +162,10 @@ class Health:
             fallback.reset()
         self._gave_up = False
 
+    def stopped(self) -> None:
+        """The component deactivated: how often its last failure repeated is said now, not lost."""
+        self._repeats.stopped()
+
     def run_action(self, action: Action, values: Mapping[str, Any]) -> Any:
         """Run ``action`` with ``values``; a raising action is logged, never propagated."""
         try:

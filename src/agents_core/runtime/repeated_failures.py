@@ -3,7 +3,7 @@
 A component whose step fails the same way at 2 Hz would log the same line twice a second (about 160 lines
 in 80 s) and bury everything else. :class:`RepeatedFailures` lets the first occurrence of a failure through,
 counts the identical ones that follow, and says how many there were: every :data:`SUMMARY_EVERY_S` seconds
-while it goes on, when a different failure comes, and when the component recovers. A different failure is
+while it goes on, when a different failure comes, when the component recovers, and when it stops. A different failure is
 always logged at once. With the component's logger at DEBUG every failure is logged, with its traceback.
 """
 
@@ -48,8 +48,16 @@ class RepeatedFailures:
 
     def recovered(self) -> None:
         """The component is healthy again: say how often the last failure repeated, and forget it."""
+        self._forget("before recovering")
+
+    def stopped(self) -> None:
+        """The component stops (deactivates) while failing: say how often, and forget it (a new start says the
+        failure again)."""
+        self._forget("before stopping")
+
+    def _forget(self, when: str) -> None:
         with self._lock:
-            self._summary_locked(time.monotonic(), "before recovering")
+            self._summary_locked(time.monotonic(), when)
             self._key = None
 
     def _summary_locked(self, now: float, when: str) -> None:

@@ -417,6 +417,7 @@ class Cortex(ModelComponent):
     def _rag_context(self, task: str) -> str | None:
         if not (self.config.enable_rag and self.db_client is not None):
             return None
+        self._ensure_db_ready()  # down at configure: it may be back
         collection = self.config.collection_name or self.component_name
         found = self.db_client.query({"collection_name": collection, "query": task, "n_results": self.config.n_results})
         documents = list(found.get("documents") or [])
