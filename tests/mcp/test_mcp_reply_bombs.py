@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import logging
 import resource
 import threading
 import time
@@ -24,8 +25,18 @@ import pytest
 
 pytest.importorskip("mcp", reason="the mcp extra is not installed")
 
+from agents_core import Launcher, Topic
+from agents_core.clients import OllamaClient
+from agents_core.components import LLM
+from agents_core.components.cortex.mcp_tools import call_mcp_tool, connect_mcp_servers
+from agents_core.components.cortex.tools import ToolBox
+from agents_core.config import LLMConfig
 from agents_core.errors import ComponentError, ConfigError
 from agents_core.mcp.client import DEFAULT_MCP_MAX_REPLY_BYTES, McpServerSpec, McpToolbox, server_spec
+from agents_core.models import OllamaModel
+from agents_core.testing.helpers import wait_for
+
+from ..servers.scripted_ollama_server import ScriptedOllamaServer, calls, text
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -254,6 +265,47 @@ def test_a_reply_of_exactly_the_limit_still_works_and_one_byte_more_is_refused(h
         _assert_names_server_and_limit(str(info.value), hostile)
     finally:
         box.close()
+
+
+def test_the_llm_is_told_of_a_bomb_as_a_tool_error_naming_the_server_and_the_limit(
+        hostile: HostileMcpServer) -> None:
+    plan = [calls(("hostile__fetch", {"url": "x"})), lambda body: text("the tool failed")]
+    question, answers = Topic("question", "String"), Topic("answer", "String")
+    with ScriptedOllamaServer(plan=plan, models=["llama3.2:3b"]) as ollama:
+        config = LLMConfig(mcp_servers=[{"target": hostile.url, "name": "hostile", "max_reply_bytes": LIMIT}])
+        llm = LLM(inputs=[question], outputs=[answers], trigger=question, config=config, component_name="brain",
+                  model_client=OllamaClient(OllamaModel(name="m", checkpoint="llama3.2:3b"), port=ollama.port))
+        launcher = Launcher("memory")
+        launcher.add_pkg(components=[llm])
+        with launcher:
+            got: list[str] = []
+            sub = launcher.transport.create_subscription(answers, got.append)
+            hostile.mode = "call-bomb"
+            launcher.transport.create_publisher(question).publish("fetch x")
+            assert wait_for(lambda: len(got) >= 1, 30)
+            sub.close()
+    told = [m for m in ollama.planning_requests[1]["messages"] if m.get("role") == "tool"][-1]["content"]
+    assert told.startswith("error: ComponentError: MCP server 'hostile'"), told
+    _assert_names_server_and_limit(told, hostile)
+
+
+def test_the_cortex_refuses_a_bomb_listing_and_a_bomb_answer_naming_the_server(hostile: HostileMcpServer) -> None:
+    spec = McpServerSpec(hostile.url, name="hostile", timeout=20.0, max_reply_bytes=LIMIT)
+    tools, logger = ToolBox(), logging.getLogger("test.cortex")
+    hostile.mode = "list-bomb"
+    with pytest.raises(ComponentError) as info:
+        connect_mcp_servers([spec], tools, [], logger)  # what the Cortex runs at configure
+    _assert_names_server_and_limit(str(info.value), hostile)
+    hostile.mode = "honest"
+    boxes = connect_mcp_servers([spec], tools, [], logger)
+    try:
+        hostile.mode = "call-bomb"
+        with pytest.raises(ComponentError) as info:
+            call_mcp_tool(tools.get("hostile__fetch"), {"url": "x"})
+        _assert_names_server_and_limit(str(info.value), hostile)
+    finally:
+        for box in boxes:
+            box.close()
 
 
 def test_max_reply_bytes_is_in_the_server_entry_with_a_default() -> None:

@@ -120,7 +120,6 @@ async def bounded_streamable_http(url: str, *, name: str, max_reply_bytes: int) 
     from mcp.client.streamable_http import streamable_http_client  # noqa: PLC0415  (the mcp extra)
 
     transport = _BoundedTransport(httpx2.AsyncHTTPTransport(), max_reply_bytes, f"MCP server {name!r} ({url})")
-    async with httpx2.AsyncClient(transport=transport, timeout=_TIMEOUT,
-                                  headers={"accept-encoding": ACCEPT_ENCODING}) as http:
-        async with streamable_http_client(url, http_client=http, max_sse_event_size=max_reply_bytes) as streams:
-            yield streams
+    http = httpx2.AsyncClient(transport=transport, timeout=_TIMEOUT, headers={"accept-encoding": ACCEPT_ENCODING})
+    async with http, streamable_http_client(url, http_client=http, max_sse_event_size=max_reply_bytes) as streams:
+        yield streams
