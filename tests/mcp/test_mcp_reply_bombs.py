@@ -3,7 +3,8 @@
 A real Streamable HTTP server on 127.0.0.1, written here by hand so that it can lie: it speaks
 enough MCP to be connected to (``initialize``, ``tools/list``), then answers ``tools/list`` or
 ``tools/call`` with a 200 KB gzip body inflating to 200 MiB, with an SSE stream of notifications
-that never ends, or with one SSE event that never ends. The client stops reading at the server
+that never ends, or with one SSE event that never ends; its GET stream (server-initiated messages)
+never ends either. The client stops reading at the server
 entry's ``max_reply_bytes`` (counted after decompression) and the call fails with an error naming
 the server and the limit; a reply of exactly ``max_reply_bytes`` still works.
 """
@@ -58,8 +59,8 @@ def _gzip(prefix: bytes, unit: bytes, total: int, suffix: bytes) -> bytes:
     return b"".join(out)
 
 
-def _text_result(request_id: Any, text_bytes: int) -> tuple[bytes, bytes]:
-    """The JSON around a ``tools/call`` result of ``text_bytes`` letters: (before the text, after it)."""
+def _text_result(request_id: Any) -> tuple[bytes, bytes]:
+    """The JSON around the text of a ``tools/call`` result: (before the text, after it)."""
     head = json.dumps({"jsonrpc": "2.0", "id": request_id, "result": {"content": [{"type": "text", "text": ""}],
                                                                      "isError": False}})
     before, after = head.split('"text": ""')
@@ -75,12 +76,18 @@ class HostileMcpServer:
         self.exact_bytes = LIMIT
         self.sent_after_refusal: list[int] = []
         self.streams_open = 0
+        self.session = False  # give a session id at initialize: the client then opens the GET stream
+        self.gets = 0
 
         class Handler(BaseHTTPRequestHandler):
             protocol_version = "HTTP/1.1"
 
-            def do_GET(self) -> None:  # no server-initiated stream
-                self._reply(405, b"", "text/plain")
+            def do_GET(self) -> None:  # the server's own stream: endless notifications, when there is a session
+                if not owner.session:
+                    self._reply(405, b"", "text/plain")
+                    return
+                owner.gets += 1
+                self._endless()
 
             def do_DELETE(self) -> None:
                 self._reply(200, b"", "text/plain")
@@ -94,7 +101,8 @@ class HostileMcpServer:
                 if method == "initialize":
                     result = {"protocolVersion": message["params"]["protocolVersion"],
                               "capabilities": {"tools": {}}, "serverInfo": {"name": "hostile", "version": "0"}}
-                    self._json({"jsonrpc": "2.0", "id": rid, "result": result})
+                    self._json({"jsonrpc": "2.0", "id": rid, "result": result},
+                               {"Mcp-Session-Id": "s1"} if owner.session else {})
                 elif method == "tools/list":
                     if owner.mode == "list-bomb":  # valid JSON: a short list, then 200 MiB of whitespace
                         body = json.dumps({"jsonrpc": "2.0", "id": rid, "result": {"tools": []}}).encode()
@@ -109,18 +117,18 @@ class HostileMcpServer:
 
             def _call(self, rid: Any) -> None:
                 if owner.mode == "call-bomb":  # a valid result whose text inflates to 200 MiB
-                    self._reply(200, _gzip(*_text_result(rid, 0)[:1], b"a", INFLATED, _text_result(rid, 0)[1]),
-                                "application/json", "gzip")
+                    before, after = _text_result(rid)
+                    self._reply(200, _gzip(before, b"a", INFLATED, after), "application/json", "gzip")
                 elif owner.mode == "exact":  # a decoded body of exactly exact_bytes
-                    before, after = _text_result(rid, 0)
+                    before, after = _text_result(rid)
                     body = _gzip(before, b"a", owner.exact_bytes - len(before) - len(after), after)
                     self._reply(200, body, "application/json", "gzip")
                 elif owner.mode in ("sse-endless", "sse-one-event"):
-                    self._endless(rid)
+                    self._endless()
                 else:
                     self._json({"jsonrpc": "2.0", "id": rid, "result": {"content": [{"type": "text", "text": "ok"}]}})
 
-            def _endless(self, rid: Any) -> None:
+            def _endless(self) -> None:
                 """Notifications (or one event's data) for ever, never the answer; stops when the client hangs up."""
                 self.send_response(200)
                 self.send_header("Content-Type", "text/event-stream")
@@ -146,11 +154,14 @@ class HostileMcpServer:
                     owner.streams_open -= 1
                 self.close_connection = True
 
-            def _json(self, payload: dict[str, Any]) -> None:
-                self._reply(200, json.dumps(payload).encode(), "application/json")
+            def _json(self, payload: dict[str, Any], headers: dict[str, str] | None = None) -> None:
+                self._reply(200, json.dumps(payload).encode(), "application/json", headers=headers)
 
-            def _reply(self, status: int, body: bytes, kind: str, encoding: str | None = None) -> None:
+            def _reply(self, status: int, body: bytes, kind: str, encoding: str | None = None,
+                       headers: dict[str, str] | None = None) -> None:
                 self.send_response(status)
+                for key, value in (headers or {}).items():
+                    self.send_header(key, value)
                 self.send_header("Content-Type", kind)
                 if encoding:
                     self.send_header("Content-Encoding", encoding)
@@ -250,6 +261,24 @@ def test_an_endless_sse_answer_is_cut_at_the_limit(hostile: HostileMcpServer, mo
     assert seconds < 10, f"cut after {seconds:.1f} s, not at the limit"
     # What the server got written before the client hung up: the limit plus what the sockets buffer.
     assert hostile.sent_after_refusal and max(hostile.sent_after_refusal) < LIMIT + 16 * 1024 * 1024
+
+
+def test_an_endless_server_stream_is_cut_and_reopened_at_most_twice(hostile: HostileMcpServer) -> None:
+    hostile.session = True
+    box = _box(hostile)
+    try:
+        deadline = time.monotonic() + 20
+        while (hostile.gets < 2 or hostile.streams_open) and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert hostile.gets == 2 and hostile.streams_open == 0, (hostile.gets, hostile.streams_open)
+        time.sleep(2.5)  # the SDK waits 1 s before it reopens: it gave up
+        assert hostile.gets == 2 and hostile.streams_open == 0
+        (tool,) = box.tools()
+        assert tool(url="x") == "ok"  # the connection still serves
+    finally:
+        box.close()
+    assert len(hostile.sent_after_refusal) == 2
+    assert max(hostile.sent_after_refusal) < LIMIT + 16 * 1024 * 1024
 
 
 def test_a_reply_of_exactly_the_limit_still_works_and_one_byte_more_is_refused(hostile: HostileMcpServer) -> None:

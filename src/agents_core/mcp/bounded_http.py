@@ -4,7 +4,8 @@ The official SDK reads a JSON reply whole (``response.aread()``) and an SSE repl
 the server keeps sending, through an httpx2 client that inflates ``gzip`` without bound: 200 KB
 from a hostile server can become 200 MiB in memory before ``max_result_chars`` trims the text.
 :func:`bounded_streamable_http` is the SDK's ``streamable_http_client`` over an httpx2 client of
-our own, whose transport gives every response the bounded decoder of
+our own (the SDK's timeouts, proxies from the environment), whose response hook gives every
+response, before its body is read, the bounded decoder of
 :mod:`agents_core.clients.reply_limit` (zlib's ``max_length``: never more than the limit is
 inflated). What one response may carry after decompression is ``max_reply_bytes``: a JSON reply,
 or every event of one SSE stream together (the answer to one request with its notifications; the
@@ -72,15 +73,14 @@ class _BoundedStream(httpx2.AsyncByteStream):
         await self._stream.aclose()
 
 
-class _BoundedTransport(httpx2.AsyncBaseTransport):
-    """Each response's body bounded by a fresh :class:`ReplyBudget` of ``limit`` bytes."""
+def _bounding_hook(limit: int, label: str) -> Any:
+    """An httpx2 response hook giving each response's body a fresh :class:`ReplyBudget` of ``limit`` bytes.
 
-    def __init__(self, inner: httpx2.AsyncBaseTransport, limit: int, label: str) -> None:
-        self._inner, self._limit, self._label = inner, limit, label
+    httpx2 runs it before anyone reads the body, on every response (a redirect's too).
+    """
 
-    async def handle_async_request(self, request: httpx2.Request) -> httpx2.Response:
-        response = await self._inner.handle_async_request(request)
-        budget = ReplyBudget(self._limit, f"{self._label}: {request.method}")
+    async def bound(response: httpx2.Response) -> None:
+        budget = ReplyBudget(limit, f"{label}: {response.request.method}")
         decoder: BoundedDecoder | None = None
         refused: McpReplyError | None = None
         try:
@@ -92,10 +92,8 @@ class _BoundedTransport(httpx2.AsyncBaseTransport):
                 if name in response.headers:
                     del response.headers[name]
         response.stream = _BoundedStream(response.stream, decoder, refused)
-        return response
 
-    async def aclose(self) -> None:
-        await self._inner.aclose()
+    return bound
 
 
 class _OneLineRefusals(logging.Filter):
@@ -119,7 +117,8 @@ async def bounded_streamable_http(url: str, *, name: str, max_reply_bytes: int) 
     """The SDK's Streamable HTTP transport to ``url``, each reply bounded at ``max_reply_bytes`` (see above)."""
     from mcp.client.streamable_http import streamable_http_client  # noqa: PLC0415  (the mcp extra)
 
-    transport = _BoundedTransport(httpx2.AsyncHTTPTransport(), max_reply_bytes, f"MCP server {name!r} ({url})")
-    http = httpx2.AsyncClient(transport=transport, timeout=_TIMEOUT, headers={"accept-encoding": ACCEPT_ENCODING})
+    hook = _bounding_hook(max_reply_bytes, f"MCP server {name!r} ({url})")
+    http = httpx2.AsyncClient(timeout=_TIMEOUT, headers={"accept-encoding": ACCEPT_ENCODING},
+                              event_hooks={"response": [hook]})
     async with http, streamable_http_client(url, http_client=http, max_sse_event_size=max_reply_bytes) as streams:
         yield streams
