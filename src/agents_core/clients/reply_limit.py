@@ -20,8 +20,8 @@ import httpx
 
 from ..errors import ConfigError, ProtocolError
 
-__all__ = ["ACCEPT_ENCODING", "DEFAULT_MAX_REPLY_BYTES", "ReplyBudget", "ReplyTooLargeError", "bound_reply",
-           "check_max_reply_bytes"]
+__all__ = ["ACCEPT_ENCODING", "DEFAULT_MAX_REPLY_BYTES", "BoundedDecoder", "ReplyBudget", "ReplyTooLargeError",
+           "bound_reply", "bounded_decoder", "check_max_reply_bytes"]
 
 #: The default ``max_reply_bytes`` of a model client: 64 MiB of decoded reply (a long answer is ~100 KB).
 DEFAULT_MAX_REPLY_BYTES = 64 * 1024 * 1024
@@ -104,7 +104,7 @@ class _Inflater:
         return out
 
 
-class _BoundedDecoder:
+class BoundedDecoder:
     """Inflate each layer within the budget, count the result."""
 
     def __init__(self, encodings: list[str], budget: ReplyBudget) -> None:
@@ -129,7 +129,7 @@ class _BoundedDecoder:
 class _BoundedStream(httpx.SyncByteStream):
     """A response body stream giving the decoded bytes of ``stream`` through ``decoder``."""
 
-    def __init__(self, stream: Any, decoder: _BoundedDecoder) -> None:
+    def __init__(self, stream: Any, decoder: BoundedDecoder) -> None:
         self._stream = stream
         self._decoder = decoder
 
@@ -146,23 +146,32 @@ class _BoundedStream(httpx.SyncByteStream):
         self._stream.close()
 
 
-def bound_reply(response: httpx.Response, budget: ReplyBudget) -> None:
-    """Give ``response`` (body not read yet) a decoder that stops at ``budget``'s limit.
+def bounded_decoder(headers: Any, budget: ReplyBudget) -> BoundedDecoder:
+    """The decoder of a reply with these (httpx or httpx2) ``headers``, bounded by ``budget``.
 
-    Raises :class:`ReplyTooLargeError` at once when ``Content-Length`` already says too much, and
-    :class:`~agents_core.errors.ProtocolError` for an encoding that cannot be bounded.
+    Strips ``Content-Encoding`` and ``Content-Length`` from ``headers`` (the decoder inflates, so
+    the HTTP client must see an identity body). Raises :class:`ReplyTooLargeError` at once when
+    ``Content-Length`` already says too much, and :class:`~agents_core.errors.ProtocolError` for an
+    encoding that cannot be bounded.
     """
-    encodings = [v.strip().lower() for v in response.headers.get_list("content-encoding", split_commas=True)]
+    encodings = [v.strip().lower() for v in headers.get_list("content-encoding", split_commas=True)]
     encodings = [e for e in encodings if e and e != "identity"]
     unknown = sorted({e for e in encodings if e not in ("gzip", "deflate")})
     if unknown:
         raise ProtocolError(f"{budget.label}: the reply is encoded as {', '.join(unknown)}, which this client "
                             f"did not ask for (it accepts {ACCEPT_ENCODING}); refused")
-    length = response.headers.get("content-length", "")
+    length = headers.get("content-length", "")
     if not encodings and length.isdigit() and int(length) > budget.left():
         raise budget.error()
-    # The body is inflated here, so httpx must not inflate it again: it sees an identity body.
     for name in ("content-encoding", "content-length"):
-        if name in response.headers:
-            del response.headers[name]
-    response.stream = _BoundedStream(response.stream, _BoundedDecoder(encodings, budget))
+        if name in headers:
+            del headers[name]
+    return BoundedDecoder(encodings, budget)
+
+
+def bound_reply(response: httpx.Response, budget: ReplyBudget) -> None:
+    """Give ``response`` (body not read yet) a decoder that stops at ``budget``'s limit.
+
+    Raises as :func:`bounded_decoder` does.
+    """
+    response.stream = _BoundedStream(response.stream, bounded_decoder(response.headers, budget))

@@ -279,12 +279,16 @@ class LLM(ModelComponent):
         from ..mcp.client import open_toolboxes  # noqa: PLC0415  (the mcp extra, only when servers are given)
 
         self._mcp_toolboxes = open_toolboxes(self.config.mcp_servers)
-        for box in self._mcp_toolboxes:
-            for tool in box.tools():
-                # The server's answer goes back to the model, which answers with it (as a tool should).
-                self._tools[tool.__name__] = _Tool(tool, tool.description, True)
-            self._logger.info("MCP server %r: %d tool(s) offered to the model", box.spec.name,
-                              sum(1 for t in self._tools.values() if getattr(t.func, "_box", None) is box))
+        try:
+            for box in self._mcp_toolboxes:
+                for tool in box.tools():
+                    # The server's answer goes back to the model, which answers with it (as a tool should).
+                    self._tools[tool.__name__] = _Tool(tool, tool.description, True)
+                self._logger.info("MCP server %r: %d tool(s) offered to the model", box.spec.name,
+                                  sum(1 for t in self._tools.values() if getattr(t.func, "_box", None) is box))
+        except BaseException:  # a listing that failed (too large, timed out): no connection is left open
+            self._disconnect_mcp_servers()
+            raise
 
     def _disconnect_mcp_servers(self) -> None:
         boxes, self._mcp_toolboxes = self._mcp_toolboxes, []

@@ -8,9 +8,10 @@ thread of its own), lists the server's tools and offers each to its model as
 ``<server name>__<tool name>``, under the same guardrails as our own actions
 (:mod:`agents_core.guardrails`): ``allow`` (which tools are offered at all), ``limits`` (per tool,
 per argument), ``approval`` (tools that wait for a person) and ``rate_limit``. Everything that
-comes back is bounded: a call's time (``timeout``), the text of its result (``max_result_chars``),
-the number and size of the tool descriptions; a server that hangs or dies makes that call fail
-with a message the model sees, nothing more.
+comes back is bounded: a call's time (``timeout``), the bytes of each HTTP reply after
+decompression, streamed ones included (``max_reply_bytes``, :mod:`.bounded_http`), the text of its
+result (``max_result_chars``), the number and size of the tool descriptions; a server that hangs,
+dies or sends too much makes that call fail with a message the model sees, nothing more.
 """
 
 from __future__ import annotations
@@ -25,16 +26,19 @@ from typing import Any
 
 from attrs import define, field
 
+from ..clients.reply_limit import check_max_reply_bytes
 from ..errors import ComponentError, ConfigError
 from ..guardrails import ActionGuard, run_guarded
 
-__all__ = ["McpRemoteTool", "McpServerSpec", "McpToolbox", "server_spec"]
+__all__ = ["DEFAULT_MCP_MAX_REPLY_BYTES", "McpRemoteTool", "McpServerSpec", "McpToolbox", "server_spec"]
 
 #: OpenAI-style tool names: what every model client accepts.
 _MODEL_TOOL_NAME = re.compile(r"[^A-Za-z0-9_-]")
 #: At most this many tools from one server; descriptions (as JSON) up to this many characters each.
 MAX_TOOLS = 128
 MAX_DESCRIPTION_CHARS = 20_000
+#: The default ``max_reply_bytes`` of an HTTP server entry: 16 MiB of decoded reply per response.
+DEFAULT_MCP_MAX_REPLY_BYTES = 16 * 1024 * 1024
 
 
 def _target(value: Any) -> str | tuple[str, ...]:
@@ -63,6 +67,10 @@ def _positive(instance: Any, attribute: Any, value: Any) -> None:
         raise ConfigError(f"McpServerSpec.{attribute.name}: expected seconds in (0, 3600], got {value!r}")
 
 
+def _reply_bytes(instance: Any, attribute: Any, value: Any) -> None:
+    check_max_reply_bytes("McpServerSpec", value)
+
+
 @define(frozen=True)
 class McpServerSpec:
     """One MCP server a model may use (see the module docs).
@@ -76,6 +84,8 @@ class McpServerSpec:
     :param rate_limit: ``(calls, seconds)`` per tool.
     :param timeout: seconds one call (or the connection) may take.
     :param max_result_chars: a result's text is cut past this.
+    :param max_reply_bytes: the most bytes one HTTP reply of the server may carry after decompression
+        (a JSON reply, or all of one SSE stream); past it that call fails naming the server and the limit.
     :param env: environment variables of a stdio server (a token, say: never logged).
     """
 
@@ -88,6 +98,7 @@ class McpServerSpec:
     rate_limit: tuple[int, float] | None = None
     timeout: float = field(default=30.0, validator=_positive)
     max_result_chars: int = 100_000
+    max_reply_bytes: int = field(default=DEFAULT_MCP_MAX_REPLY_BYTES, validator=_reply_bytes)
     env: dict[str, str] | None = field(default=None, repr=False)
 
     def allowed(self, tool: str) -> bool:
@@ -165,9 +176,12 @@ class McpToolbox:
         from anyio.from_thread import start_blocking_portal  # noqa: PLC0415
         from mcp import Client, StdioServerParameters  # noqa: PLC0415
 
-        target = self.spec.target
-        server: Any = target if isinstance(target, str) else StdioServerParameters(
-            command=target[0], args=list(target[1:]), env=self.spec.env)
+        from .bounded_http import bounded_streamable_http  # noqa: PLC0415  (the mcp extra)
+
+        spec, target = self.spec, self.spec.target
+        server: Any = (bounded_streamable_http(target, name=spec.name, max_reply_bytes=spec.max_reply_bytes)
+                       if isinstance(target, str) else
+                       StdioServerParameters(command=target[0], args=list(target[1:]), env=spec.env))
         self._portal_cm = start_blocking_portal()
         self._portal = self._portal_cm.__enter__()
         self._client_cm = self._portal.wrap_async_context_manager(
@@ -212,7 +226,14 @@ class McpToolbox:
         """The server's tools that ``allow`` offers (at most :data:`MAX_TOOLS`)."""
         if self._client is None:
             raise ComponentError(f"MCP server {self.spec.name!r} is not connected")
-        listed = self._portal.call(self._with_timeout, self._list)
+        try:
+            listed = self._portal.call(self._with_timeout, self._list)
+        except TimeoutError:
+            raise ComponentError(f"MCP server {self.spec.name!r}: tools/list did not answer within "
+                                 f"{self.spec.timeout:g} s") from None
+        except Exception as exc:
+            raise ComponentError(f"MCP server {self.spec.name!r}: tools/list failed: {type(exc).__name__}: "
+                                 f"{exc}"[:600]) from None
         found: list[McpRemoteTool] = []
         for tool in listed[:MAX_TOOLS]:
             schema = tool.input_schema if isinstance(tool.input_schema, dict) else {}

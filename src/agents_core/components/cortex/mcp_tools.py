@@ -26,20 +26,28 @@ def connect_mcp_servers(servers: Sequence[Any], tools: ToolBox, planning_tools: 
     from ...mcp.client import open_toolboxes  # noqa: PLC0415  (the mcp extra, only when servers are given)
 
     boxes = open_toolboxes(servers)
-    for box in boxes:
-        offered = 0
-        for remote in box.tools():
-            function: dict[str, Any] = remote.description["function"]
-            if tools.add(Tool(name=remote.__name__, kind="mcp", description=str(function["description"])
-                              or remote.remote_name, parameters=dict(function["parameters"]), component=None,
-                              target=remote.remote_name, planning=remote.__name__ in planning_tools,
-                              action=remote), replace=False):
-                offered += 1
-            else:
-                logger.warning("MCP server %r: tool %r clashes with a tool already offered; not offered",
-                               box.spec.name, remote.__name__)
-        logger.info("MCP server %r: %d tool(s) offered to the planner", box.spec.name, offered)
+    try:
+        for box in boxes:
+            _offer(box, tools, planning_tools, logger)
+    except BaseException:  # a listing that failed (too large, timed out): no connection is left open
+        disconnect_mcp_servers(boxes, tools)
+        raise
     return boxes
+
+
+def _offer(box: Any, tools: ToolBox, planning_tools: Sequence[str], logger: logging.Logger) -> None:
+    offered = 0
+    for remote in box.tools():
+        function: dict[str, Any] = remote.description["function"]
+        if tools.add(Tool(name=remote.__name__, kind="mcp", description=str(function["description"])
+                          or remote.remote_name, parameters=dict(function["parameters"]), component=None,
+                          target=remote.remote_name, planning=remote.__name__ in planning_tools,
+                          action=remote), replace=False):
+            offered += 1
+        else:
+            logger.warning("MCP server %r: tool %r clashes with a tool already offered; not offered",
+                           box.spec.name, remote.__name__)
+    logger.info("MCP server %r: %d tool(s) offered to the planner", box.spec.name, offered)
 
 
 def disconnect_mcp_servers(boxes: Sequence[Any], tools: ToolBox) -> None:
