@@ -7,7 +7,8 @@ components is one trace. Each test turns telemetry off again (:func:`agents_core
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+import gc
+from collections.abc import Iterator, MutableMapping
 from typing import Any
 
 import pytest
@@ -17,9 +18,12 @@ pytest.importorskip("opentelemetry.exporter.otlp.proto.http")
 
 from agents_core import Component, Launcher, Topic, telemetry
 from agents_core.actions import Action
+from agents_core.clients import ModelClient
 from agents_core.errors import ConfigError
 from agents_core.launch.spec import ComponentSpec
+from agents_core.models import GenericLLM
 from agents_core.supported_types import String
+from agents_core.telemetry import switch
 from agents_core.testing.helpers import wait_for
 
 from .otlp_receiver import OtlpGrpcReceiver, OtlpReceiver, ReceivedSpan
@@ -116,3 +120,61 @@ def test_component_processes_get_the_launchers_settings_in_their_spec() -> None:
                                   "metrics_interval_s": None, "sample_ratio": 0.5}
         assert ComponentSpec.from_dict(spec.to_dict()).telemetry == spec.telemetry  # as the child reads it
         telemetry.shutdown()
+
+
+class _StreamingClient(ModelClient):
+    """A model client whose every answer is a stream of ``chunks``."""
+
+    def __init__(self, chunks: list[str]) -> None:
+        super().__init__(model=GenericLLM(name="streamer", checkpoint="streamer"))
+        self.chunks = chunks
+
+    def _check_connection(self) -> None:
+        pass
+
+    def _initialize(self) -> None:
+        pass
+
+    def _deinitialize(self) -> None:
+        pass
+
+    def _inference(self, inference_input: dict[str, Any]) -> MutableMapping[str, Any] | None:
+        return {"output": (chunk for chunk in self.chunks)}
+
+
+def test_a_streamed_model_call_is_not_left_current_and_ends_with_its_stream() -> None:
+    client = _StreamingClient(["a", "b"])
+    with OtlpReceiver() as receiver:
+        assert telemetry.configure_from({"endpoint": receiver.endpoint})
+        hooks = switch.hooks
+        assert hooks is not None
+        with hooks.call("action", "read"):  # the stream read in the step that asked for it
+            outer = hooks.traceparent()
+            result = client.inference({})
+            assert hooks.traceparent() == outer  # the model span is not the step's current span
+            assert list(result["output"]) == ["a", "b"]
+            assert hooks.traceparent() == outer
+        with hooks.call("action", "closed"):
+            stream = client.inference({})["output"]
+            assert next(stream) == "a"
+            stream.close()
+        with hooks.call("action", "late"):
+            late = client.inference({})["output"]
+        assert hooks.traceparent() is None
+        assert list(late) == ["a", "b"]  # read after its step: the step's context does not come back
+        assert hooks.traceparent() is None
+        with hooks.call("action", "abandoned"):
+            client.inference({})  # never read
+            gc.collect()
+        assert hooks.traceparent() is None
+        telemetry.flush()
+
+        def models() -> dict[str, ReceivedSpan]:
+            spans = receiver.spans()
+            by_id = {s.span_id: s for s in spans}
+            return {by_id[s.parent_id].name: s for s in spans if s.name == "model streamer" and s.parent_id in by_id}
+
+        assert wait_for(lambda: len(models()) == 4, timeout=10, interval=0.1), receiver.spans()
+        chunks = {parent: span.attributes.get("gen_ai.response.chunks") for parent, span in models().items()}
+        assert chunks == {"action read": 2, "action closed": 1, "action late": 2, "action abandoned": 0}
+        assert "gen_ai.response.time_to_first_token" in models()["action read"].attributes

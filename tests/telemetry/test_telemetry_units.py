@@ -21,7 +21,15 @@ from agents_core.runtime.figures import percentile
 from agents_core.supported_types import ComponentStatus
 from agents_core.telemetry.carrier import MAX_ATTACHMENT, append_traceparent, traceparent_of
 from agents_core.telemetry.settings import TelemetrySettings, settings_from_env, telemetry_settings
-from agents_core.telemetry.spans import SpanRecorder, parse_traceparent, sampling_ratio
+from agents_core.telemetry.spans import (
+    PARENT,
+    PARENT_REMOTE,
+    SPAN,
+    TRACE,
+    SpanRecorder,
+    parse_traceparent,
+    sampling_ratio,
+)
 
 TRACEPARENT = "00-0af7651916cd43dd8448eb211c80319c-b7ad6b7169203331-01"
 
@@ -138,11 +146,11 @@ def test_spans_link_parent_to_child_and_a_remote_parent_is_marked() -> None:
         carried = recorder.traceparent()
     recorder.leave(token)
     assert recorder.traceparent() is None
-    step, receive = recorder.drain(10)
-    assert receive.parent_id == 0xB7AD6B7169203331 and receive.remote_parent
-    assert step.parent_id == receive.span_id and not step.remote_parent
-    assert step.trace_id == receive.trace_id == 0x0AF7651916CD43DD8448EB211C80319C
-    assert carried == f"00-{step.trace_id:032x}-{step.span_id:016x}-01"
+    (step, _, _), (receive, _, _) = recorder.drain(10)
+    assert receive[PARENT] == 0xB7AD6B7169203331 and receive[PARENT_REMOTE]
+    assert step[PARENT] == receive[SPAN] and not step[PARENT_REMOTE]
+    assert step[TRACE] == receive[TRACE] == 0x0AF7651916CD43DD8448EB211C80319C
+    assert carried == f"00-{step[TRACE]:032x}-{step[SPAN]:016x}-01"
 
 
 def test_a_trace_not_sampled_records_nothing_and_says_so_downstream() -> None:

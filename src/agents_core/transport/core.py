@@ -106,8 +106,13 @@ class CorePublisher:
             if (tel := _telemetry.hooks) is None or not self._traced:
                 self._sender.send(value)
             else:  # current while the driver sends: it carries the span's context with the value
-                with tel.publish(self.topic.name):
+                span = tel.publish(self.topic.name)
+                try:
                     self._sender.send(value)
+                except BaseException as exc:
+                    tel.end(span, exc)
+                    raise
+                tel.end(span)
         except BaseException:
             with self._count_lock:
                 self._totals.published -= 1
