@@ -11,9 +11,10 @@ Spans (one trace from a message to the messages it caused, across processes):
   in and out where the client reports them, time to first token for a stream);
 - ``tool <name>``, ``action <name>``, ``goal <action>``: tool calls, actions, goals.
 
-They are recorded by :mod:`agents_core.telemetry.spans` (a few µs each) and exported in batches
-from a thread of this module (``OTEL_BSP_SCHEDULE_DELAY``, ``OTEL_BSP_MAX_EXPORT_BATCH_SIZE``,
-``OTEL_BSP_MAX_QUEUE_SIZE``) through the OTLP exporter of the chosen protocol.
+They are recorded by :mod:`agents_core.telemetry.spans` (a tuple each, on the hot thread), turned
+into ``ReadableSpan`` and exported in batches from a thread of this module
+(``OTEL_BSP_SCHEDULE_DELAY``, ``OTEL_BSP_MAX_EXPORT_BATCH_SIZE``, ``OTEL_BSP_MAX_QUEUE_SIZE``)
+through the OTLP exporter of the chosen protocol; that thread yields the GIL every few dozen spans.
 
 Metrics (the SDK's ``MeterProvider``, exported every ``OTEL_METRIC_EXPORT_INTERVAL``):
 ``agents.step.duration`` (histogram, s, per component), ``agents.model.duration`` and
