@@ -7,6 +7,7 @@ components is one trace. Each test turns telemetry off again (:func:`agents_core
 
 from __future__ import annotations
 
+import gc
 from collections.abc import Iterator
 from typing import Any
 
@@ -17,11 +18,14 @@ pytest.importorskip("opentelemetry.exporter.otlp.proto.http")
 
 from agents_core import Component, Launcher, Topic, telemetry
 from agents_core.actions import Action
+from agents_core.clients.payloads import ChunkStream
 from agents_core.errors import ConfigError
 from agents_core.launch.spec import ComponentSpec
 from agents_core.supported_types import String
+from agents_core.telemetry import switch
 from agents_core.testing.helpers import wait_for
 
+from ..components.scripted_client import ScriptedChatClient
 from .otlp_receiver import OtlpGrpcReceiver, OtlpReceiver, ReceivedSpan
 
 IN, MID, OUT = Topic(name="t/in", msg_type="String"), Topic(name="t/mid", msg_type="String"), \
@@ -116,3 +120,42 @@ def test_component_processes_get_the_launchers_settings_in_their_spec() -> None:
                                   "metrics_interval_s": None, "sample_ratio": 0.5}
         assert ComponentSpec.from_dict(spec.to_dict()).telemetry == spec.telemetry  # as the child reads it
         telemetry.shutdown()
+
+
+def test_a_streamed_model_call_is_not_left_current_and_ends_with_its_stream() -> None:
+    client = ScriptedChatClient([["a", "b"]])  # each answer a ChunkStream of two chunks
+    with OtlpReceiver() as receiver:
+        assert telemetry.configure_from({"endpoint": receiver.endpoint})
+        hooks = switch.hooks
+        assert hooks is not None
+        with hooks.call("action", "read"):  # the stream read in the step that asked for it
+            outer = hooks.traceparent()
+            result = client.inference({"stream": True})
+            assert isinstance(result["output"], ChunkStream)  # still, to the streaming loops that check
+            assert hooks.traceparent() == outer  # the model span is not the step's current span
+            assert list(result["output"]) == ["a", "b"]
+            assert hooks.traceparent() == outer
+        with hooks.call("action", "closed"):
+            stream = client.inference({"stream": True})["output"]
+            assert next(stream) == "a"
+            stream.close()
+        with hooks.call("action", "late"):
+            late = client.inference({"stream": True})["output"]
+        assert hooks.traceparent() is None
+        assert list(late) == ["a", "b"]  # read after its step: the step's context does not come back
+        assert hooks.traceparent() is None
+        with hooks.call("action", "abandoned"):
+            client.inference({"stream": True})  # never read
+            gc.collect()
+        assert hooks.traceparent() is None
+        telemetry.flush()
+
+        def models() -> dict[str, ReceivedSpan]:
+            spans = receiver.spans()
+            by_id = {s.span_id: s for s in spans}
+            return {by_id[s.parent_id].name: s for s in spans if s.name == "model scripted" and s.parent_id in by_id}
+
+        assert wait_for(lambda: len(models()) == 4, timeout=10, interval=0.1), receiver.spans()
+        chunks = {parent: span.attributes.get("gen_ai.response.chunks") for parent, span in models().items()}
+        assert chunks == {"action read": 2, "action closed": 1, "action late": 2, "action abandoned": 0}
+        assert "gen_ai.response.time_to_first_token" in models()["action read"].attributes

@@ -11,6 +11,7 @@ import os
 import subprocess
 import sys
 import textwrap
+import threading
 
 import msgpack
 import pytest
@@ -21,7 +22,18 @@ from agents_core.runtime.figures import percentile
 from agents_core.supported_types import ComponentStatus
 from agents_core.telemetry.carrier import MAX_ATTACHMENT, append_traceparent, traceparent_of
 from agents_core.telemetry.settings import TelemetrySettings, settings_from_env, telemetry_settings
-from agents_core.telemetry.spans import SpanRecorder, parse_traceparent, sampling_ratio
+from agents_core.telemetry.spans import (
+    INTERNAL,
+    PARENT,
+    PARENT_REMOTE,
+    PRODUCER,
+    SAMPLED,
+    SPAN,
+    TRACE,
+    SpanRecorder,
+    parse_traceparent,
+    sampling_ratio,
+)
 
 TRACEPARENT = "00-0af7651916cd43dd8448eb211c80319c-b7ad6b7169203331-01"
 
@@ -133,16 +145,16 @@ def test_off_by_default_nothing_of_opentelemetry_is_imported() -> None:
 
 def test_spans_link_parent_to_child_and_a_remote_parent_is_marked() -> None:
     recorder = SpanRecorder(1.0)
-    token = recorder.enter(parse_traceparent(TRACEPARENT))  # type: ignore[arg-type]
+    token = recorder.enter(parse_traceparent(TRACEPARENT))
     with recorder.span("receive"), recorder.span("step"):
         carried = recorder.traceparent()
     recorder.leave(token)
     assert recorder.traceparent() is None
-    step, receive = recorder.drain(10)
-    assert receive.parent_id == 0xB7AD6B7169203331 and receive.remote_parent
-    assert step.parent_id == receive.span_id and not step.remote_parent
-    assert step.trace_id == receive.trace_id == 0x0AF7651916CD43DD8448EB211C80319C
-    assert carried == f"00-{step.trace_id:032x}-{step.span_id:016x}-01"
+    (step, _, _), (receive, _, _) = recorder.drain(10)
+    assert receive[PARENT] == 0xB7AD6B7169203331 and receive[PARENT_REMOTE]
+    assert step[PARENT] == receive[SPAN] and not step[PARENT_REMOTE]
+    assert step[TRACE] == receive[TRACE] == 0x0AF7651916CD43DD8448EB211C80319C
+    assert carried == f"00-{step[TRACE]:032x}-{step[SPAN]:016x}-01"
 
 
 def test_a_trace_not_sampled_records_nothing_and_says_so_downstream() -> None:
@@ -151,7 +163,7 @@ def test_a_trace_not_sampled_records_nothing_and_says_so_downstream() -> None:
         carried = recorder.traceparent()
     assert recorder.drain(10) == [] and carried is not None and carried.endswith("-00")
     downstream = SpanRecorder(1.0)  # records everything it starts, but follows the parent's "no"
-    token = downstream.enter(parse_traceparent(carried))  # type: ignore[arg-type]
+    token = downstream.enter(parse_traceparent(carried))
     with downstream.span("receive"):
         assert downstream.traceparent() == carried
     downstream.leave(token)
@@ -159,6 +171,34 @@ def test_a_trace_not_sampled_records_nothing_and_says_so_downstream() -> None:
     assert parse_traceparent("00-" + "0" * 32 + "-b7ad6b7169203331-01") is None
     assert parse_traceparent(TRACEPARENT.upper()) is None
     assert sampling_ratio(0.25) == 0.25 and sampling_ratio(7) == 1.0
+
+
+def test_a_trace_not_sampled_stays_not_sampled_across_a_thread_hand_off() -> None:
+    recorder = SpanRecorder(0.5)  # a new trace on the other thread could be sampled: it must not start
+    for _ in range(20):
+        publish = recorder.begin("publish", PRODUCER, {}, None)
+        if publish is not None and not publish[SAMPLED]:
+            break
+        recorder.end(publish)
+    recorder.drain(100)  # the sampled tries
+    captured, carried = recorder.capture(), recorder.traceparent()
+    assert carried is not None and carried.endswith("-00")
+    seen: list[str | None] = []
+
+    def step() -> None:  # the worker: the step's parent is handed over, as the runtime does
+        opened = recorder.begin("step", INTERNAL, {}, captured)
+        seen.append(recorder.traceparent())
+        with recorder.span("publish out"):
+            seen.append(recorder.traceparent())
+        recorder.end(opened)
+        seen.append(recorder.traceparent())
+
+    worker = threading.Thread(target=step)
+    worker.start()
+    worker.join(5)
+    recorder.end(publish)
+    assert seen == [carried, carried, None] and recorder.traceparent() is None
+    assert recorder.drain(10) == []
 
 
 def test_the_sampler_variables(monkeypatch: pytest.MonkeyPatch) -> None:

@@ -218,8 +218,13 @@ class ModelClient(BaseClient):
             return self._timed_inference(inference_input)
         with tel.model_call(str(self.model_name), type(self).__name__) as call:
             result = self._timed_inference(inference_input)
+            stream = result["output"]
             usage = getattr(self, "last_usage", None) or getattr(self, "last_stats", None)
-            return call.record(result, usage if isinstance(usage, dict) else None)  # type: ignore[no-any-return]
+            recorded: MutableMapping[str, Any] = call.record(result, usage if isinstance(usage, dict) else None)
+            if isinstance(stream, ChunkStream) and not isinstance(recorded["output"], ChunkStream):
+                # Still a ChunkStream to its reader (the streaming loops check the type), timed within.
+                recorded["output"] = ChunkStream(recorded["output"], label=f"{type(self).__name__} stream")
+            return recorded
 
     def _timed_inference(self, inference_input: dict[str, Any]) -> MutableMapping[str, Any]:
         start = time.monotonic()

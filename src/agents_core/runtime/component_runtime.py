@@ -418,8 +418,11 @@ class ComponentRuntime:
                          snapshot: tuple[str, Any] | None, epoch: int) -> None:
         if self.lifecycle.state != _ACTIVE or epoch != self._epoch:
             return
-        with tel.step(self._name, context):
+        token = tel.step(self._name, context)
+        try:
             self._run_step(kwargs, snapshot, epoch)
+        finally:
+            tel.step_end(token)
 
     def _run_step(self, kwargs: dict[str, Any], snapshot: tuple[str, Any] | None, epoch: int) -> None:
         if self.lifecycle.state != _ACTIVE or epoch != self._epoch:

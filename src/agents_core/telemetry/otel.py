@@ -11,9 +11,10 @@ Spans (one trace from a message to the messages it caused, across processes):
   in and out where the client reports them, time to first token for a stream);
 - ``tool <name>``, ``action <name>``, ``goal <action>``: tool calls, actions, goals.
 
-They are recorded by :mod:`agents_core.telemetry.spans` (a few µs each) and exported in batches
-from a thread of this module (``OTEL_BSP_SCHEDULE_DELAY``, ``OTEL_BSP_MAX_EXPORT_BATCH_SIZE``,
-``OTEL_BSP_MAX_QUEUE_SIZE``) through the OTLP exporter of the chosen protocol.
+They are recorded by :mod:`agents_core.telemetry.spans` (a tuple each, on the hot thread), turned
+into ``ReadableSpan`` and exported in batches from a thread of this module
+(``OTEL_BSP_SCHEDULE_DELAY``, ``OTEL_BSP_MAX_EXPORT_BATCH_SIZE``, ``OTEL_BSP_MAX_QUEUE_SIZE``)
+through the OTLP exporter of the chosen protocol; that thread yields the GIL every few dozen spans.
 
 Metrics (the SDK's ``MeterProvider``, exported every ``OTEL_METRIC_EXPORT_INTERVAL``):
 ``agents.step.duration`` (histogram, s, per component), ``agents.model.duration`` and
@@ -31,6 +32,7 @@ import contextlib
 import os
 import threading
 import time
+import typing
 from collections.abc import Iterable, Iterator, Mapping
 from typing import Any
 
@@ -45,13 +47,36 @@ from opentelemetry.trace import SpanContext, SpanKind, Status, StatusCode, Trace
 from . import switch
 from .process import process_figures
 from .settings import TelemetrySettings
-from .spans import CLIENT, CONSUMER, PRODUCER, FinishedSpan, SpanRecorder, parse_traceparent, sampling_ratio
+from .spans import (
+    ATTRIBUTES,
+    CLIENT,
+    CONSUMER,
+    INTERNAL,
+    KIND,
+    NAME,
+    PARENT,
+    PARENT_REMOTE,
+    PRODUCER,
+    SAMPLED,
+    SPAN,
+    START,
+    TRACE,
+    Context,
+    FinishedSpan,
+    SpanRecorder,
+    parse_traceparent,
+    sampling_ratio,
+)
 
 __all__ = ["OtelHooks"]
 
 _KINDS = {k.value: k for k in SpanKind}
 _SAMPLED = TraceFlags(TraceFlags.SAMPLED)
 _SCOPE = InstrumentationScope("agents_core")
+_UNSET = Status(StatusCode.UNSET)
+_MASK64 = (1 << 64) - 1
+#: Spans turned into ReadableSpan between two yields of the GIL on the exporter's thread.
+_CHUNK = 32
 
 
 def _exporters(settings: TelemetrySettings) -> tuple[Any, Any]:
@@ -83,55 +108,104 @@ def _env_int(name: str, default: int) -> int:
 
 
 class _ModelCall:
-    """The span of one model call; :meth:`record` reads the result (tokens, a stream's first token)."""
+    """The span of one model call; :meth:`record` reads the result (tokens, a stream's first token).
+
+    A streamed answer's span outlives the call: it is no longer current once the call returns (the
+    step goes on under its own span) and ends with the stream, when it is exhausted, closed,
+    fails, or is dropped unfinished.
+    """
 
     def __init__(self, hooks: OtelHooks, model: str, client: str) -> None:
         self._hooks = hooks
         self._attributes = {"gen_ai.request.model": model, "gen_ai.system": client}
-        self._span = hooks.recorder.span(f"model {model}", CLIENT, dict(self._attributes))
+        self._span: Context | None = None
         self._start = 0.0
         self._streaming = False
 
     def __enter__(self) -> _ModelCall:
         self._start = time.perf_counter()
-        self._span.__enter__()
+        self._span = self._hooks.recorder.begin(f"model {self._attributes['gen_ai.request.model']}", CLIENT,
+                                                dict(self._attributes))
         return self
+
+    def set_attribute(self, key: str, value: Any) -> None:
+        """Add an attribute (nothing when the span is not sampled)."""
+        span = self._span
+        if span is not None and span[SAMPLED]:
+            span[ATTRIBUTES][key] = value
 
     def record(self, result: Any, usage: Mapping[str, Any] | None = None) -> Any:
         """Add what ``result`` (and the client's ``usage``) tell; returns the result, its stream wrapped."""
         tokens_in, tokens_out = _tokens(result, usage)
         if tokens_in is not None:
-            self._span.set_attribute("gen_ai.usage.input_tokens", tokens_in)
+            self.set_attribute("gen_ai.usage.input_tokens", tokens_in)
         if tokens_out is not None:
-            self._span.set_attribute("gen_ai.usage.output_tokens", tokens_out)
+            self.set_attribute("gen_ai.usage.output_tokens", tokens_out)
         output = result.get("output") if isinstance(result, Mapping) else None
         if output is not None and not isinstance(output, str | bytes) and isinstance(output, Iterator):
             self._streaming = True
-            result["output"] = self._timed_stream(output)
+            result["output"] = _TimedStream(self, output)
         return result
 
-    def _timed_stream(self, chunks: Iterator[Any]) -> Iterator[Any]:
-        count = 0
-        try:
-            for chunk in chunks:
-                if count == 0:
-                    ttft = time.perf_counter() - self._start
-                    self._span.set_attribute("gen_ai.response.time_to_first_token", ttft)
-                    self._hooks.ttft.record(ttft, self._attributes)
-                count += 1
-                yield chunk
-        finally:
-            self._span.set_attribute("gen_ai.response.chunks", count)
-            self._end(None)
+    def first_chunk(self) -> None:
+        ttft = time.perf_counter() - self._start
+        self.set_attribute("gen_ai.response.time_to_first_token", ttft)
+        self._hooks.ttft.record(ttft, self._attributes)
 
-    def _end(self, exc: BaseException | None) -> None:
+    def stream_ended(self, chunks: int, exc: BaseException | None) -> None:
+        self.set_attribute("gen_ai.response.chunks", chunks)
         self._hooks.model_duration.record(time.perf_counter() - self._start, self._attributes)
-        self._span.__exit__(type(exc) if exc is not None else None, exc, None)
+        self._hooks.recorder.finish(self._span, exc)
 
     def __exit__(self, kind: Any, exc: Any, tb: Any) -> None:
-        # A stream's span ends with the stream (its consumer's step), a call's here.
         if exc is not None or not self._streaming:
+            self._hooks.model_duration.record(time.perf_counter() - self._start, self._attributes)
+            self._hooks.recorder.end(self._span, exc)
+        else:  # a stream's span ends with the stream (see _TimedStream); the caller's context is back
+            self._hooks.recorder.detach(self._span)
+
+
+class _TimedStream(Iterator[Any]):
+    """A model's stream that ends its call's span once: exhausted, failed, closed or dropped."""
+
+    def __init__(self, call: _ModelCall, chunks: Iterator[Any]) -> None:
+        self._call: _ModelCall | None = call
+        self._chunks = chunks
+        self._count = 0
+
+    def __next__(self) -> Any:
+        call = self._call
+        if call is None:
+            raise StopIteration
+        try:
+            chunk = next(self._chunks)
+        except StopIteration:
+            self._end(None)
+            raise
+        except BaseException as exc:
             self._end(exc)
+            raise
+        if self._count == 0:
+            call.first_chunk()
+        self._count += 1
+        return chunk
+
+    def close(self) -> None:
+        """Stop here: the span ends (and the underlying stream is closed, if it can be)."""
+        if self._call is not None:
+            self._end(None)
+        close = getattr(self._chunks, "close", None)
+        if close is not None:
+            close()
+
+    def _end(self, exc: BaseException | None) -> None:
+        call, self._call = self._call, None
+        if call is not None:
+            call.stream_ended(self._count, exc)
+
+    def __del__(self) -> None:  # dropped unfinished: the span still ends (no current context touched)
+        if getattr(self, "_call", None) is not None:
+            self._end(None)
 
 
 def _tokens(result: Any, usage: Mapping[str, Any] | None) -> tuple[int | None, int | None]:
@@ -150,26 +224,6 @@ def _tokens(result: Any, usage: Mapping[str, Any] | None) -> tuple[int | None, i
     return tokens_in, tokens_out
 
 
-class _Step:
-    """A step's span; its duration goes to the step histogram's queue."""
-
-    __slots__ = ("_durations", "_name", "_span", "_start")
-
-    def __init__(self, span: Any, durations: collections.deque[tuple[str, float]], name: str) -> None:
-        self._span = span
-        self._durations = durations
-        self._name = name
-        self._start = 0.0
-
-    def __enter__(self) -> Any:
-        self._start = time.perf_counter()
-        return self._span.__enter__()
-
-    def __exit__(self, *exc: Any) -> None:
-        self._durations.append((self._name, time.perf_counter() - self._start))
-        self._span.__exit__(*exc)
-
-
 class OtelHooks:
     """Spans and metrics of this process, exported over OTLP (see the module docstring)."""
 
@@ -184,7 +238,12 @@ class OtelHooks:
         self.recorder = SpanRecorder(sampling_ratio(settings.sample_ratio), _env_int("OTEL_BSP_MAX_QUEUE_SIZE", 8192))
         self.recorder.batch_size = _env_int("OTEL_BSP_MAX_EXPORT_BATCH_SIZE", 512)
         self._delay_s = _env_int("OTEL_BSP_SCHEDULE_DELAY", 5000) / 1000.0
-        self._named: dict[tuple[str, str], tuple[str, dict[str, Any]]] = {}
+        # A span's name and attributes per topic or component, by verb (made once, shared, never changed).
+        self._named: dict[str, dict[str, tuple[str, dict[str, Any]]]] = {"receive": {}, "publish": {}, "step": {}}
+        self._received, self._published, self._stepped = (self._named[v] for v in ("receive", "publish", "step"))
+        self._begin = self.recorder.begin
+        self._end = self.end = self.recorder.end  # the hooks' end: the recorder's, no call in between
+        self.capture = self.recorder.capture
         self._stop = threading.Event()
         self._export_lock = threading.Lock()
         self._thread = threading.Thread(target=self._export_loop, name="agents-telemetry", daemon=True)
@@ -218,36 +277,32 @@ class OtelHooks:
     # -- the hooks (agents_core.telemetry.switch.Hooks) ----------------------------------------
 
     def enter_remote(self, traceparent: str | None) -> object:
-        context = parse_traceparent(traceparent)
-        return None if context is None else self.recorder.enter(context)
+        return self.recorder.enter(parse_traceparent(traceparent))
 
     def leave(self, token: object) -> None:
-        if token is not None:
-            self.recorder.leave(token)  # type: ignore[arg-type]  # the token enter_remote made
+        self.recorder.leave(token)  # type: ignore[arg-type]  # what enter_remote returned
 
     def _names(self, verb: str, what: str, attribute: str = "messaging.destination.name") -> tuple[str, dict[str, Any]]:
         """A span's name and attributes, made once per topic or component (shared: never changed)."""
-        key = (verb, what)
-        named = self._named.get(key)
-        if named is None:
-            named = self._named[key] = (f"{verb} {what}", {attribute: what})
+        named = self._named[verb][what] = (f"{verb} {what}", {attribute: what})
         return named
 
-    def receive(self, topic: str) -> Any:
-        name, attributes = self._names("receive", topic)
-        return self.recorder.span(name, CONSUMER, attributes)
+    def receive(self, topic: str) -> object:
+        named = self._received.get(topic) or self._names("receive", topic)
+        return self._begin(named[0], CONSUMER, named[1])
 
-    def capture(self) -> object:
-        return self.recorder.current.get()
+    def step(self, component: str, context: object) -> object:
+        named = self._stepped.get(component) or self._names("step", component, "agents.component")
+        return component, time.perf_counter(), self._begin(named[0], INTERNAL, named[1], context)
 
-    def step(self, component: str, context: object) -> Any:
-        name, attributes = self._names("step", component, "agents.component")
-        span = self.recorder.span(name, attributes=attributes, parent=context)  # type: ignore[arg-type]
-        return _Step(span, self._step_durations, component)
+    def step_end(self, token: object) -> None:
+        component, start, span = typing.cast(tuple[str, float, Context | None], token)  # what step returned
+        self._step_durations.append((component, time.perf_counter() - start))
+        self._end(span)
 
-    def publish(self, topic: str) -> Any:
-        name, attributes = self._names("publish", topic)
-        return self.recorder.span(name, PRODUCER, attributes)
+    def publish(self, topic: str) -> object:
+        named = self._published.get(topic) or self._names("publish", topic)
+        return self._begin(named[0], PRODUCER, named[1])
 
     def traceparent(self) -> str | None:
         return self.recorder.traceparent()
@@ -260,23 +315,30 @@ class OtelHooks:
 
     # -- spans out ---------------------------------------------------------------------------------
 
-    def _readable(self, span: FinishedSpan) -> ReadableSpan:
+    def _readable(self, finished: FinishedSpan) -> ReadableSpan:
+        span, end_ns, error = finished
+        trace_id = span[TRACE]
         parent = None
-        if span.parent_id:
-            parent = SpanContext(span.trace_id, span.parent_id, is_remote=span.remote_parent, trace_flags=_SAMPLED)
-        status = Status(StatusCode.ERROR, span.error) if span.error is not None else Status(StatusCode.UNSET)
-        return ReadableSpan(name=span.name, context=SpanContext(span.trace_id, span.span_id, is_remote=False,
-                                                                trace_flags=_SAMPLED),
-                            parent=parent, resource=self._resource, attributes=span.attributes,
-                            kind=_KINDS.get(span.kind, SpanKind.INTERNAL), start_time=span.start_ns,
-                            end_time=span.end_ns, status=status, instrumentation_scope=_SCOPE)
+        if span[PARENT]:
+            parent = SpanContext(trace_id, span[PARENT] & _MASK64, is_remote=span[PARENT_REMOTE],
+                                 trace_flags=_SAMPLED)
+        status = Status(StatusCode.ERROR, error) if error is not None else _UNSET
+        return ReadableSpan(name=span[NAME], context=SpanContext(trace_id, span[SPAN] & _MASK64, is_remote=False,
+                                                                 trace_flags=_SAMPLED),
+                            parent=parent, resource=self._resource, attributes=span[ATTRIBUTES],
+                            kind=_KINDS.get(span[KIND], SpanKind.INTERNAL), start_time=span[START],
+                            end_time=end_ns, status=status, instrumentation_scope=_SCOPE)
 
     def _export_some(self) -> int:
         with self._export_lock:
             batch = self.recorder.drain(self.recorder.batch_size)
             if batch:
+                readable: list[ReadableSpan] = []
+                for at in range(0, len(batch), _CHUNK):
+                    readable.extend(self._readable(s) for s in batch[at:at + _CHUNK])
+                    time.sleep(0)  # the GIL to the hot threads between chunks, not after a whole batch
                 with contextlib.suppress(Exception):  # an exporter that fails logs it; the spans are lost
-                    self._span_exporter.export([self._readable(s) for s in batch])
+                    self._span_exporter.export(readable)
             return len(batch)
 
     def _export_loop(self) -> None:

@@ -1,9 +1,11 @@
 """Whether telemetry is on in this process, read by the hot paths with one attribute lookup.
 
 :data:`hooks` is None while telemetry is off (the default): the step, receive, publish and model
-paths check it and do nothing more. :func:`agents_core.telemetry.configure` sets it to the
-OpenTelemetry hooks (:mod:`agents_core.telemetry.otel`). This module imports nothing from
-OpenTelemetry; it names the hooks' methods as a :class:`Hooks` protocol for the type checker.
+paths check it and do nothing more. While on, the per-message spans (receive, step, publish) are
+a begin call and an end call each (no context-manager object); the rarer ones are context
+managers. :func:`agents_core.telemetry.configure` sets it to the OpenTelemetry hooks
+(:mod:`agents_core.telemetry.otel`). This module imports nothing from OpenTelemetry; it
+names the hooks' methods as a :class:`Hooks` protocol for the type checker.
 
 :data:`runtimes` holds every bound component runtime of the process (weakly), so that metrics
 and ``agentsctl top`` figures can be read from them when asked, at no cost per message.
@@ -23,27 +25,38 @@ class Hooks(Protocol):
     """What the instrumented code calls while telemetry is on (see :mod:`agents_core.telemetry.otel`)."""
 
     def enter_remote(self, traceparent: str | None) -> object:
-        """Make the context of a received ``traceparent`` current; a token for :meth:`leave`."""
+        """Make the context of a received ``traceparent`` current (none: outside any trace); a token for
+        :meth:`leave`."""
         ...
 
     def leave(self, token: object) -> None:
         """Undo :meth:`enter_remote`."""
         ...
 
-    def receive(self, topic: str) -> AbstractContextManager[Any]:
-        """A span for one value received on ``topic`` (current while the value is handed on)."""
+    def receive(self, topic: str) -> object:
+        """Open the span of one value received on ``topic``, current until :meth:`end` (the value handed on
+        meanwhile)."""
+        ...
+
+    def end(self, span: object, error: BaseException | None = None) -> None:
+        """End a span :meth:`receive` or :meth:`publish` opened (``error``: what it failed with)."""
         ...
 
     def capture(self) -> object:
         """The current trace context, to carry to another thread."""
         ...
 
-    def step(self, component: str, context: object) -> AbstractContextManager[Any]:
-        """A span for one execution step of ``component``, a child of ``context``."""
+    def step(self, component: str, context: object) -> object:
+        """Open the span of one execution step of ``component``, a child of ``context``; ended by
+        :meth:`step_end`."""
         ...
 
-    def publish(self, topic: str) -> AbstractContextManager[Any]:
-        """A span for one value published on ``topic``."""
+    def step_end(self, token: object) -> None:
+        """End what :meth:`step` opened (its duration goes to the step histogram)."""
+        ...
+
+    def publish(self, topic: str) -> object:
+        """Open the span of one value published on ``topic``, current until :meth:`end`."""
         ...
 
     def traceparent(self) -> str | None:

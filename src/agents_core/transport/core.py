@@ -1,8 +1,7 @@
 """``DriverTransport``: the one transport (the public surface on top of any driver), with the bookkeeping once.
 
-Every transport (memory, Zenoh, ROS 2, a third party's) is a :class:`DriverTransport` around a
-driver; what each driver primitive promises is specified in
-:class:`~agents_core.transport.driver.TransportDriver` only. What lives here and nowhere else:
+Every transport (memory, Zenoh, ROS 2, a third party's) is a :class:`DriverTransport` around a driver, whose
+primitives :class:`~agents_core.transport.driver.TransportDriver` alone specifies. What lives here and nowhere else:
 
 - the closed state (every call after :meth:`~DriverTransport.close` raises
   :class:`~agents_core.errors.TransportClosedError`), names checked, duplicate services and
@@ -14,10 +13,9 @@ driver; what each driver primitive promises is specified in
 - how a received value reaches its callback: a bounded delivery thread for user callbacks, or
   ``inline=True`` for component inputs, where the value goes straight to the component's worker
   from the middleware's thread (one hand-off per hop);
-- the request lanes (one per component) and the caller's deadline
-  (:mod:`agents_core.transport.requests`), for services and for transitions asked from outside;
-- each component's status topic ``<name>/status``: :meth:`CorePresence.update` is the one
-  path by which a component's state reaches the driver and the topic;
+- the request lanes (one per component) and the caller's deadline (:mod:`agents_core.transport.requests`),
+  for services and for transitions asked from outside;
+- each component's status topic ``<name>/status``, which its state reaches only by :meth:`CorePresence.update`;
 - the capabilities, derived from the driver
   (:func:`~agents_core.transport.driver.capabilities_of`): graph discovery and long-running goals
   (bookkeeping in :mod:`agents_core.transport.goal_serving`) raise
@@ -99,19 +97,21 @@ class CorePublisher:
         if self._close_once.closed or self._transport._closed:
             raise TransportClosedError(f"publisher on {self.topic.name!r} is closed")
         value = self._validate(value)
-        # Counted before sending, for the same reason as InlineDelivery.offer; undone on failure.
+        # Counted before sending, for the same reason as InlineDelivery.offer; undone on failure. With telemetry
+        # on, a publish span is current while the driver sends: its context goes with the value.
         with self._count_lock:
             self._totals.published += 1
+        span = None if (tel := _telemetry.hooks if self._traced else None) is None else tel.publish(self.topic.name)
         try:
-            if (tel := _telemetry.hooks) is None or not self._traced:
-                self._sender.send(value)
-            else:  # current while the driver sends: it carries the span's context with the value
-                with tel.publish(self.topic.name):
-                    self._sender.send(value)
-        except BaseException:
+            self._sender.send(value)
+        except BaseException as exc:
+            if tel is not None:
+                tel.end(span, exc)
             with self._count_lock:
                 self._totals.published -= 1
             raise
+        if tel is not None:
+            tel.end(span)
 
     def close(self) -> None:
         """Stop publishing; idempotent."""

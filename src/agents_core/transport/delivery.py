@@ -224,8 +224,13 @@ class InlineDelivery(_Counted):
             if tel is None:
                 self._callback(value)
             else:  # a receive span, current while the callback queues the step it triggers
-                with tel.receive(self.topic.name):
+                span = tel.receive(self.topic.name)
+                try:
                     self._callback(value)
+                except BaseException as exc:
+                    tel.end(span, exc)
+                    raise
+                tel.end(span)
         except Exception:
             with self._count_lock:
                 self._stats.delivered -= 1
