@@ -1,7 +1,8 @@
 """Score a scripted expert on LeRobot's ALOHA transfer-cube task: the right arm picks the cube, hands it to the left.
 
 ``world`` (a GymWorld running ``gym_aloha/AlohaTransferCube-v0``: two ViperX arms, 14 joint-position
-actions, the ``top`` camera at 160x120) publishes each step's ``observation``: the arms' joints
+actions, the ``top`` camera at 640x480: gym-aloha renders its cameras at that size whatever
+``observation_width`` says) publishes each step's ``observation``: the arms' joints
 (``agent_pos``, 14 values), then the simulation time and the cube's pose (privileged state: a
 scripted expert knows where the cube is, as in the ALOHA papers' scripted demonstrations).
 ``aloha_expert`` (the component below) follows the papers' end-effector script — approach the cube
@@ -27,6 +28,7 @@ from example_cli import parser
 from agents_core import Topic
 from agents_core.components import Component
 from agents_core.evals import Evaluation, run_evaluation
+from agents_core.evals.expect import expect_success_rate
 from agents_core.sim import EnvSuccess, GymWorld, GymWorldConfig
 
 #: Seconds per step of the ALOHA scenes (50 Hz).
@@ -206,9 +208,9 @@ class AlohaExpert(Component):
 
 
 def aloha_world() -> GymWorld:
-    """The transfer-cube world: the top camera at 160x120, the task's own success rule, privileged cube pose."""
+    """The transfer-cube world: the top camera (640x480), the task's own success rule, privileged cube pose."""
     return GymWorld("gym_aloha/AlohaTransferCube-v0", success=EnvSuccess(),
-                    env_kwargs={"obs_type": "pixels_agent_pos", "observation_width": 160, "observation_height": 120},
+                    env_kwargs={"obs_type": "pixels_agent_pos"},
                     cameras={"top": "pixels/top"}, privileged_state=aloha_privileged_state,
                     config=GymWorldConfig(step_timeout=60.0, action_timeout=60.0))
 
@@ -225,14 +227,22 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--episodes", type=int, default=5)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", type=Path, default=Path("eval-aloha"))
+    p.add_argument("--at-least", type=float, default=None, metavar="RATE",
+                   help="exit with status 1 when the success rate is under RATE (0-1)")
     args = p.parse_args(argv)
     run = run_evaluation(evaluation(args.episodes, args.seed), args.out, transport=args.transport or "memory")
-    print("| episode | seed | success | ended | steps | reward sum | max reward | wall s |")
-    print("|---|---|---|---|---|---|---|---|")
+    print("| episode | seed | success | ended | steps | time to success s | reward sum | max reward | wall s |")
+    print("|---|---|---|---|---|---|---|---|---|")
     for r in run.results:
-        print(f"| {r['episode']} | {r['seed']} | {r['success']} | {r['ended']} | {r['steps']} | "
+        tts = "-" if r["time_to_success_s"] is None else f"{r['time_to_success_s']:.2f}"
+        print(f"| {r['episode']} | {r['seed']} | {r['success']} | {r['ended']} | {r['steps']} | {tts} | "
               f"{r['reward_sum']:.0f} | {max(r['rewards'] or [0]):.0f} | {r['wall_s']:.0f} |")
     print(f"{run.successes}/{len(run.results)} episodes succeeded; results in {run.out_dir}", flush=True)
+    if args.at_least is not None:
+        try:
+            expect_success_rate(run.out_dir, at_least=args.at_least)
+        except AssertionError as exc:
+            raise SystemExit(f"FAILED: {exc}") from None
 
 
 if __name__ == "__main__":

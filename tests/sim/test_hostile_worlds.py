@@ -48,9 +48,9 @@ def test_an_agent_that_never_answers_ends_the_episode_in_lockstep(tmp_path: Path
     assert "no action on 'action' within 0.3 s" in run.results[0]["reason"]
 
 
-# Zenoh only: on ROS 2 the death is counted too, but the next episode's request can go to the dead server,
-# which still looks ready to this process's client, and then waits out its timeout (see docs/evaluate.md).
-@pytest.mark.parametrize("transport", [t for t in TRANSPORTS if t.values[0] == "zenoh"])
+# The cross-process transports. On ROS 2 the request to the dead world is never answered and waits out its timeout
+# (an hour and more here): the next episode's request must not queue behind it.
+@pytest.mark.parametrize("transport", [t for t in TRANSPORTS if t.values[0] != "memory"])
 def test_a_world_process_that_dies_is_counted_not_waited_for(transport: str, tmp_path: Path) -> None:
     run = run_evaluation(_evaluation([0, DIES, 0]), tmp_path, transport=transport,
                          transport_options=transport_options(transport), world_process=True, progress=False)

@@ -115,7 +115,6 @@ class _Episodes:
     def __init__(self, launcher: Launcher, world: Any, evaluation: Evaluation, out_dir: Path) -> None:
         self.launcher, self.world, self.evaluation, self.out_dir = launcher, world, evaluation, out_dir
         self.name = world.component_name
-        self.pool = concurrent.futures.ThreadPoolExecutor(1, thread_name_prefix="eval-episode")
         config = world.config
         self.call_timeout = (evaluation.max_wall_s or 0.0) + EPISODE_MARGIN_S + config.step_timeout
         if evaluation.max_wall_s is None:
@@ -142,6 +141,22 @@ class _Episodes:
                 return False
             time.sleep(0.05)
         return True
+
+    def _submit(self, episode: int, seed: int) -> concurrent.futures.Future[dict[str, Any]]:
+        """:meth:`_call` on a daemon thread of its own: a request left waiting on a world that died (on ROS 2 it
+        waits out its whole timeout) must hold up neither the next episode's request nor the interpreter's exit."""
+        future: concurrent.futures.Future[dict[str, Any]] = concurrent.futures.Future()
+
+        def call() -> None:
+            if not future.set_running_or_notify_cancel():
+                return
+            try:
+                future.set_result(self._call(episode, seed))
+            except BaseException as exc:
+                future.set_exception(exc)
+
+        threading.Thread(target=call, name=f"eval-episode-{episode}", daemon=True).start()
+        return future
 
     def _call(self, episode: int, seed: int) -> dict[str, Any]:
         kwargs = {"seed": seed, "max_steps": self.evaluation.max_steps, "max_wall_s": self.evaluation.max_wall_s,
@@ -186,7 +201,7 @@ class _Episodes:
         if self.gone:
             return _failed(episode, seed, "world_died", "the world process died and did not come back", 0.0)
         crashes = self._crashes()
-        future = self.pool.submit(self._call, episode, seed)
+        future = self._submit(episode, seed)
         try:
             while True:
                 try:
@@ -217,7 +232,7 @@ class _Episodes:
             self.world.stop_episode()
 
     def close(self) -> None:
-        self.pool.shutdown(wait=False, cancel_futures=True)
+        """Nothing to wait for: a request still out ends with the launcher's transport."""
 
 
 def _metadata(evaluation: Evaluation, world: Any, agents: Sequence[Any], transport: str | None,

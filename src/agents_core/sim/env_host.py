@@ -21,10 +21,11 @@ __all__ = ["EnvHost", "EnvHung", "make_env", "prepare_rendering"]
 
 T = TypeVar("T")
 
-#: Keyword arguments some environment families take for the size of what ``render()`` returns.
+#: Keyword arguments some environment families take for the size of what ``render()`` returns (gym-aloha's
+#: ``observation_width`` only declares its observation's image size; its task renders those at 640x480).
 _RENDER_SIZE_KWARGS: dict[str, tuple[str, str]] = {
     "gym_pusht/": ("visualization_width", "visualization_height"),
-    "gym_aloha/": ("observation_width", "observation_height"),
+    "gym_aloha/": ("visualization_width", "visualization_height"),
 }
 
 
