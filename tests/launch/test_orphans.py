@@ -47,10 +47,10 @@ def test_an_orphan_sigkilled_leaves_no_timeout_and_the_servers_own_child_is_left
     own = subprocess.Popen(["sleep", "30"])
     started.append(own)
     orphans = Orphans(grace=0.05)
-    assert orphans.sort({own.pid}, component_died=False) == 0
+    assert orphans.sort({own.pid}, orphaned=False) == 0
     assert orphans.timeout() is None
     orphan = _stubborn(started)
-    assert orphans.sort({own.pid, orphan.pid}, component_died=True) == 1  # only the new one
+    assert orphans.sort({own.pid, orphan.pid}, orphaned=True) == 1  # only the new one
     due = orphans.timeout()
     assert due is not None and 0.0 <= due <= 0.05
     time.sleep(0.2)
@@ -58,6 +58,7 @@ def test_an_orphan_sigkilled_leaves_no_timeout_and_the_servers_own_child_is_left
     orphans.kill_due()
     assert orphans.timeout() is None, "nothing is due: the SIGKILLed one waits only to be reaped"
     assert orphan.wait(timeout=5.0) == -9
-    orphans.reaped(orphan.pid)
-    assert orphans.sort({own.pid}, component_died=True) == 0
+    assert orphans.reaped(orphan.pid), "it was an orphan: what it leaves behind is too"
+    assert orphans.sort({own.pid}, orphaned=True) == 0
     assert own.poll() is None, "the child filed as its own was never signalled"
+    assert not orphans.reaped(own.pid)

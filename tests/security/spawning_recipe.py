@@ -4,8 +4,8 @@ Its ``Spawner`` runs in a process of its own (``multiprocessing=True``, Zenoh on
 activate it starts a ``sleep`` child directly and another one through ``sh -c 'sleep ... &'``
 (orphaned at once: the double fork a daemon does), and writes ``pids.<component pid>`` (the two
 sleeps' pids, one a line) in the marker folder. ``--stubborn``: the direct child ignores SIGTERM
-(``trap '' TERM``). ``--bystander``: a second component, from :mod:`bystander_component` (whose import
-starts a helper process, in the fork server too).
+(``trap '' TERM``), and so does a child of its own. ``--bystander``: a second component, from
+:mod:`bystander_component` (whose import starts a helper process, in the fork server too).
 """
 
 from __future__ import annotations
@@ -35,7 +35,8 @@ class Spawner(Component):
         self.stubborn = stubborn
 
     def custom_on_activate(self) -> None:
-        direct = subprocess.Popen(["sh", "-c", "trap '' TERM; exec sleep 300"] if self.stubborn else ["sleep", "300"])
+        stubborn = "trap '' TERM; sleep 300 & exec sleep 300"  # and so is its child, which it leaves behind
+        direct = subprocess.Popen(["sh", "-c", stubborn] if self.stubborn else ["sleep", "300"])
         marker = Path(self.markers, f"orphan.{os.getpid()}")
         subprocess.run(["sh", "-c", f"sleep 300 & echo $! > {marker}"], check=True)
         deadline = time.monotonic() + 5

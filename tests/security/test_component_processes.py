@@ -21,7 +21,7 @@ import pytest
 from agents_core.testing.helpers import free_tcp_port
 from agents_core.testing.pairs import skip_unless_installed
 
-from ..launch.helpers import REPO, alive, child_pids, parent_pid, wait_for
+from ..launch.helpers import REPO, alive, child_pids, direct_children, parent_pid, wait_for
 
 pytestmark = pytest.mark.timeout(120)
 RECIPE = Path(__file__).with_name("spawning_recipe.py")
@@ -159,7 +159,13 @@ def _kill_spawner(run: _Run) -> tuple[int, int, list[int], dict[int, int]]:
 
 
 def test_the_fork_server_outlives_the_orphan_of_a_killed_component_that_ignores_sigterm(stubborn: _Run) -> None:
+    """The orphan ignores SIGTERM and has a child that does too (an orphan's orphan, re-parented to the server
+    when the orphan is SIGKILLed): both end, the server and the bystander go on."""
+    direct = stubborn.started()[1][0]
+    grandchild = wait_for(lambda: direct_children(direct), timeout=10.0, what="the stubborn child's own child")
+    stubborn.pids |= set(grandchild)
     server, bystander, sleeps, _ = _kill_spawner(stubborn)
+    sleeps = [*sleeps, *grandchild]
     gone = _gone_within(sleeps, GONE_WITHIN_S)
     assert gone is not None, f"orphans {[p for p in sleeps if alive(p)]} outlived the killed component"
     print(f"the killed component's orphans (one ignores SIGTERM) gone {gone:.2f} s after it")

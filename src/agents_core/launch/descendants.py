@@ -128,9 +128,9 @@ class Orphans:
     ``subprocess.Popen`` at import, a ``multiprocessing`` manager), and the orphans re-parented to it
     when a component process died without ending what it had started. Only these are ended. The
     caller reaps its children and then calls :meth:`sort` with the children it has left: a child
-    seen for the first time after a pass in which no component process was reaped is this
-    process's own (its imports', or re-parented from one of those), and is never signalled; one
-    that appears with the death of a component process is an orphan. Linux re-parents a dying
+    seen for the first time after a pass in which no component process (nor an orphan) was reaped
+    is this process's own (its imports', or re-parented from one of those), and is never signalled;
+    one that appears with the death of a component process, or of an orphan, is an orphan. Linux re-parents a dying
     process's children before that process can be reaped, under the same lock that
     ``/proc/<pid>/task/*/children`` is read with, so an orphan is never seen before its parent's death is.
 
@@ -146,11 +146,11 @@ class Orphans:
         self._ending: dict[int, float] = {}  # orphans sent SIGTERM: when their SIGKILL is due
         self._killed: set[int] = set()  # orphans sent SIGKILL, not reaped yet
 
-    def sort(self, children: set[int], component_died: bool) -> int:
-        """File the children seen for the first time: this process's own, or (``component_died``: a
-        component process was reaped since the last call) orphans, which start ending; how many orphans."""
+    def sort(self, children: set[int], orphaned: bool) -> int:
+        """File the children seen for the first time: this process's own, or (``orphaned``: a component
+        process or an orphan was reaped since the last call) orphans, which start ending; how many orphans."""
         new = children - self._own - self._ending.keys() - self._killed
-        if not component_died:
+        if not orphaned:
             self._own |= new
             return 0
         now = time.monotonic()
@@ -160,11 +160,13 @@ class Orphans:
             self._ending[pid] = now + self._grace
         return len(new)
 
-    def reaped(self, pid: int) -> None:
-        """``pid`` (a child of this process) was reaped: never signalled again."""
+    def reaped(self, pid: int) -> bool:
+        """``pid`` (a child of this process) was reaped: never signalled again. Whether it was an orphan."""
         self._own.discard(pid)
+        orphan = pid in self._killed or pid in self._ending
         self._ending.pop(pid, None)
         self._killed.discard(pid)
+        return orphan
 
     def timeout(self) -> float | None:
         """Seconds until the next SIGKILL is due; None when none is (those already SIGKILLed wait for nothing)."""

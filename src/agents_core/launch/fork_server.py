@@ -412,8 +412,8 @@ def _fork() -> int:
 
 def _reap_ended(sock: socket.socket, forked: set[int], orphans: Orphans) -> tuple[bool, set[int]]:
     """Reap every child that ended (a component process's end is told to the launcher): whether one was a
-    component process, and the pids reaped."""
-    component, reaped = False, set()
+    component process or an orphan (its children are orphans too), and the pids reaped."""
+    orphaning, reaped = False, set()
     for _ in range(100_000):
         try:
             pid, status = os.waitpid(-1, os.WNOHANG)
@@ -422,14 +422,15 @@ def _reap_ended(sock: socket.socket, forked: set[int], orphans: Orphans) -> tupl
         if pid == 0:
             break
         reaped.add(pid)
-        orphans.reaped(pid)
+        if orphans.reaped(pid):
+            orphaning = True
         if pid not in forked:  # an orphan this server ended, or a process its own imports started
             continue
-        component = True
+        orphaning = True
         forked.discard(pid)
         with contextlib.suppress(OSError):
             sock.send(json.dumps({"exit": pid, "status": os.waitstatus_to_exitcode(status)}).encode())
-    return component, reaped
+    return orphaning, reaped
 
 
 def _reap(sock: socket.socket, forked: set[int], orphans: Orphans) -> None:
@@ -441,9 +442,9 @@ def _reap(sock: socket.socket, forked: set[int], orphans: Orphans) -> None:
         more, reaped = _reap_ended(sock, forked, orphans)  # one that died while the children were read
         died |= more
         if not more:
-            orphans.sort(kids - reaped, component_died=died)
+            orphans.sort(kids - reaped, orphaned=died)
             return
-    orphans.sort(set(), component_died=died)
+    orphans.sort(set(), orphaned=died)
 
 
 def _wakeup_pipe() -> tuple[int, int]:
