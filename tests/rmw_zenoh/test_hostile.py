@@ -29,15 +29,20 @@ from agents_zenoh.rmw.typesupport import ros_types  # noqa: E402
 from agents_zenoh.rmw.wire import data_key, encode_attachment  # noqa: E402
 
 
-@pytest.fixture
-def attacker(router: str) -> Iterator[Any]:
-    """A plain Zenoh session on the same router."""
+def _plain_session(router: str) -> Any:
+    """A plain Zenoh peer on loopback, connected to ``router`` (multicast scouting off)."""
     conf = zenoh.Config()
     conf.insert_json5("mode", '"peer"')
     conf.insert_json5("connect/endpoints", json.dumps([router]))
     conf.insert_json5("listen/endpoints", '["tcp/127.0.0.1:0"]')
     conf.insert_json5("scouting/multicast/enabled", "false")
-    session = zenoh.open(conf)
+    return zenoh.open(conf)
+
+
+@pytest.fixture
+def attacker(router: str) -> Iterator[Any]:
+    """A plain Zenoh session on the same router."""
+    session = _plain_session(router)
     try:
         yield session
     finally:
@@ -230,12 +235,7 @@ def test_a_token_dropped_in_a_flood_is_seen_once_the_flood_ends(router: str, att
     """Zenoh announces a live token once: when room comes back after drops, the graph is read again (review s9,
     finding 7)."""
     transport = RmwZenohTransport(**rmw_options(router, max_graph_tokens=40))
-    conf = zenoh.Config()
-    conf.insert_json5("mode", '"peer"')
-    conf.insert_json5("connect/endpoints", json.dumps([router]))
-    conf.insert_json5("listen/endpoints", '["tcp/127.0.0.1:0"]')
-    conf.insert_json5("scouting/multicast/enabled", "false")
-    honest = zenoh.open(conf)
+    honest = _plain_session(router)
     try:
         graph = transport.driver.graph
         flood = [attacker.liveliness().declare_token(_flood_key("f" * 32, i)) for i in range(100)]
