@@ -21,7 +21,7 @@ from typing import Any
 import pytest
 
 from agents_core.errors import ConfigError
-from agents_core.launch.fork_server import PROCESS_START_ENV, ForkedProcess, fork_available, fork_server
+from agents_core.launch.fork_server import PROCESS_START_ENV, ForkedProcess, ForkServer, fork_available, fork_server
 from agents_core.launch.launcher import Launcher
 from agents_core.testing.helpers import free_tcp_port
 from agents_core.testing.pairs import skip_unless_installed
@@ -155,3 +155,23 @@ def test_a_forked_child_and_the_server_die_with_a_killed_launcher(tmp_path: Path
         for pid in pids:
             if alive(pid):
                 os.kill(pid, signal.SIGKILL)
+
+
+def test_a_pass_of_the_server_that_fails_is_logged_and_the_server_goes_on(capfd: pytest.CaptureFixture[str]) -> None:
+    """A bad pass (here a packet too deeply nested for ``json.loads``: RecursionError, not ValueError)
+    used to end the server, and every component process with it (review s9, finding 1)."""
+    server = ForkServer()
+    report_read, report_write = os.pipe()
+    stdin_read, stdin_write = os.pipe()
+    try:
+        server._sock.send(b"[" * 20_000 + b"]" * 20_000)
+        child = server.fork("after-a-bad-pass", stdin_read, report_write, stdin_write)
+        assert child.stdin is not None
+        child.stdin.close()  # its command pipe ends at once: the forked process exits
+        assert child.wait(timeout=10.0) is not None, "its end was reported by the server"
+        assert server.proc.poll() is None and not server.gone
+        assert "a pass of its loop failed" in capfd.readouterr().err
+    finally:
+        server.close()
+        for fd in (report_read, report_write, stdin_read):
+            os.close(fd)

@@ -29,15 +29,20 @@ from agents_zenoh.rmw.typesupport import ros_types  # noqa: E402
 from agents_zenoh.rmw.wire import data_key, encode_attachment  # noqa: E402
 
 
-@pytest.fixture
-def attacker(router: str) -> Iterator[Any]:
-    """A plain Zenoh session on the same router."""
+def _plain_session(router: str) -> Any:
+    """A plain Zenoh peer on loopback, connected to ``router`` (multicast scouting off)."""
     conf = zenoh.Config()
     conf.insert_json5("mode", '"peer"')
     conf.insert_json5("connect/endpoints", json.dumps([router]))
     conf.insert_json5("listen/endpoints", '["tcp/127.0.0.1:0"]')
     conf.insert_json5("scouting/multicast/enabled", "false")
-    session = zenoh.open(conf)
+    return zenoh.open(conf)
+
+
+@pytest.fixture
+def attacker(router: str) -> Iterator[Any]:
+    """A plain Zenoh session on the same router."""
+    session = _plain_session(router)
     try:
         yield session
     finally:
@@ -196,3 +201,69 @@ def test_a_flood_of_tokens_is_bounded_and_counted(router: str, attacker: Any) ->
             late.undeclare()
     finally:
         transport.close()
+
+
+def _flood_key(zid: str, i: int) -> str:
+    return (f"@ros2_lv/21/{zid}/9/{i}/MP/%/%/flood/%flood{i}/std_msgs::msg::dds_::String_/RIHS01_{'0' * 64}"
+            "/::,10:,:,:,,")
+
+
+def test_tokens_that_spoof_our_zid_are_bounded_like_any_other(router: str, attacker: Any) -> None:
+    """"Ours" is what this driver declared, not what carries its zid: anyone can write our (public) zid into a
+    token key (review s9, finding 2)."""
+    transport = RmwZenohTransport(**rmw_options(router, max_graph_tokens=40))
+    try:
+        graph = transport.driver.graph
+        zid = str(transport.driver._session.zid())
+        assert _wait(lambda: len(graph.tokens(0)) >= 1)
+        flood = [attacker.liveliness().declare_token(_flood_key(zid, i)) for i in range(300)]
+        try:
+            assert _wait(lambda: sum("/flood/" in t for t in graph.tokens(0)) + graph.dropped >= 300)
+            held = graph.tokens(0)
+            assert len(held) <= 40 and graph.dropped >= 260, (len(held), graph.dropped)
+            transport.create_service("ours_still", lambda request: {"ok": True})  # declared by us: held
+            assert _wait(lambda: any("ours_still" in t for t in graph.tokens(0)))
+            assert transport.request("ours_still", {}, timeout=3.0) == {"ok": True}
+        finally:
+            for token in flood:
+                token.undeclare()
+    finally:
+        transport.close()
+
+
+def test_a_token_dropped_in_a_flood_is_seen_once_the_flood_ends(router: str, attacker: Any) -> None:
+    """Zenoh announces a live token once: when room comes back after drops, the graph is read again (review s9,
+    finding 7)."""
+    transport = RmwZenohTransport(**rmw_options(router, max_graph_tokens=40))
+    honest = _plain_session(router)
+    try:
+        graph = transport.driver.graph
+        flood = [attacker.liveliness().declare_token(_flood_key("f" * 32, i)) for i in range(100)]
+        try:
+            assert _wait(lambda: sum("/flood/" in t for t in graph.tokens(0)) + graph.dropped >= 100)
+            before = graph.dropped
+            legit = honest.liveliness().declare_token("@ros2_lv/21/" + "e" * 32 + "/0/0/NN/%/%/honest_node")
+            assert _wait(lambda: graph.dropped == before + 1)  # it came in the flood, and was dropped
+            assert not any(t.endswith("/honest_node") for t in graph.tokens(0))
+        finally:
+            for token in flood:
+                token.undeclare()
+        assert _wait(lambda: not any("/flood/" in t for t in graph.tokens(0)))
+        started = time.monotonic()
+        assert _wait(lambda: any(t.endswith("/honest_node") for t in graph.tokens(0)), timeout=5.0), \
+            "the token dropped during the flood is still unseen"
+        print(f"seen {time.monotonic() - started:.2f} s after the flood was withdrawn; re-reads: {graph.resyncs}")
+        assert graph.resyncs >= 1
+        legit.undeclare()
+        assert _wait(lambda: not any(t.endswith("/honest_node") for t in graph.tokens(0)))  # no stale entry
+    finally:
+        transport.close()
+        honest.close()
+
+
+@pytest.mark.parametrize("bound", [True, False, 0, -1, 1.5, "40", None])
+def test_max_graph_tokens_must_be_an_int_of_at_least_one(bound: object) -> None:
+    from agents_core.errors import ConfigError  # noqa: PLC0415
+
+    with pytest.raises(ConfigError, match="max_graph_tokens"):
+        RmwZenohTransport(connect=["tcp/127.0.0.1:9"], listen=[], router_timeout=0, max_graph_tokens=bound)

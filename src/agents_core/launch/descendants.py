@@ -15,9 +15,9 @@ Two Linux mechanisms, both set by the component process itself at its start
 
 A component process that dies without stopping (SIGKILL, a crash) cannot end what it started: its
 orphans are re-parented to the nearest subreaper above it. The fork server is one
-(:func:`become_subreaper`), so they become its children, and as it starts no process but the
-component processes, every other child it has is such an orphan: :class:`Orphans` ends them
-(SIGCONT, SIGTERM, SIGKILL after a grace) without blocking the server. A component process started
+(:func:`become_subreaper`), so they become its children: :class:`Orphans` tells them from the
+processes the server's own imports started (those are left alone) and ends them (SIGCONT, SIGTERM,
+SIGKILL after a grace) without blocking the server. A component process started
 as a fresh interpreter (``process_start="spawn"``) is the launcher's own child, and the launcher
 (the user's process) is not made a subreaper: there, the orphans of a component killed outright
 are left to init.
@@ -32,7 +32,7 @@ import signal
 import sys
 import time
 
-__all__ = ["Orphans", "become_subreaper", "descendants", "end_descendants", "guard_process"]
+__all__ = ["Orphans", "become_subreaper", "children", "descendants", "end_descendants", "guard_process"]
 
 _PR_SET_PDEATHSIG = 1
 _PR_SET_CHILD_SUBREAPER = 36
@@ -60,7 +60,8 @@ def become_subreaper() -> bool:
     return _prctl(_PR_SET_CHILD_SUBREAPER, 1)
 
 
-def _children(pid: int) -> list[int]:
+def children(pid: int) -> list[int]:
+    """The live children of ``pid`` (of all its threads)."""
     found: list[int] = []
     with contextlib.suppress(OSError):
         for task in os.listdir(f"/proc/{pid}/task"):
@@ -73,12 +74,12 @@ def descendants(pid: int | None = None) -> list[int]:
     """Every live descendant of ``pid`` (default: this process), children first."""
     root = os.getpid() if pid is None else pid
     seen: list[int] = []
-    todo = _children(root)
+    todo = children(root)
     while todo and len(seen) < 100_000:
         kid = todo.pop(0)
         if kid not in seen and kid != root:
             seen.append(kid)
-            todo += _children(kid)
+            todo += children(kid)
     return seen
 
 
@@ -120,35 +121,55 @@ def end_descendants(grace: float = 0.5) -> int:
 
 
 class Orphans:
-    """The children of this (subreaper) process that it did not start itself, ended without blocking.
+    """The children of this (subreaper) process that a component process left behind, ended without blocking.
 
-    :meth:`end` asks each one not in ``keep`` to end (SIGCONT, SIGTERM); :meth:`kill_due` sends SIGKILL
-    to those still there ``grace`` seconds later (:meth:`timeout` says when the next one is due). The
-    caller reaps its children and calls :meth:`reaped` for each, so that a pid the system hands out
-    again is never signalled.
+    This process has three kinds of children: the component processes it forked (the caller's
+    ``forked``), those its own code started (a module it imported may start a helper process:
+    ``subprocess.Popen`` at import, a ``multiprocessing`` manager), and the orphans re-parented to it
+    when a component process died without ending what it had started. Only these are ended. The
+    caller reaps its children and then calls :meth:`sort` with the children it has left: a child
+    seen for the first time after a pass in which no component process (nor an orphan) was reaped
+    is this process's own (its imports', or re-parented from one of those), and is never signalled;
+    one that appears with the death of a component process, or of an orphan, is an orphan. Linux re-parents a dying
+    process's children before that process can be reaped, under the same lock that
+    ``/proc/<pid>/task/*/children`` is read with, so an orphan is never seen before its parent's death is.
+
+    An orphan gets SIGCONT and SIGTERM; :meth:`kill_due` sends SIGKILL to those still there
+    ``grace`` seconds later (:meth:`timeout` says when the next one is due; one already SIGKILLed
+    waits only to be reaped). The caller calls :meth:`reaped` for each child it reaps, so that a pid
+    the system hands out again is never signalled.
     """
 
     def __init__(self, grace: float = 0.5) -> None:
         self._grace = grace
-        self._ending: dict[int, float] = {}
+        self._own: set[int] = set()  # children this process started itself: never ended
+        self._ending: dict[int, float] = {}  # orphans sent SIGTERM: when their SIGKILL is due
+        self._killed: set[int] = set()  # orphans sent SIGKILL, not reaped yet
 
-    def end(self, keep: set[int]) -> int:
-        """Start ending every child of this process not in ``keep``; how many new ones there were."""
-        now, found = time.monotonic(), 0
-        for pid in _children(os.getpid()):
-            if pid not in keep and pid not in self._ending:
-                _signal(pid, signal.SIGCONT)
-                _signal(pid, signal.SIGTERM)
-                self._ending[pid] = now + self._grace
-                found += 1
-        return found
+    def sort(self, children: set[int], orphaned: bool) -> int:
+        """File the children seen for the first time: this process's own, or (``orphaned``: a component
+        process or an orphan was reaped since the last call) orphans, which start ending; how many orphans."""
+        new = children - self._own - self._ending.keys() - self._killed
+        if not orphaned:
+            self._own |= new
+            return 0
+        now = time.monotonic()
+        for pid in new:
+            _signal(pid, signal.SIGCONT)
+            _signal(pid, signal.SIGTERM)
+            self._ending[pid] = now + self._grace
+        return len(new)
 
-    def reaped(self, pid: int) -> None:
-        """``pid`` (a child of this process) was reaped: never signalled again."""
+    def reaped(self, pid: int) -> bool:
+        """``pid`` (a child of this process) was reaped: never signalled again. Whether it was an orphan."""
+        self._own.discard(pid)
+        orphan = pid in self._killed or pid in self._ending
         self._ending.pop(pid, None)
+        self._killed.discard(pid)
+        return orphan
 
     def timeout(self) -> float | None:
-        """Seconds until the next SIGKILL is due; None when none is."""
+        """Seconds until the next SIGKILL is due; None when none is (those already SIGKILLed wait for nothing)."""
         return max(0.0, min(self._ending.values()) - time.monotonic()) if self._ending else None
 
     def kill_due(self, now: float | None = None) -> None:
@@ -157,7 +178,8 @@ class Orphans:
         for pid, due in list(self._ending.items()):
             if now >= due:
                 _signal(pid, signal.SIGKILL)
-                self._ending[pid] = float("inf")
+                del self._ending[pid]
+                self._killed.add(pid)
 
     def kill_all(self) -> None:
         """SIGKILL every one still being ended (the server is about to exit)."""

@@ -47,7 +47,8 @@ environment are the server's (no secret in either). It dies with the launcher: i
 ends (only the launcher holds the write end), the server exits when its socket ends and each
 forked process has ``PR_SET_PDEATHSIG`` set towards the server. The server is the subreaper of
 its component processes: what one started is re-parented to the server if it dies without ending
-it (SIGKILL, a crash), and the server ends it (:class:`~.descendants.Orphans`).
+it (SIGKILL, a crash), and the server ends it (:class:`~.descendants.Orphans`; a process its own imports
+started is left alone). A pass of its loop that fails is logged and the server goes on.
 
 Opt out with ``AGENTS_PROCESS_START=spawn`` (or ``Launcher(process_start="spawn")``); where
 fork or descriptor passing is not available (not Linux) the spawn path is used anyway.
@@ -58,6 +59,7 @@ from __future__ import annotations
 import argparse
 import atexit
 import contextlib
+import dataclasses
 import importlib
 import importlib.util
 import json
@@ -73,7 +75,7 @@ import time
 from collections.abc import Callable, Iterable
 from typing import IO, Any
 
-from .descendants import Orphans, become_subreaper
+from .descendants import Orphans, become_subreaper, children
 from .process_start import PROCESS_START_ENV, fork_available, process_start
 
 __all__ = [
@@ -408,26 +410,41 @@ def _fork() -> int:
     return pid
 
 
-def _reap(sock: socket.socket, forked: set[int], orphans: Orphans) -> None:
-    """Reap every child that ended: a component process's end is told to the launcher; then the orphans of
-    a component process that died without ending them (re-parented to this subreaper) are ended."""
-    reaped = False
-    while True:
+def _reap_ended(sock: socket.socket, forked: set[int], orphans: Orphans) -> tuple[bool, set[int]]:
+    """Reap every child that ended (a component process's end is told to the launcher): whether one was a
+    component process or an orphan (its children are orphans too), and the pids reaped."""
+    orphaning, reaped = False, set()
+    for _ in range(100_000):
         try:
             pid, status = os.waitpid(-1, os.WNOHANG)
         except ChildProcessError:
             break
         if pid == 0:
             break
-        reaped = True
-        if pid not in forked:  # an orphan this server adopted and ended
-            orphans.reaped(pid)
+        reaped.add(pid)
+        if orphans.reaped(pid):
+            orphaning = True
+        if pid not in forked:  # an orphan this server ended, or a process its own imports started
             continue
+        orphaning = True
         forked.discard(pid)
         with contextlib.suppress(OSError):
             sock.send(json.dumps({"exit": pid, "status": os.waitstatus_to_exitcode(status)}).encode())
-    if reaped:
-        orphans.end(keep=forked)
+    return orphaning, reaped
+
+
+def _reap(sock: socket.socket, forked: set[int], orphans: Orphans) -> None:
+    """Reap every child that ended, then end the orphans of a component process that died without ending
+    them (re-parented to this subreaper); the other new children are the server's own (:class:`Orphans`)."""
+    died, _ = _reap_ended(sock, forked, orphans)
+    for _ in range(1000):
+        kids = set(children(os.getpid())) - forked
+        more, reaped = _reap_ended(sock, forked, orphans)  # one that died while the children were read
+        died |= more
+        if not more:
+            orphans.sort(kids - reaped, orphaned=died)
+            return
+    orphans.sort(set(), orphaned=died)
 
 
 def _wakeup_pipe() -> tuple[int, int]:
@@ -449,59 +466,91 @@ def _leave_server(sock: socket.socket, *wake: int) -> None:
     sock.close()
 
 
-def serve(sock: socket.socket, baseline_threads: int) -> tuple[int, int, str] | None:
-    """Answer requests until the launcher's end closes (None); in a forked child, its descriptors and name."""
-    wake_read, wake_write = _wakeup_pipe()
-    forked: set[int] = set()  # the component processes this server forked and has not reaped
-    orphans = Orphans()
-    while True:
-        ready = select.select([sock.fileno(), wake_read], [], [], orphans.timeout())[0]
-        orphans.kill_due()
-        if wake_read in ready:
-            with contextlib.suppress(BlockingIOError):
-                os.read(wake_read, 4096)
-            _reap(sock, forked, orphans)
-        if sock.fileno() not in ready:
-            continue
-        try:
-            data, fds, _, _ = socket.recv_fds(sock, _MAX_PACKET, 2)
-        except OSError:
-            data, fds = b"", []
-        if not data:
-            orphans.kill_all()
-            return None  # the launcher is gone or done: the component processes see their pipes end
-        try:
-            request = json.loads(data)
-        except ValueError:
-            request = None
-        if not isinstance(request, dict) or not isinstance(request.get("id", 0), (int, type(None))):
-            for fd in fds:  # a packet that is not a request: dropped, with what came with it
-                os.close(fd)
-            continue
-        if request.get("op") == "preload":
-            with contextlib.suppress(TypeError):
-                baseline_threads += _preload(request)
-            continue
-        reply: dict[str, Any] = {"id": request.get("id")}
-        if len(fds) != 2:
-            reply["error"] = "a fork request needs two descriptors"
-        elif _thread_count() > baseline_threads:
-            reply["error"] = "an imported module started a thread in the fork server: forking is unsafe"
-        else:
-            try:
-                pid = _fork()
-            except Exception as exc:
-                pid = -1
-                reply["error"] = f"cannot fork: {exc}"
-            if pid == 0:
-                _leave_server(sock, wake_read, wake_write)
-                return fds[0], fds[1], str(request.get("name", ""))
-            if pid > 0:
-                forked.add(pid)
-                reply["pid"] = pid
-        for fd in fds:
+@dataclasses.dataclass
+class _State:
+    wake: tuple[int, int]  # the SIGCHLD wake-up pipe
+    threads: int  # the thread count forking is safe with
+    forked: set[int] = dataclasses.field(default_factory=set)  # component processes forked, not reaped
+    orphans: Orphans = dataclasses.field(default_factory=Orphans)
+
+
+_AGAIN = (-1, -1, "")  # what a pass that the loop goes on after returns
+
+
+def _serve_once(sock: socket.socket, state: _State) -> tuple[int, int, str] | None:
+    """One pass of :func:`serve`: ``_AGAIN``, or what :func:`serve` returns."""
+    forked, orphans, wake_read = state.forked, state.orphans, state.wake[0]
+    ready = select.select([sock.fileno(), wake_read], [], [], orphans.timeout())[0]
+    orphans.kill_due()
+    if wake_read in ready:
+        with contextlib.suppress(BlockingIOError):
+            os.read(wake_read, 4096)
+        _reap(sock, forked, orphans)
+    if sock.fileno() not in ready:
+        return _AGAIN
+    try:
+        data, fds, _, _ = socket.recv_fds(sock, _MAX_PACKET, 2)
+    except OSError:
+        data, fds = b"", []
+    if not data:
+        orphans.kill_all()
+        return None  # the launcher is gone or done: the component processes see their pipes end
+    try:
+        request = json.loads(data)
+    except ValueError:
+        request = None
+    if not isinstance(request, dict) or not isinstance(request.get("id", 0), (int, type(None))):
+        for fd in fds:  # a packet that is not a request: dropped, with what came with it
             os.close(fd)
-        sock.send(json.dumps(reply).encode())
+        return _AGAIN
+    if request.get("op") == "preload":
+        _reap(sock, forked, orphans)  # so that only what the imports start is new after them
+        with contextlib.suppress(TypeError):
+            state.threads += _preload(request)
+        _reap(sock, forked, orphans)  # what the imports started is the server's own
+        return _AGAIN
+    reply: dict[str, Any] = {"id": request.get("id")}
+    if len(fds) != 2:
+        reply["error"] = "a fork request needs two descriptors"
+    elif _thread_count() > state.threads:
+        reply["error"] = "an imported module started a thread in the fork server: forking is unsafe"
+    else:
+        try:
+            pid = _fork()
+        except Exception as exc:
+            pid = -1
+            reply["error"] = f"cannot fork: {exc}"
+        if pid == 0:
+            _leave_server(sock, *state.wake)
+            return fds[0], fds[1], str(request.get("name", ""))
+        if pid > 0:
+            forked.add(pid)
+            reply["pid"] = pid
+    for fd in fds:
+        os.close(fd)
+    sock.send(json.dumps(reply).encode())
+    return _AGAIN
+
+
+def serve(sock: socket.socket, baseline_threads: int) -> tuple[int, int, str] | None:
+    """Answer requests until the launcher's end closes (None); in a forked child, its descriptors and name.
+
+    A pass that fails is logged and the server goes on: every component process stops with the server.
+    """
+    server = os.getpid()
+    state = _State(_wakeup_pipe(), baseline_threads)
+    _reap(sock, state.forked, state.orphans)  # what the base imports started is the server's own
+    while True:
+        try:
+            result = _serve_once(sock, state)
+        except Exception:
+            if os.getpid() != server:
+                raise  # a forked child never serves
+            logger.exception("fork server: a pass of its loop failed; it goes on")
+            time.sleep(0.05)  # an error that repeats does not spin
+            continue
+        if result is not _AGAIN:
+            return result
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -83,7 +83,7 @@ class RecipeTransport:
     :param domain_id: ROS 2: the private domain both processes use; None otherwise.
     :param options: what the transport's descriptor's ``isolate`` gave (both sides open with it).
     :param router: a transport that needs a router: the router's process (``endpoint`` is where it
-        listens); stopped by :meth:`end`.
+        listens); stopped by :meth:`close` (or :meth:`end`).
     """
 
     name: str
@@ -135,16 +135,26 @@ class RecipeTransport:
         return transport
 
     def close(self) -> None:
-        """Close every transport this object opened, newest first."""
-        while self._opened:
-            self._opened.pop().close()
+        """Close every transport this object opened, newest first, then stop the router (by its PID) if this
+        transport has one: the router is stopped even when closing a transport raises (the first such error is
+        raised once every transport was tried)."""
+        failure: BaseException | None = None
+        try:
+            for _ in range(len(self._opened)):
+                try:
+                    self._opened.pop().close()
+                except Exception as exc:
+                    failure = failure or exc
+        finally:
+            if self.router is not None:
+                self.router.stop()
+                shutil.rmtree(self.router.log_path.parent, ignore_errors=True)
+        if failure is not None:
+            raise failure
 
     def end(self) -> None:
-        """:meth:`close`, then stop the router (by its PID) if this transport has one."""
+        """The same as :meth:`close`."""
         self.close()
-        if self.router is not None:
-            self.router.stop()
-            shutil.rmtree(self.router.log_path.parent, ignore_errors=True)
 
 
 def open_recipe_transport(name: str) -> RecipeTransport:
@@ -153,7 +163,7 @@ def open_recipe_transport(name: str) -> RecipeTransport:
     A transport reached at endpoints gets a free loopback one; one with an ``isolate`` sets up its
     private space (ROS 2: the private domain, in ``os.environ``, which rcl reads when a context
     starts: the test process's plain rclpy nodes too); one that needs a router gets one started on a
-    free loopback endpoint (call :meth:`RecipeTransport.end` to stop it).
+    free loopback endpoint (:meth:`RecipeTransport.close` stops it).
     """
     descriptor = describe_transport_kind(name)
     if descriptor.needs_router and descriptor.router:

@@ -11,7 +11,7 @@ import itertools
 import threading
 import time
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import zenoh
 
@@ -22,6 +22,9 @@ from agents_core.transport.driver import Sink
 from .codec import RmwCodec
 from .typesupport import ros_types
 from .wire import Qos, data_key, dds_type_name, decode_attachment, encode_attachment, entity_token, gid_of
+
+if TYPE_CHECKING:
+    from .discovery import GraphCache
 
 __all__ = ["Entity", "Node", "Publisher", "ServiceServer", "Subscription", "absolute", "node_name", "qos_of"]
 
@@ -53,7 +56,7 @@ class Node:
     """One ROS 2 node on the session (a component, or the transport's own): ``name`` in ``namespace``."""
 
     def __init__(self, session: zenoh.Session, domain_id: int, name: str, ids: Callable[[], int],
-                 namespace: str = "/") -> None:
+                 namespace: str = "/", graph: GraphCache | None = None) -> None:
         self.session = session
         self.domain_id = domain_id
         self.name = name
@@ -61,8 +64,21 @@ class Node:
         self.zid = str(session.zid())
         self.nid = ids()
         self._ids = ids
+        self.graph = graph
         self.token = entity_token(domain_id, self.zid, self.nid, self.nid, "NN", namespace, name)
-        self._live = session.liveliness().declare_token(self.token)
+        self._live = self.declare(self.token)
+
+    def declare(self, token: str) -> Any:
+        """Declare liveliness token ``token``, claimed first in the driver's graph (always held there)."""
+        if self.graph is not None:
+            self.graph.claim(token)
+        return self.session.liveliness().declare_token(token)
+
+    def withdraw(self, token: str, handle: Any) -> None:
+        """Undeclare a token :meth:`declare` declared."""
+        _undeclare(handle)
+        if self.graph is not None:
+            self.graph.release(token)
 
     def entity(self, kind: str, name: str, ros_type: str, type_hash: str, qos: Qos) -> Entity:
         """A new entity of this node (its token declared)."""
@@ -70,7 +86,7 @@ class Node:
 
     def close(self) -> None:
         """Withdraw the node's token."""
-        _undeclare(self._live)
+        self.withdraw(self.token, self._live)
 
 
 class Entity:
@@ -84,7 +100,7 @@ class Entity:
                                   ros_type=dds_type_name(ros_type), type_hash=type_hash, qos=qos)
         self.gid = gid_of(self.token)
         self._seq = itertools.count(1)
-        self._live = node.session.liveliness().declare_token(self.token)
+        self._live = node.declare(self.token)
 
     def attachment(self) -> bytes:
         """The next attachment: sequence number (from 1), now, this entity's GID."""
@@ -92,7 +108,7 @@ class Entity:
 
     def close(self) -> None:
         """Withdraw the token."""
-        _undeclare(self._live)
+        self.node.withdraw(self.token, self._live)
 
 
 def _undeclare(handle: Any) -> None:

@@ -22,7 +22,8 @@ either). Long-running goals are ROS 2 actions of the action type's ``ros_type``
 Options: ``domain_id`` (default ``ROS_DOMAIN_ID``), ``connect`` / ``listen`` / ``mode`` (default: as
 rmw_zenoh, see :mod:`.session`), ``router_timeout`` (seconds to wait for a router, default 3; 0: none),
 ``zenoh_options`` (config key -> value), ``max_graph_tokens`` (other sessions' liveliness tokens the graph holds
-at most, default :data:`~agents_zenoh.rmw.discovery.MAX_TOKENS`; past it new ones are dropped and counted).
+at most, an int of at least 1, default :data:`~agents_zenoh.rmw.discovery.MAX_TOKENS`; past it new ones are
+dropped and counted, and read again once room comes back).
 """
 
 from __future__ import annotations
@@ -141,6 +142,9 @@ class RmwZenohDriver(DriverBase):
         if unknown:
             raise ConfigError(f"rmw_zenoh transport: unknown option(s) {sorted(unknown)}; known: {sorted(_OPTIONS)}")
         self.options = dict(options)
+        bound = options.get("max_graph_tokens", MAX_TOKENS)
+        if isinstance(bound, bool) or not isinstance(bound, int) or bound < 1:
+            raise ConfigError(f"rmw_zenoh transport: max_graph_tokens must be an int of at least 1, got {bound!r}")
         self.domain_id = int(options.get("domain_id", domain_from_environment()))
         config = session_config(mode=options.get("mode"), connect=options.get("connect"),
                                 listen=options.get("listen"), zenoh_options=options.get("zenoh_options"))
@@ -154,9 +158,9 @@ class RmwZenohDriver(DriverBase):
         self.refused_requests = 0
         self._closed = False
         try:
-            self._graph = GraphCache(self._session, self.domain_id,
-                                     int(options.get("max_graph_tokens", MAX_TOKENS)))
-            self._own = Node(self._session, self.domain_id, f"agents_core_{os.getpid()}", self._ids)
+            self._graph = GraphCache(self._session, self.domain_id, bound)
+            self._own = Node(self._session, self.domain_id, f"agents_core_{os.getpid()}", self._ids,
+                             graph=self._graph)
         except BaseException:
             self._session.close()  # type: ignore[no-untyped-call]  # not left open behind a transport that never was
             raise
@@ -174,7 +178,8 @@ class RmwZenohDriver(DriverBase):
             node = self._nodes.get(owner)
             if node is None:
                 namespace, name = node_name(owner)
-                node = self._nodes[owner] = Node(self._session, self.domain_id, name, self._ids, namespace)
+                node = self._nodes[owner] = Node(self._session, self.domain_id, name, self._ids, namespace,
+                                                 self._graph)
             return node
 
     @property
