@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import logging
+import threading
+import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import Any
@@ -10,7 +13,7 @@ import pytest
 
 from agents_core import Launcher, Topic
 from agents_core.actions import Action
-from agents_core.clients import DBClient, GenericHTTPClient
+from agents_core.clients import ChromaClient, DBClient, GenericHTTPClient
 from agents_core.components import LLM
 from agents_core.components.llm import ThinkStripper
 from agents_core.config import LLMConfig
@@ -18,7 +21,8 @@ from agents_core.errors import ConfigError, WiringError
 from agents_core.messages import DetectionsMsg
 from agents_core.models import GenericLLM
 from agents_core.status import HealthStatus
-from agents_core.vectordbs import DB
+from agents_core.testing.helpers import free_tcp_port
+from agents_core.vectordbs import DB, ChromaDB
 
 from ..conftest import wait_for
 from ..servers.faults import FaultServer
@@ -285,6 +289,59 @@ def test_rag_adds_retrieved_documents_to_the_question() -> None:
     content = client.inputs[0]["query"][-1]["content"]
     assert "The charger is in the hall." in content and '"room": "hall"' in content
     assert content.endswith("where is the charger?")
+
+
+def test_a_database_down_at_configure_runs_none_of_the_models_fallbacks(caplog: pytest.LogCaptureFixture) -> None:
+    """Review s9 #5: the RAG database (a Chroma client on a port nobody listens on) is down at configure; the
+    model is fine, so its fallback (switch to the backup client) must not run: unhealthy, the failure said."""
+    embedder = GenericHTTPClient(GenericLLM(name="embeddings", checkpoint="embeddings"), port=free_tcp_port())
+    db = ChromaClient(ChromaDB(name="notes", collection_name="notes"), port=free_tcp_port(), embedding_client=embedder)
+    primary, backup = ScriptedChatClient(["primary"]), ScriptedChatClient(["backup"])
+    llm = _llm(primary, LLMConfig(enable_rag=True, collection_name="notes", n_results=1), db_client=db,
+               additional_model_clients={"backup": backup}, component_name="librarian")
+    llm.on_component_fail(Action(llm.change_model_client, args=("backup",)))
+    with caplog.at_level(logging.ERROR), running(llm):
+        assert llm.health_status == HealthStatus.COMPONENT_FAILURE, llm.health_status
+        assert "ClientConnectionError" in llm.health_message and "ChromaClient" in llm.health_message
+        assert llm.model_client is primary
+    assert [r for r in caplog.records if "database setup at configure failed (COMPONENT_FAILURE)" in r.getMessage()]
+
+
+def test_the_database_is_set_up_once_when_two_threads_need_it_at_once() -> None:
+    """Review s9 #8: add_documents from two threads (actions, services) while the database, down at configure,
+    is back: one setup (initialize), not two."""
+    class _SlowDB(_ListDB):
+        def __init__(self) -> None:
+            super().__init__()
+            self.down, self.initialized = True, 0
+
+        def _check_connection(self) -> None:
+            if self.down:
+                raise ConnectionError("down")
+
+        def _initialize(self) -> None:
+            self.initialized += 1
+            time.sleep(0.2)  # a setup that takes a while: the second thread arrives meanwhile
+
+    db = _SlowDB()
+    llm = _llm(ScriptedChatClient(), LLMConfig(enable_rag=True, collection_name="house"), db_client=db)
+    with running(llm):
+        assert llm.health_status == HealthStatus.COMPONENT_FAILURE and db.initialized == 0
+        db.down = False
+        barrier = threading.Barrier(2, timeout=5.0)
+        results: list[bool] = []
+
+        def add(i: int) -> None:
+            barrier.wait()
+            results.append(llm.add_documents(ids=[f"d{i}"], documents=[f"doc {i}"]))
+
+        threads = [threading.Thread(target=add, args=(i,)) for i in range(2)]
+        for thread in threads:
+            thread.start()
+        for thread in threads:
+            thread.join(5.0)
+        assert results == [True, True] and len(db.docs) == 2
+        assert db.initialized == 1, db.initialized
 
 
 def test_rag_without_a_db_client_is_a_wiring_error() -> None:

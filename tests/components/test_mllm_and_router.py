@@ -10,13 +10,16 @@ import numpy as np
 import pytest
 
 from agents_core import Topic
-from agents_core.clients import DBClient
+from agents_core.actions import Action
+from agents_core.clients import ChromaClient, DBClient, GenericHTTPClient
 from agents_core.components import MLLM, VLM, Route, SemanticRouter
 from agents_core.config import MLLMConfig, SemanticRouterConfig, VLMConfig
 from agents_core.errors import ConfigError, WiringError
 from agents_core.messages import DetectionsMsg, ImageMsg
+from agents_core.models import GenericLLM
 from agents_core.status import HealthStatus
-from agents_core.vectordbs import DB
+from agents_core.testing.helpers import free_tcp_port
+from agents_core.vectordbs import DB, ChromaDB
 
 from ..conftest import wait_for
 from .scripted_client import ScriptedChatClient, tool_call
@@ -181,6 +184,23 @@ def test_router_vector_mode_picks_the_nearest_route_and_falls_back() -> None:
     assert got == {"goto": ["please go to the kitchen now"], "chat": ["tell me a joke please"], "unsure": ["banana"]}
     assert len(db.rows) == 7 and {m["route_name"] for _, m in db.rows.values()} == {"goto", "chat", "unsure"}
     assert router.routed == {"goto": 1, "chat": 1, "unsure": 1}
+
+
+def test_a_router_whose_database_is_down_at_configure_runs_no_fallback() -> None:
+    """Review s9 #5, the router as the LLM: its database (a Chroma client, nobody on the port) down at configure
+    leaves it up and COMPONENT_FAILURE, and runs none of its fallbacks."""
+    embedder = GenericHTTPClient(GenericLLM(name="embeddings", checkpoint="embeddings"), port=free_tcp_port())
+    db = ChromaClient(ChromaDB(name="routes", collection_name="routes"), port=free_tcp_port(),
+                      embedding_client=embedder)
+    router = SemanticRouter(inputs=[REQUESTS], routes=ROUTES, default_route=DEFAULT, db_client=db,
+                            config=SemanticRouterConfig(router_name="nav"))
+    ran: list[str] = []
+    router.on_component_fail(Action(ran.append, args=("fallback",)))
+    with running(router) as launcher:
+        assert launcher.all_active()
+        assert router.health_status == HealthStatus.COMPONENT_FAILURE, router.health_status
+        assert "ClientConnectionError" in router.health_message
+        assert ran == []
 
 
 def test_router_llm_mode_offers_one_tool_per_route() -> None:

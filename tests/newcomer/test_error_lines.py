@@ -60,7 +60,9 @@ def test_only_a_reported_framework_error_is_shortened(monkeypatch: pytest.Monkey
     from agents_core.launch import report, short_errors  # noqa: PLC0415
 
     passed_on: list[BaseException] = []
-    monkeypatch.setattr(sys, "excepthook", lambda kind, value, tb: passed_on.append(value))
+    interpreters = lambda kind, value, tb: passed_on.append(value)  # noqa: E731 - stands in for Python's handler
+    monkeypatch.setattr(sys, "excepthook", interpreters)
+    monkeypatch.setattr(sys, "__excepthook__", interpreters)  # it is the interpreter's: the one line in front of it
     monkeypatch.setattr(report, "_last_failure", ["✗ llm failed to configure: LocalLLM model: no such file 'x'"])
     monkeypatch.delenv("AGENTS_DEBUG", raising=False)
     short_errors.one_line_if_uncaught()
@@ -75,6 +77,45 @@ def test_only_a_reported_framework_error_is_shortened(monkeypatch: pytest.Monkey
     monkeypatch.setenv("AGENTS_DEBUG", "1")
     sys.excepthook(type(reported), reported, None)
     assert passed_on == [other, bug, reported]
+
+
+def test_a_hook_of_the_users_gets_the_error_and_a_bug_keeps_its_traceback(tmp_path: Path) -> None:
+    """Review s9 #4: a crash reporter's hook installed before the launch still sees the uncaught error; a bug in
+    a component's own code (a KeyError wrapped in LifecycleError) keeps its file and line, in both forms."""
+    hooked = _run(tmp_path, "memory", "--with", "--hook")
+    assert hooked.returncode == 1, hooked.stderr
+    assert "USER HOOK got ConfigError" in hooked.stderr, hooked.stderr
+    for form in (("--with",), ()):
+        bug = _run(tmp_path, "memory", "--bug", *form)
+        assert bug.returncode == 1, bug.stderr
+        assert "failed to configure: component 'buggy': configure failed: 'user_bug_key'" in bug.stderr
+        assert 'print(settings["user_bug_key"])' in bug.stderr and "KeyError: 'user_bug_key'" in bug.stderr, form
+        assert "could not start" not in bug.stderr, bug.stderr
+
+
+def test_the_reason_must_be_the_one_reported_by_this_launch(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Review s9 #4: the reported reason is compared whole, not as a substring, and a new launch forgets it."""
+    from agents_core.errors import ConfigError, LifecycleError  # noqa: PLC0415
+    from agents_core.launch import report, short_errors  # noqa: PLC0415
+
+    monkeypatch.setattr(report, "_last_failure", ["✗ llm failed to configure: LocalLLM model: no such file 'x'"])
+    assert report.already_reported("LocalLLM model:  no such file 'x'")
+    assert not report.already_reported("no such file 'x'") and not report.already_reported("LocalLLM")
+    report.LaunchReport(quiet=True)
+    assert not report.already_reported("LocalLLM model: no such file 'x'")
+    try:
+        try:
+            {}["k"]
+        except KeyError as exc:
+            raise LifecycleError("configure failed: 'k'") from exc
+    except LifecycleError as exc:
+        wrapped = exc
+    assert short_errors.caused_by_a_bug(wrapped)
+    assert not short_errors.caused_by_a_bug(LifecycleError("x"))
+    with pytest.raises(LifecycleError), short_errors.short_errors():
+        raise wrapped
+    with pytest.raises(SystemExit), short_errors.short_errors():
+        raise ConfigError("a reason")
 
 
 def test_the_traceback_when_asked_for(tmp_path: Path) -> None:

@@ -30,6 +30,7 @@ without a client (upstream's ``SecurityCamera`` example); one that does needs a 
 from __future__ import annotations
 
 import queue
+import threading
 from collections.abc import Callable, Mapping, MutableMapping, Sequence
 from typing import Any, cast
 
@@ -112,6 +113,9 @@ class ModelComponent(Component):
         self._ready_client: ModelClient | None = None
         # Whether the database client's setup has succeeded (the same for the database: see _ensure_db_ready).
         self._db_ready = False
+        # Held while the database's setup is checked and done: a step's RAG and add_documents (an action's or
+        # a service's thread) must not both set it up.
+        self._db_lock = threading.Lock()
         self.local_model: Callable[..., Any] | None = None
         #: The WebSocket streaming flow's queues (architecture.md, "Streaming"): ``_call_inference``
         #: puts requests in ``req_queue``; the reply's parts arrive in ``resp_queue``.
@@ -196,7 +200,9 @@ class ModelComponent(Component):
         database_down = self._set_up_database()  # before the model: a warm-up may use it
         self._set_up_model()
         if database_down is not None:  # after it: a model set up fine would report the component healthy
-            self.runtime.health.failed(HealthStatus.COMPONENT_FAILURE, database_down, "database setup at configure")
+            # No fallback: they are the model's (change_model_client, ...), and the model is not what failed.
+            self.runtime.health.mark_failed(HealthStatus.COMPONENT_FAILURE, database_down,
+                                            "database setup at configure")
             self._logger.warning("component %r comes up unhealthy: its database is not reachable (%s); each use "
                                  "tries again", self.component_name, database_down)
         if self._streams_through_queues():
@@ -216,7 +222,8 @@ class ModelComponent(Component):
     def _set_up_database(self) -> ModelClientError | None:
         """Connect the database client; the error when it cannot be reached (not raised: as a model server
         that is down, a database that is down leaves the component up and unhealthy, and each use tries again)."""
-        self._db_ready = False
+        with self._db_lock:
+            self._db_ready = False
         try:
             self._ensure_db_ready()
         except ModelClientError as exc:
@@ -226,9 +233,12 @@ class ModelComponent(Component):
     def _ensure_db_ready(self) -> None:
         """Set up the database client unless that already succeeded (a ModelClientError if it fails): call it
         before each use of ``db_client``."""
-        if self.db_client is not None and not self._db_ready:
-            self._start_client(self.db_client)
-            self._db_ready = True
+        if self.db_client is None or self._db_ready:  # the common case, without the lock
+            return
+        with self._db_lock:
+            if not self._db_ready:
+                self._start_client(self.db_client)
+                self._db_ready = True
 
     def _set_up_model(self) -> None:
         """Connect the model client (or deploy the local model) and warm up, running the fallbacks
@@ -299,7 +309,8 @@ class ModelComponent(Component):
                 except Exception as exc:
                     self._logger.debug("closing model client %r: %s", self.model_client, exc)
         if self.db_client is not None:
-            self._db_ready = False
+            with self._db_lock:
+                self._db_ready = False
             try:
                 self.db_client.deinitialize()
             except Exception as exc:

@@ -145,15 +145,17 @@ class SemanticRouter(ModelComponent):
         if self.db_client is None:
             super().custom_on_configure()
             return
-        # As an LLM whose server is down: a database that cannot be reached at configure leaves the router up
-        # and unhealthy (COMPONENT_FAILURE, the fallbacks run), and each step tries to store the samples again.
+        # As an LLM whose database is down: a database that cannot be reached at configure leaves the router up
+        # and unhealthy (COMPONENT_FAILURE; no fallback runs, they are the model's), and each step tries to store
+        # the samples again.
         self._check_outputs_converted()
         self._set_up_model()
         self._samples_stored = False
         try:
             self._store_samples()
         except ModelClientError as exc:
-            self.runtime.health.failed(HealthStatus.COMPONENT_FAILURE, exc, "storing the route samples at configure")
+            self.runtime.health.mark_failed(HealthStatus.COMPONENT_FAILURE, exc,
+                                            "storing the route samples at configure")
             self._logger.warning("component %r comes up unhealthy: its database is not reachable (%s); each step "
                                  "tries again", self.component_name, exc)
 

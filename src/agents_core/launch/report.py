@@ -26,13 +26,17 @@ from ..support.console import quiet_requested
 
 __all__ = ["LaunchReport", "already_reported", "component_row", "describe_transport"]
 
-#: The last start failure a report printed (so the one error line at exit need not repeat it).
+#: The start failure the current launch's report printed, ``✗ <who> failed to <stage>: <reason>`` with its
+#: whitespace folded (so the one error line at exit need not repeat it); a new launch's report clears it.
 _last_failure: list[str] = []
 
 
 def already_reported(text: str) -> bool:
-    """Whether a report printed a start failure whose reason is ``text`` (or contains it)."""
-    return bool(_last_failure) and bool(text) and text in _last_failure[-1]
+    """Whether the current launch's report printed a start failure whose reason is ``text`` (whitespace folded)."""
+    if not _last_failure or not text:
+        return False
+    reason = _last_failure[-1].partition(": ")[2]  # who and stage have no ": " (names are topic names)
+    return " ".join(text.split()) == reason
 
 _WIDTH = 12  # the component-name column; longer names simply push the row
 
@@ -54,6 +58,7 @@ class LaunchReport:
     def __init__(self, quiet: bool | None = None, stream: TextIO | None = None) -> None:
         self._stream = stream
         self.quiet = quiet_requested(quiet)
+        _last_failure.clear()  # a launch starts: an earlier one's failure (caught, say) is not its reason
         self._console: Any = None
         if not self.quiet and self._out().isatty():
             try:

@@ -114,17 +114,23 @@ class Health:
         self._failed_steps += 1
         self.failed(status, exc, "step")
 
+    def mark_failed(self, status: HealthStatus, exc: Exception, during: str) -> None:
+        """Something failed ``during`` a transition: set the health and log it (once, then counted), but run no
+        fallback: for a failure the fallbacks are not about (a database down, while the model whose client they
+        switch works). The next success makes the component healthy again, as after :meth:`failed`."""
+        self._recovering = True
+        line = f"{during} failed ({status.name}): {type(exc).__name__}: {exc}"
+        if self._repeats.should_log((during, status.name, type(exc).__name__, str(exc)), line):  # once, then counted
+            self._logger.error("%s", line, exc_info=self._logger.isEnabledFor(logging.DEBUG))
+        self.set(status, f"{type(exc).__name__}: {exc}")
+
     def failed(self, status: HealthStatus, exc: Exception, during: str) -> bool:
         """Something failed ``during`` a step or a transition: set the health, run the matching fallback.
 
         Returns whether a fallback action ran (False: none matches, or they are used up and the
         ``on_giveup`` actions ran instead).
         """
-        self._recovering = True
-        line = f"{during} failed ({status.name}): {type(exc).__name__}: {exc}"
-        if self._repeats.should_log((during, status.name, type(exc).__name__, str(exc)), line):  # once, then counted
-            self._logger.error("%s", line, exc_info=self._logger.isEnabledFor(logging.DEBUG))
-        self.set(status, f"{type(exc).__name__}: {exc}")
+        self.mark_failed(status, exc, during)
         fallback = self._fallbacks.get(status.name) or self._fallbacks.get(ANY_FAILURE)
         if fallback is None:
             return False

@@ -14,6 +14,7 @@ from typing import Any
 import pytest
 
 from agents_core.errors import (
+    ComponentError,
     ServiceUnavailableError,
     TransportError,
     TypeValidationError,
@@ -28,6 +29,7 @@ __all__ = [
     "test_goal_a_raising_execute_aborts_with_its_message",
     "test_goal_bad_goal_fields_are_refused_before_sending",
     "test_goal_cancel_mid_goal_and_cancel_of_a_finished_goal",
+    "test_goal_inline_feedback_refuses_waiting_calls_and_cancels_without_waiting",
     "test_goal_rejected_by_accept_and_nobody_serving",
     "test_goal_round_trip_with_feedback",
     "test_goal_server_closed_mid_goal_aborts_the_client",
@@ -113,6 +115,57 @@ def test_goal_cancel_mid_goal_and_cancel_of_a_finished_goal(transport_pair: tupl
     assert status == GoalStatus.CANCELED
     assert result["message"] == "stopped" and result["steps"] >= 2
     assert goal.cancel(1.0) is False
+    server.close()
+
+
+def test_goal_inline_feedback_refuses_waiting_calls_and_cancels_without_waiting(
+        transport_pair: tuple[Transport, Transport]) -> None:
+    # A feedback_inline=True callback runs on the transport's own thread (Zenoh's: the one that would
+    # bring in the answer a blocking call waits for). Calls that wait say so at once; cancel_async()
+    # cancels the goal "stop when close enough"-style without waiting there.
+    a, b = transport_pair
+    _needs_actions(a)
+    name = _name("inline")
+
+    def execute(handle: GoalHandle) -> dict[str, Any]:
+        steps = 0
+        while not handle.wait_for_cancel(0.02) and steps < 1500:
+            steps += 1
+            handle.publish_feedback({"step": steps, "action": [], "status": "running"})
+        return {"success": False, "message": "stopped", "steps": steps}
+
+    server = a.create_action_server(name, VLA, execute)
+    box: dict[str, Any] = {}
+    seen: dict[str, Any] = {}
+
+    def on_feedback(_fb: dict[str, Any]) -> None:
+        goal = box.get("goal")
+        if goal is None or "outcomes" in seen:
+            return
+        began = time.monotonic()
+        outcomes: list[object] = []
+        for call in (lambda: goal.cancel(3.0), lambda: goal.result(3.0),
+                     lambda: b.send_goal(name, VLA, {"task": "again"}, timeout=3.0),
+                     lambda: b.request(f"{name}_service", {}, timeout=3.0)):
+            try:
+                outcomes.append(call())
+            except Exception as exc:
+                outcomes.append(exc)
+        seen["future"] = goal.cancel_async(5.0)
+        seen["took"] = time.monotonic() - began
+        seen["outcomes"] = outcomes
+
+    goal = _send(b, name, {"task": "wave"}, feedback=on_feedback, feedback_inline=True)
+    box["goal"] = goal
+    assert goal.accepted
+    assert wait_for(lambda: "outcomes" in seen, timeout=20.0)
+    outcomes = seen["outcomes"]
+    assert all(isinstance(o, ComponentError) and "feedback_inline" in str(o) for o in outcomes), outcomes
+    assert seen["took"] < 1.0, seen["took"]
+    assert seen["future"].result(10.0) is True
+    status, result = goal.result(10.0)
+    assert status == GoalStatus.CANCELED and result["message"] == "stopped"
+    assert goal.cancel_async(1.0).result(5.0) is False  # a finished goal
     server.close()
 
 

@@ -33,6 +33,7 @@ from .goals_suite import (  # noqa: F401 - collected as part of this suite
     test_goal_a_raising_execute_aborts_with_its_message,
     test_goal_bad_goal_fields_are_refused_before_sending,
     test_goal_cancel_mid_goal_and_cancel_of_a_finished_goal,
+    test_goal_inline_feedback_refuses_waiting_calls_and_cancels_without_waiting,
     test_goal_rejected_by_accept_and_nobody_serving,
     test_goal_round_trip_with_feedback,
     test_goal_server_closed_mid_goal_aborts_the_client,

@@ -54,7 +54,7 @@ from .driver import (
 )
 from .goal_serving import CoreActionServer, GoalAccept, GoalExecute, abort_locally
 from .goal_serving import send_goal as _send_goal
-from .goals import ActionType, GoalClient, action_type
+from .goals import ActionType, GoalClient, action_type, refuse_in_inline_feedback
 from .graph import Graph
 from .requests import RequestLanes, answer_here, check_timeout, on_lane, serve_with_caller_deadline, with_caller_timeout
 
@@ -257,8 +257,8 @@ class DriverTransport:
     party's transport may be just ``DriverTransport(MyDriver(...))``.
 
     :param driver: the middleware driver (see :class:`~agents_core.transport.driver.TransportDriver`).
-    :param request_workers: threads for requests to services that belong to no component (each
-        component's requests have a lane of their own).
+    :param request_workers: threads for requests to services that belong to no component (each component's
+        requests have a lane of their own).
     """
 
     def __init__(self, driver: TransportDriver, *, request_workers: int = 4) -> None:
@@ -317,9 +317,8 @@ class DriverTransport:
     def create_publisher(self, topic: Topic, *, owner: str | None = None) -> CorePublisher:
         """A publisher for ``topic`` (``owner``: a declared component it belongs to, if any).
 
-        ``publish(value)`` raises :class:`~agents_core.errors.TypeValidationError` for a value
-        that does not fit the topic's type, :class:`~agents_core.errors.TransportClosedError`
-        after close.
+        ``publish(value)`` raises :class:`~agents_core.errors.TypeValidationError` for a value that does
+        not fit the topic's type, :class:`~agents_core.errors.TransportClosedError` after close.
         """
         with self._lock:
             self._check_open(f"create a publisher on {topic.name!r}")
@@ -341,9 +340,9 @@ class DriverTransport:
                             inline: bool = False) -> CoreSubscription:
         """Call ``callback(value)`` for each value received on ``topic``.
 
-        By default on a delivery thread of the subscription's own, behind a queue of
-        ``topic.qos_profile.depth`` values (drop oldest, counted). With ``inline=True`` the
-        callback runs on the middleware's thread and must return at once (component inputs).
+        By default on a delivery thread of the subscription's own, behind a queue of ``topic.qos_profile.depth``
+        values (drop oldest, counted). With ``inline=True`` the callback runs on the middleware's thread and
+        must return at once (component inputs).
         """
         if not callable(callback):
             raise WiringError(f"subscription on {topic.name!r}: callback must be callable, got {callback!r}")
@@ -418,8 +417,9 @@ class DriverTransport:
 
         ``timeout`` must be a finite number of seconds > 0 (else ConfigError); a request still
         queued when it expires is never run. Errors: :meth:`TransportDriver.call
-        <agents_core.transport.driver.TransportDriver.call>`.
+        <agents_core.transport.driver.TransportDriver.call>`; ComponentError from an inline feedback callback.
         """
+        refuse_in_inline_feedback("transport.request()")
         timeout = check_timeout(timeout, f"request to {name!r}")
         self._check_open(f"request {name!r}")
         service = self._services.get(name)
@@ -537,12 +537,13 @@ class DriverTransport:
                   feedback_inline: bool = False) -> GoalClient:
         """Send ``goal`` to the action ``name`` and wait up to ``timeout`` for it to be accepted or rejected.
 
-        Returns a :class:`~agents_core.transport.goals.GoalClient` (a rejected goal comes back
-        with status REJECTED and the reason in its result). ``feedback`` is called with each feedback
-        dict on a thread of the goal's own (``feedback_inline=True``: on the driver's, no hand-off, for a
-        callback that returns at once; see :func:`.goal_serving.send_goal`). Raises TypeValidationError
-        (a goal that does not fit the type), ServiceUnavailableError (nobody serves ``name``),
-        RequestTimeoutError (the server does not answer in time), from :mod:`agents_core.errors`."""
+        Returns a :class:`~agents_core.transport.goals.GoalClient` (a rejected goal comes back with status
+        REJECTED and the reason in its result). ``feedback`` is called with each feedback dict on a thread of
+        the goal's own; ``feedback_inline=True``: on the driver's, no hand-off, for a callback that returns at
+        once and never waits (``goal.cancel()``, ``goal.result()``, ``send_goal`` and ``request`` raise
+        ComponentError there, ``goal.cancel_async()`` does not wait; see :func:`.goal_serving.send_goal`).
+        Raises TypeValidationError (a goal that does not fit the type), ServiceUnavailableError (nobody serves
+        ``name``), RequestTimeoutError (no answer in time), from :mod:`agents_core.errors`."""
         validate_topic_name(name, "action")
         timeout = check_timeout(timeout, f"goal to {name!r}")
         definition = action_type(action_type_name)

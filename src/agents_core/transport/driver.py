@@ -340,7 +340,9 @@ class GoalEvents(Protocol):
 
     def feedback(self, feedback: Any) -> None:
         """Feedback as decoded (the core validates it; a goal sent with ``feedback_inline=True`` runs
-        its callback within this call, on the driver's thread: it returns when the callback does)."""
+        its callback within this call, on the driver's thread: it returns when the callback does, and
+        a call that would wait for the driver's next answer raises ComponentError within it, see
+        :func:`~agents_core.transport.goals.refuse_in_inline_feedback`)."""
         ...
 
     def status(self, status: GoalStatus) -> None:

@@ -36,7 +36,7 @@ from ..errors import ComponentError, TypeValidationError
 from ..support.concurrency import CloseOnce
 from ..telemetry import switch as _telemetry
 from .goal_threads import ReusedThreads
-from .goals import ActionType, GoalClient, GoalHandle, GoalStatus
+from .goals import ActionType, GoalClient, GoalHandle, GoalStatus, inline_feedback, refuse_in_inline_feedback
 
 if TYPE_CHECKING:
     from .driver import DriverActionServer, DriverGoal, Lane, TransportDriver
@@ -416,7 +416,11 @@ class _FeedbackDelivery:
 
     def _call(self, item: dict[str, Any]) -> None:
         try:
-            self._callback(item)
+            if self._inline:
+                with inline_feedback():  # calls that wait refuse to run here (refuse_in_inline_feedback)
+                    self._callback(item)
+            else:
+                self._callback(item)
         except Exception as exc:
             logger.warning("feedback callback of goal %s raised %s: %s", self._client.goal_id,
                            type(exc).__name__, exc)
@@ -494,11 +498,16 @@ def send_goal(driver: TransportDriver, name: str, definition: ActionType, goal: 
     ``feedback`` runs on a thread of the goal's own, behind a bounded queue (a slow callback never
     holds up the result). With ``inline`` it runs on the thread that hands the driver's events in
     (Zenoh's, the ROS 2 executor's, the server's goal thread on memory) with no hand-off: for a
-    callback that returns at once, as the goal's later feedback and its result wait behind it.
+    callback that returns at once, as the goal's later feedback and its result wait behind it. That
+    thread is the one that brings answers in, so a call that waits for one (``goal.cancel()``,
+    ``goal.result()``, ``send_goal``, ``request``) raises ComponentError from such a callback
+    (:func:`~agents_core.transport.goals.refuse_in_inline_feedback`); ``goal.cancel_async()`` cancels
+    without waiting.
 
     A rejected goal comes back finished with :attr:`GoalStatus.REJECTED` and the reason in the
     result's ``message`` (when the type has one).
     """
+    refuse_in_inline_feedback("transport.send_goal()")
     checked = definition.validate("goal", goal)
     if feedback is not None and not callable(feedback):
         raise ComponentError(f"send_goal to {name!r}: feedback must be callable or None, got {feedback!r}")

@@ -21,16 +21,19 @@ The bookkeeping (goal ids, threads per goal, status changes, the closed state) i
 
 from __future__ import annotations
 
+import contextlib
 import enum
 import math
 import threading
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
+from concurrent.futures import Future
 from typing import Any
 
 from attrs import define, field
 
 from ..errors import ComponentError, ConfigError, RequestTimeoutError, TypeValidationError
 from ..support.registry import Registry
+from .goal_threads import ReusedThreads
 
 __all__ = [
     "ACTION_TYPES",
@@ -40,8 +43,43 @@ __all__ = [
     "GoalHandle",
     "GoalStatus",
     "action_type",
+    "in_inline_feedback",
+    "refuse_in_inline_feedback",
     "register_action_type",
 ]
+
+#: Set on a thread while it runs the feedback callback of a goal sent with ``feedback_inline=True``.
+_INLINE = threading.local()
+#: The threads that run :meth:`GoalClient.cancel_async`'s requests.
+_CANCEL_THREADS = ReusedThreads("goal-cancel-idle")
+
+
+@contextlib.contextmanager
+def inline_feedback() -> Iterator[None]:
+    """Mark this thread as running an inline feedback callback for the ``with`` block (nests)."""
+    _INLINE.depth = getattr(_INLINE, "depth", 0) + 1
+    try:
+        yield
+    finally:
+        _INLINE.depth -= 1
+
+
+def in_inline_feedback() -> bool:
+    """Whether this thread is running the feedback callback of a goal sent with ``feedback_inline=True``."""
+    return getattr(_INLINE, "depth", 0) > 0
+
+
+def refuse_in_inline_feedback(call: str) -> None:
+    """Raise :class:`~agents_core.errors.ComponentError` when ``call``, which waits for an answer, is made
+    from an inline feedback callback: the callback holds the transport's thread, the one that brings
+    the answer in (on Zenoh the call would wait its whole timeout, then fail)."""
+    if in_inline_feedback():
+        raise ComponentError(
+            f"{call} waits for an answer, so it cannot be called from a feedback callback of a goal sent with "
+            "feedback_inline=True: that callback runs on the transport's own thread, which has to bring the "
+            "answer in. Cancel from there with goal.cancel_async() (do not wait on its Future there), or send "
+            "the goal without feedback_inline (its callback then runs on a thread of the goal's own), or hand "
+            "the call to a thread of yours.")
 
 
 class GoalStatus(enum.IntEnum):
@@ -350,7 +388,8 @@ class GoalClient:
     """A goal sent with ``transport.send_goal``: its id, acceptance, status, result and cancel.
 
     Feedback reaches the ``feedback`` callback given to ``send_goal`` on a thread of this goal's
-    own, never on the middleware's.
+    own, never on the middleware's (unless it was sent with ``feedback_inline=True``: then
+    :meth:`result` and :meth:`cancel` refuse to wait from that callback, :meth:`cancel_async` does not wait).
     """
 
     def __init__(self, goal_id: str, action_name: str, definition: ActionType) -> None:
@@ -388,8 +427,12 @@ class GoalClient:
     def result(self, timeout: float) -> tuple[GoalStatus, dict[str, Any]]:
         """Wait for the terminal status and the result dict.
 
-        Raises :class:`~agents_core.errors.RequestTimeoutError` if it has not come within ``timeout``.
+        Raises :class:`~agents_core.errors.RequestTimeoutError` if it has not come within ``timeout``,
+        and ComponentError when it would wait (``timeout > 0``) from an inline feedback callback
+        (see :func:`refuse_in_inline_feedback`).
         """
+        if timeout > 0:
+            refuse_in_inline_feedback("goal.result()")
         if not self._done.wait(max(0.0, timeout)):
             raise RequestTimeoutError(f"goal {self.goal_id} on {self.action_name!r} has no result within "
                                       f"{timeout:g} s (status {self._status.name})")
@@ -397,10 +440,38 @@ class GoalClient:
         return self._status, dict(self._result)
 
     def cancel(self, timeout: float = 5.0) -> bool:
-        """Ask the server to cancel the goal; whether it agreed (False for a goal that has ended)."""
+        """Ask the server to cancel the goal; whether it agreed (False for a goal that has ended).
+
+        It waits for the server's answer: from a ``feedback_inline=True`` callback it raises
+        ComponentError, use :meth:`cancel_async` there.
+        """
+        refuse_in_inline_feedback("goal.cancel()")
         if self._done.is_set() or self._cancel is None:
             return False
         return self._cancel(timeout)
+
+    def cancel_async(self, timeout: float = 5.0) -> Future[bool]:
+        """Ask the server to cancel the goal without waiting: a Future of what :meth:`cancel` returns.
+
+        The request runs on a thread of its own, so this is how to cancel from a
+        ``feedback_inline=True`` callback (which must not wait on the Future: the answer comes in once
+        the callback has returned).
+        """
+        future: Future[bool] = Future()
+        if self._done.is_set() or self._cancel is None:
+            future.set_result(False)
+            return future
+
+        def ask() -> None:
+            if not future.set_running_or_notify_cancel():
+                return
+            try:
+                future.set_result(self.cancel(timeout))
+            except Exception as exc:
+                future.set_exception(exc)
+
+        _CANCEL_THREADS.run(ask, f"goal-cancel:{self.goal_id[:8]}")
+        return future
 
     # -- fed by the core ------------------------------------------------------------------------
 

@@ -104,7 +104,14 @@ def allowed(name: str, allow_list: Iterable[str] | None, recipe: Iterable[str] |
     return ANY_COMPONENT in names or name in names
 
 
+#: A closing ``data`` tag as a model may read one: any case, spaces anywhere (``</DATA>``, ``< / data>``).
+_CLOSING_DATA = re.compile(r"<\s*/\s*(data)", re.IGNORECASE)
+
+
 def as_data(source: str, text: str) -> str:
-    """``text`` as a block of data from ``source`` (the tool or topic it came from), never instructions."""
-    body = text.replace("</data", "<\\/data")
+    """``text`` as a block of data from ``source`` (the tool or topic it came from), never instructions.
+
+    A closing tag inside ``text``, written in any case or with spaces, is escaped (``<\\/data``): the block
+    ends only where this closes it."""
+    body = _CLOSING_DATA.sub(lambda m: f"<\\/{m.group(1)}", text)
     return f'<data source="{source.replace(chr(34), "")[:200]}">\n{body}\n</data>'
