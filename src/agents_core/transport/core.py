@@ -16,10 +16,8 @@ primitives :class:`~agents_core.transport.driver.TransportDriver` alone specifie
 - the request lanes (one per component) and the caller's deadline (:mod:`agents_core.transport.requests`),
   for services and for transitions asked from outside;
 - each component's status topic ``<name>/status``, which its state reaches only by :meth:`CorePresence.update`;
-- the capabilities, derived from the driver
-  (:func:`~agents_core.transport.driver.capabilities_of`): graph discovery and long-running goals
-  (bookkeeping in :mod:`agents_core.transport.goal_serving`) raise
-  :class:`~agents_core.errors.TransportError` where the driver lacks them.
+- the capabilities, derived from the driver (:func:`~agents_core.transport.driver.capabilities_of`): graph discovery
+  and goals (:mod:`agents_core.transport.goal_serving`) raise TransportError where the driver lacks them.
 """
 
 from __future__ import annotations
