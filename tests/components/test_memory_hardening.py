@@ -235,7 +235,7 @@ def test_notes_a_peer_committed_before_a_sigkill_are_found_by_meaning_after_the_
         recipe_transport: RecipeTransport, tmp_path: Path) -> None:
     """Attack 2 over the network: a Zenoh (or ROS 2) peer stores 20 notes, the Memory is SIGKILLed 0.5 s later."""
     db = tmp_path / "peer-crash.db"
-    with child(db, tmp_path, *recipe_transport.recipe_args) as process:
+    with child(db, tmp_path, *recipe_transport.recipe_args, environment=recipe_transport.environment) as process:
         call = _asker(recipe_transport, process)
         for i in range(20):
             assert call("store_specific_memory", content=note(i, "peer"), x=float(i), y=0.0) is True
@@ -256,7 +256,7 @@ def test_a_second_memory_process_a_peer_writes_to_is_refused_with_the_holder_s_p
     db = tmp_path / "shared.db"
     with child(db, tmp_path, "--transport", "memory", "--notes", "20", "--writer", "first", name="first") as first, \
             child(db, tmp_path, *recipe_transport.recipe_args, "--notes", "20", "--writer", "second",
-                  name="second") as second:
+                  name="second", environment=recipe_transport.environment) as second:
         assert "COMMITTED 20" in first.lines
         assert any(line.startswith("REFUSED") and f"in use by process {first.pid}" in line for line in second.lines), \
             second.lines
