@@ -291,7 +291,10 @@ def test_tool_results_reach_the_planner_as_data_from_a_named_source(recipe: Any)
 def test_a_goal_result_reaches_the_confirmation_model_as_data(recipe: Any) -> None:
     plan = [calls(("rover.send_goal", {"x": 1.0, "y": 1.0}), ("toggle_led", {}))]
     with ScriptedChatServer(plan=plan, confirm=[text("EXECUTE"), text("CONTINUE")]) as srv:
-        cortex = _cortex(srv, action_servers={"nav": "NavigateToPose", "rover": "NavigateToPose"})
+        # The CONTINUE waits until the rover's goal ends (a long interval: woken by the goal's end, never by
+        # the clock), so the next confirmation always sees its result, however slow the machine.
+        cortex = _cortex(srv, action_servers={"nav": "NavigateToPose", "rover": "NavigateToPose"},
+                         monitoring_interval=20.0)
         launcher = recipe(cortex, [LyingRover()])
         _send(launcher, "drive and blink")
         seen = [m["content"] for r in srv.confirmation_requests for m in r["messages"] if m.get("role") == "user"]
