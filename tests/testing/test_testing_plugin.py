@@ -22,8 +22,8 @@ from pathlib import Path
 import pytest
 
 #: Tests per transport in the shipped suite: every registered type round-trips, then 13 more on topics,
-#: requests and presence, and 7 on long-running goals (agents_core.testing.goals_suite).
-SUITE_TESTS = len(__import__("agents_core.supported_types", fromlist=["x"]).registered_types()) + 13 + 7
+#: requests and presence, and 8 on long-running goals (agents_core.testing.goals_suite).
+SUITE_TESTS = len(__import__("agents_core.supported_types", fromlist=["x"]).registered_types()) + 13 + 8
 #: Tests of the suite that take no transport pair, collected once (a driver without goals says so).
 PAIRLESS_TESTS = 1
 
