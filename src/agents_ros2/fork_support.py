@@ -28,12 +28,17 @@ import os
 import sys
 from collections.abc import Callable
 
-__all__ = ["PRELOAD", "after_fork_child", "after_fork_parent", "before_fork", "preload"]
+__all__ = ["FIXED_ENVIRONMENT", "PRELOAD", "after_fork_child", "after_fork_parent", "before_fork", "preload"]
 
 #: Imported by the fork server: the transport (rclpy, rclpy.node, the executors, the conversions
 #: and the message packages they register) and the lifecycle and goal machinery it loads lazily.
 PRELOAD = ("agents_ros2.transport", "agents_ros2.lifecycle", "agents_ros2.goals", "agents_ros2.executor",
            "rclpy.action", "rclpy.experimental")
+#: Read when :func:`preload` loads rclpy's library (rcl checks the RMW it loaded against them), so a change after
+#: the fork server started cannot reach a forked process: the launcher spawns the component instead. What rcl
+#: and the RMW read at ``rclpy.init`` and at node creation (``ROS_DOMAIN_ID``, ``ROS_AUTOMATIC_DISCOVERY_RANGE``,
+#: ``ROS_STATIC_PEERS``, the Fast DDS profile) is set in the component process before that, and takes effect.
+FIXED_ENVIRONMENT = ("RMW_IMPLEMENTATION", "RCL_ASSERT_RMW_ID_MATCHES")
 #: sigset_t of glibc on Linux: 1024 bits.
 _SIGSET_BYTES = 128
 

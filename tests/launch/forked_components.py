@@ -29,3 +29,18 @@ class WhereAmI(Component):
     def _execution_step(self, **kwargs: Any) -> None:
         text = self.trig_callbacks[self.inputs[0].name].get_output()
         self.publishers_dict[self.outputs[0].name].publish(f"{text}:{IMPORTED_IN}:{os.getpid()}")
+
+
+class ReadsEnvironment(Component):
+    """Answers each text, a variable's name, with ``<its value in this process's environment>:<own pid>``."""
+
+    def __init__(self, source: str, target: str, component_name: str, **kwargs: Any) -> None:
+        self.allowed_inputs = {"Required": [String]}
+        self.allowed_outputs = {"Required": [String]}
+        inp = Topic(source, "String")
+        super().__init__(inputs=[inp], outputs=[Topic(target, "String")], trigger=inp,
+                         component_name=component_name, **kwargs)
+
+    def _execution_step(self, **kwargs: Any) -> None:
+        name = self.trig_callbacks[self.inputs[0].name].get_output()
+        self.publishers_dict[self.outputs[0].name].publish(f"{os.environ.get(name, '<unset>')}:{os.getpid()}")

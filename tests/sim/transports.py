@@ -16,10 +16,6 @@ from agents_core.testing.pairs import private_ros_environment
 
 __all__ = ["TRANSPORTS", "transport_options"]
 
-# Before any launcher starts the fork server (a Zenoh evaluation with world_process=True does): the component
-# processes it forks keep the environment it started with, so a ROS 2 domain set later would not reach them.
-private_ros_environment()
-
 TRANSPORTS = [
     pytest.param("memory", marks=pytest.mark.memory),
     pytest.param("zenoh", marks=[pytest.mark.zenoh, pytest.mark.skipif(

@@ -299,6 +299,7 @@ def run(spec_line: bytes, reporter: _Reporter, stdin: _PipeLines, parent_pid: in
     from .spec import ComponentSpec  # noqa: PLC0415
 
     spec = ComponentSpec.from_dict(json.loads(spec_line))
+    spec.apply_environment()  # a forked process: the launcher's environment as it is now, before anything reads it
     parent_pid = parent_pid or spec.parent_pid or os.getppid()
     if os.getppid() != parent_pid:
         return 1  # the launcher died before PR_SET_PDEATHSIG was set

@@ -42,12 +42,13 @@ The protocol, on a ``SOCK_SEQPACKET`` Unix socket pair (one JSON object per pack
   ``Popen.returncode``: negative for a signal).
 
 The spec (which may hold secrets) is never seen by the server: the launcher writes it on the
-component's command pipe, as for a spawned process. A forked component process's argv and
-environment are the server's (no secret in either). It dies with the launcher: its command pipe
-ends (only the launcher holds the write end), the server exits when its socket ends and each
-forked process has ``PR_SET_PDEATHSIG`` set towards the server. The server is the subreaper of
-its component processes: what one started is re-parented to the server if it dies without ending
-it (SIGKILL, a crash), and the server ends it (:class:`~.descendants.Orphans`; a process its own imports
+component's command pipe, as for a spawned process. A forked component process's argv is the
+server's (no secret in it); its environment, the server's, gets the launcher's changes since from
+the spec (:mod:`.fork_environment`). It dies with the launcher: its command pipe ends (only the
+launcher holds the write end), the server exits when its socket ends and each forked process has
+``PR_SET_PDEATHSIG`` set towards the server. The server is the subreaper of its component
+processes: what one started is re-parented to the server if it dies without ending it (SIGKILL,
+a crash), and the server ends it (:class:`~.descendants.Orphans`; a process its own imports
 started is left alone). A pass of its loop that fails is logged and the server goes on.
 
 Opt out with ``AGENTS_PROCESS_START=spawn`` (or ``Launcher(process_start="spawn")``); where
@@ -76,6 +77,7 @@ from collections.abc import Callable, Iterable
 from typing import IO, Any
 
 from .descendants import Orphans, become_subreaper, children
+from .fork_environment import FIXED_AT_PRELOAD, CannotCarry, environment_changes, fixed_environment
 from .process_start import PROCESS_START_ENV, fork_available, process_start
 
 __all__ = [
@@ -122,6 +124,7 @@ class ForkedProcess:
         self.returncode: int | None = None
         #: Called (on the server's reader thread) once the process has ended.
         self.on_exit: Callable[[], None] | None = None
+        self.environment: dict[str, str | None] = {}  # the changes it applies (sent with its spec)
         self._server = server
         self._exited = threading.Event()
 
@@ -172,10 +175,12 @@ class ForkServer:
 
     def __init__(self) -> None:
         self._sock, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
+        self.environment = dict(os.environ)  # the server's, which its forked processes start with
+        self._fixed = set(FIXED_AT_PRELOAD)  # what its preloaded modules read when imported
         try:
             self.proc = subprocess.Popen(
                 [sys.executable, "-m", "agents_core.launch.fork_server", "--socket-fd", str(theirs.fileno())],
-                stdin=subprocess.DEVNULL, pass_fds=(theirs.fileno(),), close_fds=True)
+                stdin=subprocess.DEVNULL, pass_fds=(theirs.fileno(),), close_fds=True, env=self.environment)
         finally:
             theirs.close()
         self.gone = False
@@ -206,6 +211,15 @@ class ForkServer:
         ``adapter``: the transport adapter's module, whose package's ``fork_support`` is loaded first.
         """
         self._send({"op": "preload", "modules": sorted(set(modules)), "path": list(path), "adapter": adapter})
+        if adapter:
+            self._fixed.update(fixed_environment(f"{adapter.partition('.')[0]}.{FORK_SUPPORT_MODULE}"))
+
+    def environment_changes(self) -> dict[str, str | None]:
+        """The changes since the server started (:mod:`.fork_environment`); ForkServerError: spawn instead."""
+        try:
+            return environment_changes(self.environment, self._fixed)
+        except CannotCarry as exc:
+            raise ForkServerError(str(exc)) from exc
 
     def fork(self, name: str, stdin_read: int, report_write: int, stdin_write: int) -> ForkedProcess:
         """A new component process reading commands from ``stdin_read`` and reporting on ``report_write``.

@@ -77,7 +77,7 @@ __all__ = [
     "register_value_codec",
 ]
 
-SPEC_VERSION = 2
+SPEC_VERSION = 3
 
 
 # -- the spec ---------------------------------------------------------------------------------
@@ -109,6 +109,9 @@ class ComponentSpec:
     telemetry: dict[str, Any] | None = None
     #: The recipe's namespace: the child sees its transport through it (:mod:`agents_core.transport.namespace`).
     namespace: str = ""
+    #: A forked process's: the launcher's environment changes since its fork server started (None: removed);
+    #: None for a spawned one, which inherits the launcher's (:mod:`agents_core.launch.fork_server`).
+    environment: dict[str, str | None] | None = None
     version: int = SPEC_VERSION
 
     @classmethod
@@ -164,6 +167,23 @@ class ComponentSpec:
         for entry in reversed(self.sys_path):
             if entry not in sys.path:
                 sys.path.insert(0, entry)
+
+    def apply_environment(self) -> None:
+        """Set and unset in this process what :attr:`environment` says (first thing, before anything reads it)."""
+        if self.environment is None:
+            return
+        if not isinstance(self.environment, Mapping):
+            raise ConfigError("component spec: environment must be a mapping")
+        for name, value in self.environment.items():
+            if not isinstance(name, str) or not (value is None or isinstance(value, str)):
+                raise ConfigError(f"component spec: environment variable {name!r} must be a string (or None)")
+            try:
+                if value is None:
+                    os.environ.pop(name, None)
+                else:
+                    os.environ[name] = value
+            except ValueError as exc:  # a name with "=" or a NUL: not the launcher's
+                raise ConfigError(f"component spec: environment variable {name!r}: {exc}") from exc
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-like form (what goes down the pipe)."""

@@ -173,14 +173,19 @@ class ChildProcess:
         self._reader = threading.Thread(target=self._read_reports, args=(os.fdopen(read_fd, "r"),),
                                         name=f"reports:{self.name}", daemon=True)
         self._reader.start()
-        self.send(json.dumps(self.spec.to_dict()))
+        spec = self.spec.to_dict()
+        if isinstance(self.proc, ForkedProcess):  # it has the fork server's environment: the changes since
+            spec["environment"] = self.proc.environment
+        self.send(json.dumps(spec))
 
     def _fork(self, server: ForkServer, report_fd: int) -> ForkedProcess | None:
         """The process forked by ``server``; None (after a warning) when it cannot fork one."""
         stdin_read, stdin_write = os.pipe()
         try:
+            environment = server.environment_changes()  # now, at each start: respawns see the launcher's of then
             proc = server.fork(self.name, stdin_read, report_fd, stdin_write)
             proc.on_exit = self.on_exit
+            proc.environment = environment
             return proc
         except ForkServerError as exc:
             os.close(stdin_write)
